@@ -1,0 +1,28 @@
+# Two commands set up a fresh machine: `make demo` and `make test`.
+PYTHON ?= python3
+VENV   := .venv
+PY     := $(VENV)/bin/python
+STAMP  := $(VENV)/.installed
+
+.PHONY: venv demo test bench clean
+
+# Reinstall only when the package metadata changes (the install is editable).
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -e '.[test]'
+	touch $(STAMP)
+
+venv: $(STAMP)
+
+demo: venv
+	$(VENV)/bin/pvvjax run experiments/paper.toml
+
+test: venv
+	$(PY) -m pytest -q -n 2 -m "not slow"
+
+bench: venv
+	$(PY) benchmarks/bench_harmonics.py
+
+clean:
+	rm -rf $(VENV) runs .pytest_cache

@@ -1,0 +1,108 @@
+"""Campaign records as one padded batch of arrays (the boundary into the jitted core).
+
+Records of different lengths are padded to a common length with a mask, so that one
+compiled function serves the whole campaign and vmaps over counters. Padding continues
+time and rotor azimuth linearly (so searches stay monotonic) and holds channel values
+(so interpolation near the end never sees a jump); padded samples carry zero weight.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Sequence
+
+import jax
+import numpy as np
+
+from .campaign import Campaign
+
+__all__ = ["RecordBatch", "to_batch"]
+
+
+@dataclasses.dataclass(frozen=True)
+class RecordBatch:
+    """A padded batch of counters; a PyTree whose leaves are the arrays.
+
+    Attributes:
+        time: (B, T) time from record start, s.
+        rev: (B, T) unwrapped rotor azimuth in revolutions.
+        psi: (B, T) reference-blade azimuth, rad, wrapped to [0, 2π).
+        az: (B, T) pilot-floor vertical acceleration, g (0 in padding).
+        x: (B, T, C) flight-state channels named by `channels`, canonical units.
+        mask: (B, T) True on real samples.
+        counters: (static) the counter of each batch row.
+        channels: (static) the channel of each slice of `x`.
+    """
+
+    time: jax.Array
+    rev: jax.Array
+    psi: jax.Array
+    az: jax.Array
+    x: jax.Array
+    mask: jax.Array
+    counters: tuple[str, ...] = ()
+    channels: tuple[str, ...] = ()
+
+    def channel(self, name: str):
+        """The (B, T) array of one channel."""
+        return self.x[..., self.channels.index(name)]
+
+    @property
+    def lengths(self) -> np.ndarray:
+        return np.asarray(self.mask).sum(axis=-1)
+
+
+jax.tree_util.register_dataclass(
+    RecordBatch,
+    data_fields=["time", "rev", "psi", "az", "x", "mask"],
+    meta_fields=["counters", "channels"],
+)
+
+
+def _pad_linear(v: np.ndarray, n: int) -> np.ndarray:
+    step = v[-1] - v[-2]
+    return np.concatenate([v, v[-1] + step * np.arange(1, n + 1)])
+
+
+def to_batch(campaign: Campaign, channels: Sequence[str], counters: Sequence[str] | None = None,
+             min_length: int = 0, dtype=np.float32) -> RecordBatch:
+    """Stack a campaign's records into a padded `RecordBatch`.
+
+    Args:
+        campaign: a loaded campaign.
+        channels: channel names for `x`, in order (must exist in every record).
+        counters: which counters, in which order (default: condition then segment order).
+        min_length: pad to at least this many samples.
+        dtype: floating dtype of the arrays.
+
+    Returns:
+        The batch (NumPy arrays; JAX converts them on first use).
+    """
+    if counters is None:
+        counters = [c for cs in campaign.conditions().values() for c in cs]
+    counters = list(counters)
+    recs = [campaign.records[c] for c in counters]
+    for c, r in zip(counters, recs):
+        missing = [ch for ch in channels if ch not in r.columns]
+        if missing:
+            raise KeyError(f"counter {c!r} has no channel(s) {missing}")
+    T = max(max(len(r) for r in recs), min_length)
+    B, C = len(recs), len(channels)
+    out = {k: np.zeros((B, T), dtype) for k in ("time", "rev", "psi", "az")}
+    x = np.zeros((B, T, C), dtype)
+    mask = np.zeros((B, T), bool)
+    for i, r in enumerate(recs):
+        n, pad = len(r), T - len(r)
+        t = r["time_s"].to_numpy(np.float64)
+        az_deg = r["azimuth_deg"].to_numpy(np.float64)
+        rev = np.unwrap(az_deg, period=360.0) / 360.0
+        out["time"][i] = _pad_linear(t, pad)
+        rev = _pad_linear(rev, pad)  # float64 until stored: psi keeps full precision
+        out["rev"][i] = rev
+        out["psi"][i] = np.deg2rad(np.mod(rev * 360.0, 360.0))
+        out["az"][i, :n] = r["az_g"].to_numpy(np.float64)
+        vals = r[list(channels)].to_numpy(np.float64)
+        x[i, :n] = vals
+        x[i, n:] = vals[-1]
+        mask[i, :n] = True
+    return RecordBatch(out["time"], out["rev"], out["psi"], out["az"], x, mask, tuple(counters), tuple(channels))

@@ -1,0 +1,510 @@
+"""Flight-test campaigns (data-contract §1): validation, loading, writing.
+
+`validate_campaign` reads a campaign folder and reports every problem at once, each naming
+the file, the column and the first bad row. `load_campaign` returns a `Campaign` only for
+a campaign with no problems, with channels in canonical units, per-counter constants
+broadcast into the time series, and rotor azimuth integrated from rotor speed where the
+record lacks it. Rows are numbered from 1 (the first data row under the CSV header).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Mapping
+
+import numpy as np
+import pandas as pd
+
+from ._strict import ConfigError, from_dict
+from .config import ColumnMap
+from .constants import Aircraft
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+__all__ = [
+    "Campaign",
+    "CampaignError",
+    "MANEUVERS",
+    "Problem",
+    "REQUIRED_CHANNELS",
+    "campaign_from_frames",
+    "load_campaign",
+    "validate_campaign",
+    "write_campaign",
+]
+
+MANEUVERS = ("level", "climb", "descent", "turn", "roll", "pushover", "pullup", "autorotation", "flare")
+
+# Channels every record needs (gross weight and density ratio may come from counters.csv).
+REQUIRED_CHANNELS = (
+    "time_s", "az_g", "rotor_rpm", "airspeed_kt", "pitch_rate_dps", "roll_angle_deg",
+    "climb_rate_fpm", "collective_pct", "lateral_pct", "longitudinal_pct",
+    "gross_weight_lb", "density_ratio",
+)
+# (lower, upper, inclusive) physical ranges; None = unbounded.
+RANGES: dict[str, tuple[float | None, float | None, bool]] = {
+    "collective_pct": (0.0, 100.0, True),
+    "lateral_pct": (0.0, 100.0, True),
+    "longitudinal_pct": (0.0, 100.0, True),
+    "pedal_pct": (0.0, 100.0, True),
+    "rotor_rpm": (0.0, None, False),
+    "density_ratio": (0.3, 1.3, True),
+    "roll_angle_deg": (-90.0, 90.0, True),
+    "gross_weight_lb": (0.0, None, False),
+}
+COUNTER_COLUMNS = ("counter", "maneuver", "condition", "segment", "description")
+UNIFORM_TOLERANCE = 0.01  # sample spacing may vary by less than 1 %
+
+
+@dataclass(frozen=True)
+class Problem:
+    """One thing wrong with a campaign: where it is and what it is."""
+
+    file: str
+    column: str | None
+    row: int | None
+    message: str
+
+    def __str__(self) -> str:
+        where = self.file
+        if self.column:
+            where += f", column {self.column!r}"
+        if self.row is not None:
+            where += f", row {self.row}"
+        return f"{where}: {self.message}"
+
+
+class CampaignError(ValueError):
+    """A campaign folder with problems; `.problems` lists them all."""
+
+    def __init__(self, problems: list[Problem]):
+        self.problems = list(problems)
+        lines = "\n".join(f"  - {p}" for p in self.problems)
+        super().__init__(f"{len(self.problems)} problem(s) in campaign:\n{lines}")
+
+
+@dataclass(frozen=True)
+class Campaign:
+    """A validated flight-test campaign in canonical units.
+
+    Attributes:
+        counters: one row per counter, indexed by `counter` (str), with `maneuver`,
+            `condition`, `segment`, `description` and any per-counter constants.
+        records: counter -> time series (`time_s`, `az_g`, `azimuth_deg`, every required
+            channel with constants broadcast, and any extra columns passed through).
+        aircraft: rotor constants (UH-60A unless `campaign.toml` overrides them).
+        source: where the campaign was read from.
+        provenance: the `[provenance]` table of `campaign.toml`, if any.
+    """
+
+    counters: pd.DataFrame
+    records: Mapping[str, pd.DataFrame]
+    aircraft: Aircraft = Aircraft()
+    source: str = ""
+    provenance: dict = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(self.counters)
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(self.counters.index)
+
+    def conditions(self) -> dict[str, list[str]]:
+        """Condition -> its counters in segment order."""
+        c = self.counters.sort_values(["condition", "segment"], kind="stable")
+        return {k: list(g.index) for k, g in c.groupby("condition", sort=False)}
+
+    def numeric_channels(self) -> tuple[str, ...]:
+        """Numeric channels present in every record (candidates for discovery)."""
+        sets = [
+            {c for c in r.columns if pd.api.types.is_numeric_dtype(r[c])} for r in self.records.values()
+        ]
+        common = set.intersection(*sets) if sets else set()
+        first = next(iter(self.records.values())).columns if self.records else []
+        return tuple(c for c in first if c in common)
+
+    def subset(self, counters) -> "Campaign":
+        counters = list(counters)
+        return dataclasses.replace(
+            self, counters=self.counters.loc[counters], records={c: self.records[c] for c in counters}
+        )
+
+
+# --------------------------------------------------------------------------- reading
+
+
+def _read_table(path: Path) -> pd.DataFrame:
+    if path.suffix == ".parquet":
+        return pd.read_parquet(path)
+    return pd.read_csv(path)
+
+
+def _apply_mapping(df: pd.DataFrame, mapping: Mapping[str, ColumnMap], file: str, problems: list) -> pd.DataFrame:
+    """Rename foreign columns to canonical names and convert their units."""
+    present = [src for src in mapping if src in df.columns]
+    if not present:
+        return df
+    df = df.copy()
+    for src in present:
+        m = mapping[src]
+        if m.to in df.columns and m.to != src:
+            problems.append(Problem(file, src, None, f"maps to {m.to!r}, which the file also has"))
+            continue
+        values = pd.to_numeric(df[src], errors="coerce") if m.factor() != 1.0 or m.offset else df[src]
+        if m.factor() != 1.0 or m.offset:
+            values = values * m.factor() + m.offset
+        df = df.drop(columns=src)
+        df[m.to] = values
+    return df
+
+
+def _first_bad(mask: np.ndarray) -> int | None:
+    idx = np.flatnonzero(mask)
+    return int(idx[0]) + 1 if idx.size else None
+
+
+def _numeric(series: pd.Series) -> np.ndarray:
+    return pd.to_numeric(series, errors="coerce").to_numpy(dtype=float)
+
+
+def _check_values(df: pd.DataFrame, columns, file: str, problems: list) -> None:
+    """Non-numeric / NaN / infinite values and physical ranges, first bad row each."""
+    for col in columns:
+        if col not in df.columns:
+            continue
+        raw = df[col]
+        vals = _numeric(raw)
+        nonnum = np.isnan(vals) & raw.notna().to_numpy()
+        row = _first_bad(nonnum)
+        if row is not None:
+            problems.append(Problem(file, col, row, f"non-numeric value {raw.iloc[row - 1]!r}"))
+            continue
+        row = _first_bad(~np.isfinite(vals))
+        if row is not None:
+            problems.append(Problem(file, col, row, f"missing, NaN or infinite value ({raw.iloc[row - 1]!r})"))
+            continue
+        lo, hi, inclusive = RANGES.get(col, (None, None, True))
+        bad = np.zeros(vals.shape, bool)
+        if lo is not None:
+            bad |= vals < lo if inclusive else vals <= lo
+        if hi is not None:
+            bad |= vals > hi if inclusive else vals >= hi
+        row = _first_bad(bad)
+        if row is not None:
+            span = f"{'[' if inclusive else '('}{'' if lo is None else lo}, {'' if hi is None else hi}{']' if inclusive else ')'}"
+            problems.append(Problem(file, col, row, f"value {vals[row - 1]:g} outside the physical range {span}"))
+
+
+def _read_campaign_toml(folder: Path, problems: list) -> tuple[Aircraft, dict]:
+    path = folder / "campaign.toml"
+    if not path.exists():
+        return Aircraft(), {}
+    try:
+        with open(path, "rb") as f:
+            data = tomllib.load(f)
+    except tomllib.TOMLDecodeError as e:
+        problems.append(Problem("campaign.toml", None, None, f"not valid TOML: {e}"))
+        return Aircraft(), {}
+    unknown = set(data) - {"aircraft", "provenance"}
+    for key in sorted(unknown):
+        problems.append(Problem("campaign.toml", key, None, "unknown key; allowed: aircraft, provenance"))
+    aircraft = Aircraft()
+    if "aircraft" in data:
+        try:
+            aircraft = from_dict(_AircraftTable, data["aircraft"], where="aircraft").to_aircraft()
+        except ConfigError as e:
+            problems.append(Problem("campaign.toml", None, None, str(e)))
+    return aircraft, dict(data.get("provenance", {}))
+
+
+@dataclass(frozen=True)
+class _AircraftTable:
+    rotor_radius_ft: float = Aircraft.rotor_radius_ft
+    blades: int = Aircraft.blades
+    nominal_rpm: float = Aircraft.nominal_rpm
+    chord_ft: float = Aircraft.chord_ft
+    solidity: float = Aircraft.solidity
+    rho0_slug_ft3: float = Aircraft.rho0_slug_ft3
+    g_ft_s2: float = Aircraft.g_ft_s2
+
+    def __post_init__(self):
+        for f in dataclasses.fields(self):
+            if not getattr(self, f.name) > 0:
+                raise ValueError(f"aircraft.{f.name} must be > 0, got {getattr(self, f.name)}")
+
+    def to_aircraft(self) -> Aircraft:
+        return Aircraft(**dataclasses.asdict(self))
+
+
+def _read_counters(folder: Path, mapping, problems: list) -> pd.DataFrame | None:
+    path = folder / "counters.csv"
+    if not path.exists():
+        problems.append(Problem("counters.csv", None, None, "file missing"))
+        return None
+    df = pd.read_csv(path, dtype={"counter": str, "condition": str})
+    return _check_counters(df, mapping, problems)
+
+
+def _check_counters(df: pd.DataFrame, mapping, problems: list) -> pd.DataFrame | None:
+    df = _apply_mapping(df, mapping, "counters.csv", problems)
+    for col in ("counter", "maneuver"):
+        if col not in df.columns:
+            problems.append(Problem("counters.csv", col, None, "required column missing"))
+    if "counter" not in df.columns:
+        return None
+    df["counter"] = df["counter"].astype(str).str.strip()
+    dup = df["counter"].duplicated()
+    if dup.any():
+        row = _first_bad(dup.to_numpy())
+        problems.append(Problem("counters.csv", "counter", row, f"duplicate counter {df['counter'].iloc[row - 1]!r}"))
+    if "maneuver" in df.columns:
+        m = df["maneuver"].astype(str).str.strip().str.lower()
+        bad = ~m.isin(MANEUVERS).to_numpy()
+        row = _first_bad(bad)
+        if row is not None:
+            problems.append(Problem(
+                "counters.csv", "maneuver", row,
+                f"unknown maneuver {df['maneuver'].iloc[row - 1]!r}; allowed: {', '.join(MANEUVERS)}",
+            ))
+        df["maneuver"] = m
+    if "condition" not in df.columns:
+        df["condition"] = df["counter"]
+    df["condition"] = df["condition"].fillna(df["counter"]).astype(str)
+    if "segment" in df.columns:
+        seg = _numeric(df["segment"])
+        bad = ~np.isfinite(seg) | (seg < 1) | (seg != np.round(seg))
+        row = _first_bad(bad)
+        if row is not None:
+            problems.append(Problem("counters.csv", "segment", row, f"segment must be an integer >= 1, got {df['segment'].iloc[row - 1]!r}"))
+            seg = np.where(bad, 1, seg)
+        df["segment"] = seg.astype(int)
+    else:
+        df["segment"] = 1
+    if "description" not in df.columns:
+        df["description"] = ""
+    constants = [c for c in df.columns if c not in COUNTER_COLUMNS]
+    _check_values(df, [c for c in constants if c in RANGES or c in REQUIRED_CHANNELS], "counters.csv", problems)
+    return df
+
+
+def _unwrap_azimuth(az_deg: np.ndarray) -> np.ndarray:
+    return np.unwrap(az_deg, period=360.0)
+
+
+def _integrate_azimuth(time_s: np.ndarray, rpm: np.ndarray) -> np.ndarray:
+    """Rotor azimuth (deg, wrapped 0-360) by trapezoidal integration of rotor speed."""
+    deg_per_s = rpm * 6.0
+    inc = 0.5 * (deg_per_s[1:] + deg_per_s[:-1]) * np.diff(time_s)
+    return np.mod(np.concatenate([[0.0], np.cumsum(inc)]), 360.0)
+
+
+def _check_record(df: pd.DataFrame, file: str, constants: dict, window_revs: float, problems: list) -> bool:
+    """Check one time series; returns True when it is usable."""
+    n_before = len(problems)
+    for col in REQUIRED_CHANNELS:
+        if col in df.columns and col in constants:
+            problems.append(Problem(file, col, None, "channel given both here and in counters.csv; give it in one place"))
+        elif col not in df.columns and col not in constants:
+            where = " (or as a constant in counters.csv)" if col in ("gross_weight_lb", "density_ratio") else ""
+            problems.append(Problem(file, col, None, f"required column missing{where}"))
+    extra = [c for c in ("azimuth_deg", "shaft_power_hp", "pedal_pct") if c in df.columns]
+    _check_values(df, [c for c in REQUIRED_CHANNELS if c in df.columns] + extra, file, problems)
+    if len(problems) > n_before:
+        return False
+    t = _numeric(df["time_s"])
+    if len(t) < 3:
+        problems.append(Problem(file, "time_s", None, f"only {len(t)} samples"))
+        return False
+    dt = np.diff(t)
+    row = _first_bad(dt <= 0)
+    if row is not None:
+        problems.append(Problem(file, "time_s", row + 1, f"time not strictly increasing ({t[row - 1]:g} then {t[row]:g})"))
+        return False
+    med = np.median(dt)
+    row = _first_bad(np.abs(dt - med) > UNIFORM_TOLERANCE * med)
+    if row is not None:
+        problems.append(Problem(
+            file, "time_s", row + 1,
+            f"sampling not uniform: step {dt[row - 1]:g} s vs median {med:g} s (tolerance 1 %)",
+        ))
+        return False
+    rpm = _numeric(df["rotor_rpm"]) if "rotor_rpm" in df.columns else np.full(len(t), constants["rotor_rpm"])
+    revs = float(np.sum(0.5 * (rpm[1:] + rpm[:-1]) * dt) / 60.0 + rpm[-1] / 60.0 * med)
+    if revs < window_revs:
+        problems.append(Problem(
+            file, "time_s", None,
+            f"record covers {revs:.2f} rotor revolutions, shorter than one analysis window ({window_revs:g} revs)",
+        ))
+        return False
+    return True
+
+
+def _timeseries_files(folder: Path, problems: list) -> dict[str, Path]:
+    ts = folder / "timeseries"
+    if not ts.is_dir():
+        problems.append(Problem("timeseries/", None, None, "folder missing"))
+        return {}
+    files: dict[str, Path] = {}
+    for p in sorted(ts.iterdir()):
+        if p.suffix not in (".csv", ".parquet"):
+            continue
+        if p.stem in files:
+            problems.append(Problem(f"timeseries/{p.name}", None, None, f"counter {p.stem!r} has both a CSV and a Parquet file"))
+            continue
+        files[p.stem] = p
+    return files
+
+
+def _read(folder, mapping, window_revs) -> tuple[Campaign | None, list[Problem]]:
+    folder = Path(folder)
+    problems: list[Problem] = []
+    if not folder.is_dir():
+        return None, [Problem(str(folder), None, None, "campaign folder not found")]
+    aircraft, provenance = _read_campaign_toml(folder, problems)
+    counters = _read_counters(folder, mapping or {}, problems)
+    files = _timeseries_files(folder, problems)
+    if counters is None:
+        return None, problems
+    raw: dict[str, pd.DataFrame] = {}
+    for name, p in files.items():
+        try:
+            raw[name] = _read_table(p)
+        except Exception as e:  # unreadable file: report, keep validating the rest
+            problems.append(Problem(f"timeseries/{p.name}", None, None, f"cannot read: {e}"))
+    fnames = {name: f"timeseries/{p.name}" for name, p in files.items()}
+    campaign = _assemble(counters, raw, fnames, mapping, window_revs, problems, aircraft, provenance, str(folder))
+    return campaign, problems
+
+
+def _assemble(counters: pd.DataFrame, raw: Mapping[str, pd.DataFrame], fnames: Mapping[str, str], mapping,
+              window_revs: float, problems: list, aircraft: Aircraft, provenance: dict, source: str) -> Campaign | None:
+    """Check every record against its counter row and build the campaign (None on problems)."""
+    names = list(dict.fromkeys(counters["counter"]))
+    for i, name in enumerate(counters["counter"]):
+        if name not in fnames:
+            problems.append(Problem("counters.csv", "counter", i + 1, f"counter {name!r} has no file timeseries/{name}.csv or .parquet"))
+    for name, f in fnames.items():
+        if name not in names:
+            problems.append(Problem(f, None, None, f"no counter {name!r} in counters.csv"))
+    constant_cols = [c for c in counters.columns if c not in COUNTER_COLUMNS]
+    records: dict[str, pd.DataFrame] = {}
+    by_name = counters.drop_duplicates("counter").set_index("counter")
+    for name in names:
+        if name not in raw:
+            continue
+        file = fnames[name]
+        df = _apply_mapping(raw[name], mapping or {}, file, problems)
+        row = by_name.loc[name]
+        consts = {c: row[c] for c in constant_cols if pd.notna(row[c])}
+        if not _check_record(df, file, consts, window_revs, problems):
+            continue
+        df = df.copy()
+        for c, v in consts.items():
+            df[c] = float(v) if isinstance(v, (int, float, np.number)) else v
+        if "azimuth_deg" not in df.columns:
+            df["azimuth_deg"] = _integrate_azimuth(_numeric(df["time_s"]), _numeric(df["rotor_rpm"]))
+        for c in df.columns:
+            if c in REQUIRED_CHANNELS or c == "azimuth_deg":
+                df[c] = df[c].astype(np.float64)
+        records[name] = df.reset_index(drop=True)
+    if problems:
+        return None
+    table = by_name.copy()
+    table.index.name = "counter"
+    return Campaign(table, records, aircraft, source, provenance)
+
+
+def campaign_from_frames(counters: pd.DataFrame, records: Mapping[str, pd.DataFrame], *,
+                         aircraft: Aircraft = Aircraft(), mapping: Mapping[str, ColumnMap] | None = None,
+                         window_revs: float = 8.0, source: str = "<memory>") -> Campaign:
+    """Build a campaign from in-memory tables with the same checks as `load_campaign`.
+
+    Raises:
+        CampaignError: listing every problem.
+    """
+    problems: list[Problem] = []
+    counters = _check_counters(counters.copy(), mapping or {}, problems)
+    campaign = None
+    if counters is not None:
+        fnames = {name: f"timeseries/{name}" for name in records}
+        campaign = _assemble(counters, records, fnames, mapping, window_revs, problems, aircraft, {}, source)
+    if problems:
+        raise CampaignError(problems)
+    return campaign
+
+
+def validate_campaign(folder, mapping: Mapping[str, ColumnMap] | None = None, window_revs: float = 8.0) -> list[Problem]:
+    """Check a campaign folder against data-contract §1.
+
+    Args:
+        folder: the campaign folder.
+        mapping: foreign column name -> `ColumnMap` (from the experiment config).
+        window_revs: analysis window length; a record shorter than one window is refused.
+
+    Returns:
+        Every problem found (empty for a valid campaign).
+    """
+    return _read(folder, mapping, window_revs)[1]
+
+
+def load_campaign(folder, mapping: Mapping[str, ColumnMap] | None = None, window_revs: float = 8.0) -> Campaign:
+    """Load a campaign folder; raises `CampaignError` listing every problem."""
+    campaign, problems = _read(folder, mapping, window_revs)
+    if problems:
+        raise CampaignError(problems)
+    return campaign
+
+
+# --------------------------------------------------------------------------- writing
+
+
+def write_campaign(folder, counters: pd.DataFrame, records: Mapping[str, pd.DataFrame], *,
+                   aircraft: Aircraft | None = None, provenance: dict | None = None,
+                   fmt: str = "parquet") -> Path:
+    """Write a campaign folder in the data-contract format.
+
+    Args:
+        folder: output folder (created).
+        counters: one row per counter with at least `counter` and `maneuver`.
+        records: counter -> time-series DataFrame.
+        aircraft: constants for `campaign.toml` (omitted: UH-60A defaults apply).
+        provenance: free table recorded in `campaign.toml`.
+        fmt: "parquet" or "csv" for the time series.
+    """
+    folder = Path(folder)
+    (folder / "timeseries").mkdir(parents=True, exist_ok=True)
+    counters.to_csv(folder / "counters.csv", index=False)
+    for name, df in records.items():
+        if fmt == "parquet":
+            df.to_parquet(folder / "timeseries" / f"{name}.parquet", index=False)
+        else:
+            df.to_csv(folder / "timeseries" / f"{name}.csv", index=False, float_format="%.7g")
+    lines = []
+    if aircraft is not None:
+        lines.append("[aircraft]")
+        lines += [f"{k} = {v!r}" for k, v in aircraft._asdict().items()]
+    if provenance:
+        lines.append("[provenance]")
+        for k, v in provenance.items():
+            lines.append(f"{k} = {_toml_value(v)}")
+    if lines:
+        (folder / "campaign.toml").write_text("\n".join(lines) + "\n")
+    return folder
+
+
+def _toml_value(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, float)) and not (isinstance(v, float) and not math.isfinite(v)):
+        return repr(v)
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    return '"' + str(v).replace("\\", "\\\\").replace('"', '\\"') + '"'

@@ -1,0 +1,146 @@
+"""Peak PVV per flight condition and the paper's training databases 1-3 (data-contract §2).
+
+The paper's "physically consistent" extraction: each flight condition is characterised by
+its peak PVV over all windows of all its counters (a condition may span several counters,
+like the two-segment autorotation), and every input is taken at that same peak window.
+By default an input is its average over the peak window (`inputs = "mean"`), the same
+averaging the quasi-static replay applies, so a database row is exactly what the replayed
+network sees at that window; `inputs = "center"` takes instantaneous values at the
+window's centre instead. Derived features (advance ratio, MLF) are computed from those
+window values.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pandas as pd
+
+from .batch import to_batch
+from .campaign import Campaign
+from .config import AnalysisConfig
+from .features import derive_features
+from .harmonics import Windows, analyze
+
+__all__ = [
+    "DATABASES",
+    "DB_INPUTS",
+    "META_COLUMNS",
+    "OUTPUT",
+    "STATE_CHANNELS",
+    "Peaks",
+    "build_databases",
+    "condition_peaks",
+    "peak_table",
+    "window_table",
+]
+
+DB_INPUTS: dict[str, tuple[str, ...]] = {
+    "db1": ("advance_ratio", "gross_weight_lb", "rotor_rpm", "density_ratio", "mlf", "climb_rate_fpm"),
+    "db2": ("advance_ratio", "gross_weight_lb", "rotor_rpm", "density_ratio",
+            "collective_pct", "lateral_pct", "longitudinal_pct", "climb_rate_fpm"),
+    "db3": ("advance_ratio", "rotor_rpm", "density_ratio",
+            "collective_pct", "lateral_pct", "longitudinal_pct", "climb_rate_fpm"),
+}
+DATABASES = tuple(DB_INPUTS)
+OUTPUT = "peak_pvv_g"
+META_COLUMNS = ("condition", "counter", "maneuver", "peak_time_s", "window_revs")
+# The measured channels the databases and their derived features are computed from.
+STATE_CHANNELS = (
+    "airspeed_kt", "gross_weight_lb", "rotor_rpm", "density_ratio", "pitch_rate_dps", "roll_angle_deg",
+    "climb_rate_fpm", "collective_pct", "lateral_pct", "longitudinal_pct",
+)
+
+
+class Peaks(NamedTuple):
+    """Peak window of each condition: value (g), batch row and window index."""
+
+    value: jax.Array
+    counter: jax.Array
+    window: jax.Array
+
+
+def condition_peaks(amplitude, valid, condition_ids, num_conditions: int) -> Peaks:
+    """Peak amplitude of each condition over all valid windows of all its counters.
+
+    Args:
+        amplitude: (B, W) window amplitudes. valid: (B, W) window mask.
+        condition_ids: (B,) int condition index of each batch row, in [0, num_conditions).
+        num_conditions: K (static).
+
+    Returns:
+        `Peaks` of shape (K,). Ties go to the earliest batch row, then earliest window.
+    """
+    masked = jnp.where(valid, amplitude, -jnp.inf)
+    row_max = masked.max(axis=1)
+    row_arg = masked.argmax(axis=1)
+    peak = jax.ops.segment_max(row_max, condition_ids, num_segments=num_conditions)
+    rows = jnp.arange(amplitude.shape[0])
+    is_peak = row_max == peak[condition_ids]
+    counter = jax.ops.segment_min(jnp.where(is_peak, rows, amplitude.shape[0]), condition_ids,
+                                  num_segments=num_conditions)
+    return Peaks(peak, counter, row_arg[counter])
+
+
+condition_peaks = jax.jit(condition_peaks, static_argnames="num_conditions")
+
+
+def window_table(campaign: Campaign, windows: Windows, counters) -> pd.DataFrame:
+    """All valid windows as a long table: counter, condition, maneuver, window, time_s, pvv_g, phase_rad."""
+    amp, valid = np.asarray(windows.amplitude), np.asarray(windows.valid)
+    time, phase = np.asarray(windows.time), np.asarray(windows.phase)
+    b, w = np.nonzero(valid)
+    names = np.asarray(counters, dtype=object)[b]
+    info = campaign.counters.loc[names]
+    return pd.DataFrame({
+        "counter": names, "condition": info["condition"].to_numpy(), "maneuver": info["maneuver"].to_numpy(),
+        "window": w, "time_s": time[b, w], "pvv_g": amp[b, w], "phase_rad": phase[b, w],
+    })
+
+
+def peak_table(campaign: Campaign, analysis: AnalysisConfig = AnalysisConfig()) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Analyse every counter and take each condition's peak window.
+
+    Returns:
+        (peaks, windows): one row per condition with every state channel and derived
+        feature at the peak window; and the long table of all valid windows.
+    """
+    conds = campaign.conditions()
+    counters = [c for cs in conds.values() for c in cs]
+    batch = to_batch(campaign, STATE_CHANNELS, counters)
+    win = analyze(batch, analysis.window_revs, analysis.hop, harmonic=analysis.harmonic,
+                  taper_revs=analysis.taper_revs)
+    if not bool(np.asarray(win.valid).any(axis=1).all()):
+        short = [c for c, ok in zip(counters, np.asarray(win.valid).any(axis=1)) if not ok]
+        raise ValueError(f"counters with no complete analysis window: {short}")
+    cond_names = list(conds)
+    cond_ids = np.array([cond_names.index(campaign.counters.loc[c, "condition"]) for c in counters])
+    pk = condition_peaks(win.amplitude, win.valid, jnp.asarray(cond_ids), num_conditions=len(cond_names))
+    row, col = np.asarray(pk.counter), np.asarray(pk.window)
+    source = win.means if analysis.inputs == "mean" else win.center
+    vals = np.asarray(source)[row, col]  # (K, C)
+    ch = {name: vals[:, i] for i, name in enumerate(STATE_CHANNELS)}
+    feats = {k: np.asarray(v) for k, v in derive_features(ch, campaign.aircraft).items()}
+    peak_counters = [counters[i] for i in row]
+    table = pd.DataFrame({
+        "condition": cond_names,
+        "counter": peak_counters,
+        "maneuver": campaign.counters.loc[peak_counters, "maneuver"].to_numpy(),
+        "peak_time_s": np.asarray(win.time)[row, col],
+        "window_revs": float(analysis.window_revs),
+        **feats,
+        **ch,
+        OUTPUT: np.asarray(pk.value),
+    })
+    return table, window_table(campaign, win, counters)
+
+
+def build_databases(campaign: Campaign, analysis: AnalysisConfig = AnalysisConfig()) -> dict[str, pd.DataFrame]:
+    """db1, db2, db3 (data-contract §2) and the full peak table under key "peaks"."""
+    peaks, _ = peak_table(campaign, analysis)
+    out = {name: peaks[list(META_COLUMNS) + list(inputs) + [OUTPUT]].copy() for name, inputs in DB_INPUTS.items()}
+    out["peaks"] = peaks
+    return out
