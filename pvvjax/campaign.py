@@ -21,7 +21,7 @@ import pandas as pd
 
 from ._strict import ConfigError, from_dict
 from .config import ColumnMap
-from .constants import Aircraft
+from .constants import UH60A, Aircraft
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -227,13 +227,13 @@ def _read_campaign_toml(folder: Path, problems: list) -> tuple[Aircraft, dict]:
 
 @dataclass(frozen=True)
 class _AircraftTable:
-    rotor_radius_ft: float = Aircraft.rotor_radius_ft
-    blades: int = Aircraft.blades
-    nominal_rpm: float = Aircraft.nominal_rpm
-    chord_ft: float = Aircraft.chord_ft
-    solidity: float = Aircraft.solidity
-    rho0_slug_ft3: float = Aircraft.rho0_slug_ft3
-    g_ft_s2: float = Aircraft.g_ft_s2
+    rotor_radius_ft: float = UH60A.rotor_radius_ft
+    blades: int = UH60A.blades
+    nominal_rpm: float = UH60A.nominal_rpm
+    chord_ft: float = UH60A.chord_ft
+    solidity: float = UH60A.solidity
+    rho0_slug_ft3: float = UH60A.rho0_slug_ft3
+    g_ft_s2: float = UH60A.g_ft_s2
 
     def __post_init__(self):
         for f in dataclasses.fields(self):
@@ -363,7 +363,7 @@ def _timeseries_files(folder: Path, problems: list) -> dict[str, Path]:
     return files
 
 
-def _read(folder, mapping, window_revs) -> tuple[Campaign | None, list[Problem]]:
+def _read(folder, mapping, window_revs, progress=None) -> tuple[Campaign | None, list[Problem]]:
     folder = Path(folder)
     problems: list[Problem] = []
     if not folder.is_dir():
@@ -374,7 +374,8 @@ def _read(folder, mapping, window_revs) -> tuple[Campaign | None, list[Problem]]
     if counters is None:
         return None, problems
     raw: dict[str, pd.DataFrame] = {}
-    for name, p in files.items():
+    items = files.items() if progress is None else progress(files.items(), total=len(files))
+    for name, p in items:
         try:
             raw[name] = _read_table(p)
         except Exception as e:  # unreadable file: report, keep validating the rest
@@ -441,23 +442,30 @@ def campaign_from_frames(counters: pd.DataFrame, records: Mapping[str, pd.DataFr
     return campaign
 
 
-def validate_campaign(folder, mapping: Mapping[str, ColumnMap] | None = None, window_revs: float = 8.0) -> list[Problem]:
+def validate_campaign(folder, mapping: Mapping[str, ColumnMap] | None = None, window_revs: float = 8.0,
+                      progress=None) -> list[Problem]:
     """Check a campaign folder against data-contract §1.
 
     Args:
         folder: the campaign folder.
         mapping: foreign column name -> `ColumnMap` (from the experiment config).
         window_revs: analysis window length; a record shorter than one window is refused.
+        progress: optional wrapper `progress(iterable, total=n)` (e.g. a tqdm factory).
 
     Returns:
         Every problem found (empty for a valid campaign).
     """
-    return _read(folder, mapping, window_revs)[1]
+    return _read(folder, mapping, window_revs, progress)[1]
 
 
-def load_campaign(folder, mapping: Mapping[str, ColumnMap] | None = None, window_revs: float = 8.0) -> Campaign:
-    """Load a campaign folder; raises `CampaignError` listing every problem."""
-    campaign, problems = _read(folder, mapping, window_revs)
+def load_campaign(folder, mapping: Mapping[str, ColumnMap] | None = None, window_revs: float = 8.0,
+                  progress=None) -> Campaign:
+    """Load a campaign folder (arguments as `validate_campaign`).
+
+    Raises:
+        CampaignError: listing every problem.
+    """
+    campaign, problems = _read(folder, mapping, window_revs, progress)
     if problems:
         raise CampaignError(problems)
     return campaign
@@ -486,7 +494,7 @@ def write_campaign(folder, counters: pd.DataFrame, records: Mapping[str, pd.Data
         if fmt == "parquet":
             df.to_parquet(folder / "timeseries" / f"{name}.parquet", index=False)
         else:
-            df.to_csv(folder / "timeseries" / f"{name}.csv", index=False, float_format="%.7g")
+            df.to_csv(folder / "timeseries" / f"{name}.csv", index=False, float_format="%.10g")
     lines = []
     if aircraft is not None:
         lines.append("[aircraft]")

@@ -61,10 +61,13 @@ class CampaignConfig:
 
     Attributes:
         path: campaign folder (data-contract §1). Empty: the embedded synthetic campaign.
+        synthetic: generator config (TOML) for the embedded campaign; empty: the default
+            campaign with the experiment's seed.
         columns: foreign column name -> `ColumnMap`, applied to counters.csv and time series.
     """
 
     path: str = ""
+    synthetic: str = ""
     columns: dict[str, ColumnMap] = field(default_factory=dict)
 
     def __post_init__(self):

@@ -111,8 +111,11 @@ def harmonic_windows(az, psi, rev, time, x, mask, window_revs, hop_revs, taper_r
 
     kpsi = harmonic * psi
     c, s = jnp.cos(kpsi), jnp.sin(kpsi)
+    # Channels are averaged as deviations from the record's first sample (added back after):
+    # exact for constants, and no float32 loss on large values such as gross weight.
+    x_ref = x[0]
     # Columns summed under the window weights: az·cos, az·sin, cos, sin, az, time, channels.
-    vals = jnp.concatenate([jnp.stack([az * c, az * s, c, s, az, time], axis=-1), x], axis=-1)
+    vals = jnp.concatenate([jnp.stack([az * c, az * s, c, s, az, time], axis=-1), x - x_ref], axis=-1)
     cols = jnp.concatenate([vals, jnp.stack([rev, width, m], axis=-1)], axis=-1)
 
     start = jnp.searchsorted(rev, a - 0.5 * h_max) - 2
@@ -138,7 +141,7 @@ def harmonic_windows(az, psi, rev, time, x, mask, window_revs, hop_revs, taper_r
     covered &= (block[:, -1, -3] + 0.5 * block[:, -1, -2] >= b + 0.5 * h_max - _EPS_REVS) | (start + S > last)
     inside = (a - 0.5 * taper >= rec_start - _EPS_REVS) & (b + 0.5 * taper <= rec_end + _EPS_REVS)
     valid = inside & covered & (wsum > 0)
-    return Windows(amplitude, phase, t_mid, mean[:, 6:], center, valid)
+    return Windows(amplitude, phase, t_mid, mean[:, 6:] + x_ref, center, valid)
 
 
 def plan_windows(batch: RecordBatch, max_window_revs: float, min_hop_revs: float, taper_revs: float = 0.0,

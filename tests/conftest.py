@@ -1,0 +1,61 @@
+"""Shared fixtures: a tiny hand-made campaign for bad-input tests, and the embedded
+synthetic campaign (generated once into the cache, loaded once per test process)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+
+def tiny_records(n_counters=2, seconds=12.0, spr=64, rpm=257.8, seed=0):
+    """Counters table and records of a small valid campaign (constant rotor speed)."""
+    rng = np.random.default_rng(seed)
+    fs = spr * rpm / 60.0
+    t = np.arange(0.0, seconds, 1.0 / fs)
+    rows, recs = [], {}
+    for i in range(n_counters):
+        name = f"C{i + 1}"
+        psi = 2 * np.pi * rpm / 60.0 * t
+        az = 1.0 + 0.1 * (i + 1) * np.cos(4 * psi + 0.4) + 0.01 * rng.standard_normal(t.size)
+        recs[name] = pd.DataFrame({
+            "time_s": t, "az_g": az, "rotor_rpm": rpm, "airspeed_kt": 100.0 + i, "pitch_rate_dps": 0.0,
+            "roll_angle_deg": 0.0, "climb_rate_fpm": 0.0, "collective_pct": 50.0, "lateral_pct": 50.0,
+            "longitudinal_pct": 55.0,
+        })
+        rows.append(dict(counter=name, maneuver="level", gross_weight_lb=16000.0, density_ratio=1.0))
+    return pd.DataFrame(rows), recs
+
+
+def write_tiny(folder, counters=None, recs=None, fmt="csv"):
+    """Write a tiny campaign folder (optionally from modified tables)."""
+    from pvvjax.campaign import write_campaign
+
+    c0, r0 = tiny_records()
+    return write_campaign(folder, c0 if counters is None else counters, r0 if recs is None else recs, fmt=fmt)
+
+
+@pytest.fixture
+def tiny(tmp_path):
+    return tiny_records()
+
+
+@pytest.fixture(scope="session")
+def default_campaign_dir():
+    from pvvjax.synth import cached_campaign
+
+    return cached_campaign()
+
+
+@pytest.fixture(scope="session")
+def default_campaign(default_campaign_dir):
+    from pvvjax.campaign import load_campaign
+
+    return load_campaign(default_campaign_dir)
+
+
+@pytest.fixture(scope="session")
+def default_dbs(default_campaign):
+    from pvvjax.databases import build_databases
+
+    return build_databases(default_campaign)

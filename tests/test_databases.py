@@ -1,0 +1,103 @@
+import jax.numpy as jnp
+import numpy as np
+import pandas as pd
+import pytest
+
+from conftest import tiny_records, write_tiny
+from pvvjax.campaign import campaign_from_frames
+from pvvjax.cli import main
+from pvvjax.config import AnalysisConfig
+from pvvjax.databases import DB_INPUTS, META_COLUMNS, OUTPUT, build_databases, condition_peaks, peak_table
+
+
+def test_condition_peaks_against_brute_force():
+    rng = np.random.default_rng(0)
+    B, W, K = 17, 9, 6
+    amp = rng.uniform(0, 1, (B, W))
+    valid = rng.uniform(0, 1, (B, W)) > 0.3
+    valid[:, 0] = True
+    cond = rng.integers(0, K, B)
+    cond[:K] = np.arange(K)
+    pk = condition_peaks(jnp.asarray(amp), jnp.asarray(valid), jnp.asarray(cond), num_conditions=K)
+    for k in range(K):
+        best = max(((amp[b, w], b, w) for b in range(B) for w in range(W) if cond[b] == k and valid[b, w]))
+        assert float(pk.value[k]) == pytest.approx(best[0])
+        assert (int(pk.counter[k]), int(pk.window[k])) == (best[1], best[2])
+
+
+def _two_segment_campaign():
+    c, r = tiny_records(n_counters=3, seconds=16.0)
+    c["condition"] = ["AR", "AR", "LV"]
+    c["segment"] = [1, 2, 1]
+    c["maneuver"] = ["autorotation", "autorotation", "level"]
+    # segment 2 holds the condition's peak, in its third window, with a pitch rate there
+    rec = r["C2"]
+    w = rec.time_s.between(3.75, 5.5)
+    rec.loc[w, "az_g"] += 0.2 * np.cos(4 * 2 * np.pi * 257.8 / 60 * rec.time_s[w] + 0.4)
+    rec.loc[w, "pitch_rate_dps"] = 9.6
+    return campaign_from_frames(c, r)
+
+
+def test_peak_of_a_condition_spanning_two_counters():
+    camp = _two_segment_campaign()
+    peaks, windows = peak_table(camp)
+    ar = peaks.set_index("condition").loc["AR"]
+    assert ar.counter == "C2"
+    assert ar[OUTPUT] == pytest.approx(windows[windows.condition == "AR"].pvv_g.max())
+    assert ar[OUTPUT] > 0.25
+    assert 3.75 < ar.peak_time_s < 5.5
+    assert ar.pitch_rate_dps > 5.0 and ar.mlf > 1.5  # inputs taken at the peak window
+    assert peaks.set_index("condition").loc["LV", "counter"] == "C3"
+
+
+def test_inputs_mean_vs_center():
+    camp = _two_segment_campaign()
+    mean = peak_table(camp, AnalysisConfig(inputs="mean"))[0].set_index("condition").loc["AR"]
+    center = peak_table(camp, AnalysisConfig(inputs="center"))[0].set_index("condition").loc["AR"]
+    assert mean[OUTPUT] == center[OUTPUT]
+    # the pitch-rate pulse covers most but not all of the window: the mean is lower than the centre value
+    assert center.pitch_rate_dps == pytest.approx(9.6)
+    assert 5.0 < mean.pitch_rate_dps < 9.6
+
+
+def test_databases_have_exactly_the_contract_columns():
+    dbs = build_databases(_two_segment_campaign())
+    for name, inputs in DB_INPUTS.items():
+        assert list(dbs[name].columns) == list(META_COLUMNS) + list(inputs) + [OUTPUT]
+        assert len(dbs[name]) == 2
+    assert DB_INPUTS["db3"] == tuple(i for i in DB_INPUTS["db2"] if i != "gross_weight_lb")
+    assert dbs["db1"].window_revs.eq(8.0).all()
+
+
+def test_build_db_cli_writes_csv_and_parquet(tmp_path, capsys):
+    folder = write_tiny(tmp_path / "camp")
+    out = tmp_path / "dbs"
+    assert main(["build-db", str(folder), "--out", str(out)]) == 0
+    for name in ("db1", "db2", "db3"):
+        a = pd.read_csv(out / f"{name}.csv")
+        b = pd.read_parquet(out / f"{name}.parquet")
+        pd.testing.assert_frame_equal(a, b, check_dtype=False)
+    assert (out / "config.toml").exists()
+    assert "wrote db1, db2, db3" in capsys.readouterr().out
+
+
+def test_validate_cli_exit_codes(tmp_path, capsys):
+    folder = write_tiny(tmp_path / "ok")
+    assert main(["validate", str(folder)]) == 0
+    c, r = tiny_records()
+    c.loc[0, "maneuver"] = "hover"
+    r["C2"].loc[5, "rotor_rpm"] = -1.0
+    bad = write_tiny(tmp_path / "bad", c, r)
+    assert main(["validate", str(bad)]) == 1
+    out = capsys.readouterr().out
+    assert "2 problem(s)" in out and "'maneuver', row 1" in out and "timeseries/C2.csv, column 'rotor_rpm', row 6" in out
+    assert main(["build-db", str(bad), "--out", str(tmp_path / "x")]) == 2
+    assert "2 problem(s)" in capsys.readouterr().err
+
+
+def test_cli_config_error_is_a_message_not_a_traceback(tmp_path, capsys):
+    cfgfile = tmp_path / "bad.toml"
+    cfgfile.write_text("[analysis]\nwindow_revz = 8\n")
+    assert main(["validate", str(tmp_path), "--config", str(cfgfile)]) == 2
+    err = capsys.readouterr().err
+    assert "bad.toml: analysis.window_revz: unknown key" in err and "Traceback" not in err
