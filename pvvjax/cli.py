@@ -1,0 +1,239 @@
+"""The `pvvjax` command line: one subcommand per pipeline stage, plus `run` (the main job).
+
+Errors from bad input (campaign problems, config mistakes, missing files) are printed as
+plain messages naming the file and field, with a non-zero exit; never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
+
+__all__ = ["main"]
+
+PAPER_TABLE1 = {  # condition id -> the paper's measured peak PVV, g
+    "T1-level-135": 0.10, "T1-descent-160": 0.25, "T1-climb-62": 0.12, "T1-turn45-145": 0.13,
+    "11022": 0.22, "AR60": 0.26,
+}
+
+
+def _experiment(args):
+    from .config import ExperimentConfig, load_config
+
+    return load_config(args.config) if getattr(args, "config", None) else ExperimentConfig()
+
+
+def resolve_campaign(cfg, campaign_dir=None, log=print):
+    """The campaign an experiment uses: a folder, or the embedded synthetic campaign
+    (generated once and cached). Returns (Campaign, folder)."""
+    from .campaign import load_campaign
+
+    folder = campaign_dir or cfg.campaign.path
+    if not folder:
+        from .synth import SynthConfig, cached_campaign, load_synth_config
+
+        scfg = load_synth_config(cfg.campaign.synthetic) if cfg.campaign.synthetic else SynthConfig(seed=cfg.seed)
+        t0 = time.perf_counter()
+        folder = cached_campaign(scfg)
+        log(f"embedded synthetic campaign: {folder} ({time.perf_counter() - t0:.1f} s)")
+    t0 = time.perf_counter()
+    campaign = load_campaign(folder, cfg.campaign.columns, cfg.analysis.window_revs, progress=_progress("loading"))
+    log(f"loaded {len(campaign)} counters, {len(campaign.conditions())} conditions ({time.perf_counter() - t0:.1f} s)")
+    return campaign, Path(folder)
+
+
+def _progress(desc):
+    from tqdm.auto import tqdm
+
+    return lambda it, total=None: tqdm(it, total=total, desc=desc, unit="counter", leave=False,
+                                       disable=not sys.stderr.isatty())
+
+
+def cmd_validate(args) -> int:
+    from .campaign import validate_campaign
+
+    cfg = _experiment(args)
+    problems = validate_campaign(args.campaign, cfg.campaign.columns, cfg.analysis.window_revs,
+                                 progress=_progress("validating"))
+    if problems:
+        print(f"{args.campaign}: {len(problems)} problem(s)")
+        for p in problems:
+            print(f"  - {p}")
+        return 1
+    print(f"{args.campaign}: valid")
+    return 0
+
+
+def _write_databases(dbs, out: Path, cfg) -> None:
+    from .io import write_config, write_table
+
+    for name, df in dbs.items():
+        write_table(df, out / name, cfg)
+    write_config(cfg, out / "config.toml")
+
+
+def _summary(dbs) -> str:
+    from .databases import OUTPUT
+
+    pk = dbs["peaks"]
+    lines = [f"{len(pk)} conditions; {int((abs(pk.mlf - 1) > 0.05).sum())} with MLF != 1 "
+             f"({(abs(pk.mlf - 1) > 0.05).mean():.0%}); peak PVV {pk[OUTPUT].min():.3f}-{pk[OUTPUT].max():.3f} g"]
+    for name in ("db1", "db2", "db3"):
+        lines.append(f"  {name}: {len(dbs[name])} rows x {dbs[name].shape[1] - 6} inputs")
+    lines.append(pk.groupby("maneuver")[OUTPUT].agg(["count", "mean", "max"]).round(3).to_string())
+    known = pk[pk.condition.isin(PAPER_TABLE1)].set_index("condition")
+    if len(known):
+        lines.append("\npaper conditions (peak PVV, g):")
+        lines.append(f"  {'condition':16s} {'paper':>6s} {'here':>6s}  {'MLF':>5s}  counter")
+        for cid, ref in PAPER_TABLE1.items():
+            if cid in known.index:
+                r = known.loc[cid]
+                lines.append(f"  {cid:16s} {ref:6.2f} {r[OUTPUT]:6.3f}  {r.mlf:5.2f}  {r.counter}")
+    return "\n".join(lines)
+
+
+def cmd_build_db(args) -> int:
+    from .databases import build_databases
+
+    cfg = _experiment(args)
+    campaign, _ = resolve_campaign(cfg, args.campaign)
+    dbs = build_databases(campaign, cfg.analysis)
+    out = Path(args.out)
+    _write_databases(dbs, out, cfg)
+    print(_summary(dbs))
+    print(f"wrote db1, db2, db3 and peaks (.csv, .parquet) to {out}")
+    return 0
+
+
+def cmd_synth(args) -> int:
+    import dataclasses
+
+    from .synth import SynthConfig, load_synth_config, write_synthetic
+
+    scfg = load_synth_config(args.config) if args.config else SynthConfig()
+    if args.seed is not None:
+        scfg = dataclasses.replace(scfg, seed=args.seed)
+    t0 = time.perf_counter()
+    folder, truth = write_synthetic(args.out, scfg, args.truth)
+    print(f"wrote campaign {folder} ({time.perf_counter() - t0:.1f} s); ground truth: {truth}")
+    if args.plots:
+        from .config import ExperimentConfig
+
+        cfg = ExperimentConfig()
+        campaign, _ = resolve_campaign(cfg, folder)
+        _campaign_plots(campaign, cfg, Path(args.plots))
+    return 0
+
+
+def _campaign_plots(campaign, cfg, out: Path) -> list[Path]:
+    from . import plots
+    from .databases import peak_table
+
+    peaks, windows = peak_table(campaign, cfg.analysis)
+    paths = [plots.save(plots.pvv_vs_airspeed(peaks), out / "pvv_vs_airspeed.png")]
+    conds = campaign.conditions()
+    if "11022" in conds:
+        fig = plots.time_histories(campaign, windows, conds["11022"], [
+            ("a_z, g", ["az_g"]), ("pitch rate, deg/s", ["pitch_rate_dps"]),
+            ("sticks, %", ["collective_pct", "lateral_pct", "longitudinal_pct"]), ("PVV, g", ["pvv"])],
+            "Pull-up, counter 11022 (paper Figs 1-4)")
+        paths.append(plots.save(fig, out / "pullup_11022.png"))
+    if "AR60" in conds:
+        fig = plots.time_histories(campaign, windows, conds["AR60"], [
+            ("a_z, g", ["az_g"]), ("shaft power, hp", ["shaft_power_hp"]), ("collective, %", ["collective_pct"]),
+            ("PVV, g", ["pvv"])], "Autorotation AR60, counters 11539 + 11540 (paper Figs 5-9)")
+        paths.append(plots.save(fig, out / "autorotation_AR60.png"))
+    for p in paths:
+        print(f"figure: {p}")
+    return paths
+
+
+def cmd_plot(args) -> int:
+    cfg = _experiment(args)
+    campaign, _ = resolve_campaign(cfg, args.campaign)
+    _campaign_plots(campaign, cfg, Path(args.out))
+    return 0
+
+
+def cmd_run(args) -> int:
+    """The main job of an experiment config."""
+    from .config import load_config
+    from .databases import build_databases
+
+    cfg = load_config(args.config)
+    out = Path(cfg.out_dir) / cfg.name
+    t0 = time.perf_counter()
+    print(f"[1/3] campaign ({'embedded synthetic' if not cfg.campaign.path else cfg.campaign.path})")
+    campaign, _ = resolve_campaign(cfg)
+    print("[2/3] harmonic analysis, peak PVV, databases 1-3")
+    dbs = build_databases(campaign, cfg.analysis)
+    _write_databases(dbs, out / "databases", cfg)
+    print(_summary(dbs))
+    print("[3/3] figures")
+    _campaign_plots(campaign, cfg, out / "figures")
+    print(f"done in {time.perf_counter() - t0:.1f} s; results in {out}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="pvvjax", description="Helicopter pilot-floor 4/rev vibration (PVV) toolkit.")
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    s = sub.add_parser("validate", help="check a campaign folder against the data contract",
+                       description="Report every problem in a campaign folder (exit 1), or exit 0 if valid.")
+    s.add_argument("campaign", help="campaign folder")
+    s.add_argument("--config", help="experiment config (column mapping, window length)")
+    s.set_defaults(fn=cmd_validate)
+
+    s = sub.add_parser("build-db", help="build databases 1-3 from a campaign",
+                       description="Harmonic analysis, peak PVV per condition and db1-db3 as CSV and Parquet.")
+    s.add_argument("campaign", nargs="?", default=None, help="campaign folder (default: embedded synthetic)")
+    s.add_argument("--out", required=True, help="output folder")
+    s.add_argument("--config", help="experiment config")
+    s.set_defaults(fn=cmd_build_db)
+
+    s = sub.add_parser("synth", help="generate a synthetic UH-60A campaign",
+                       description="Write a synthetic campaign (and its ground truth beside it).")
+    s.add_argument("--out", required=True, help="campaign folder to write")
+    s.add_argument("--config", help="generator config (TOML), e.g. a hidden-effect scenario")
+    s.add_argument("--seed", type=int, default=None, help="random seed (overrides the config)")
+    s.add_argument("--truth", default=None, help="ground-truth file (default: OUT.truth.json, beside OUT)")
+    s.add_argument("--plots", default=None, metavar="DIR", help="also write the check figures to DIR")
+    s.set_defaults(fn=cmd_synth)
+
+    s = sub.add_parser("plot", help="figures of a campaign (PVV vs airspeed, pull-up, autorotation)",
+                       description="PVV vs airspeed in level flight and paper-style time histories.")
+    s.add_argument("campaign", nargs="?", default=None, help="campaign folder (default: embedded synthetic)")
+    s.add_argument("--out", required=True, help="output folder for PNG files")
+    s.add_argument("--config", help="experiment config")
+    s.set_defaults(fn=cmd_plot)
+
+    s = sub.add_parser("run", help="run an experiment config end to end (the main job)",
+                       description="Campaign, databases and figures for one experiment config.")
+    s.add_argument("config", help="experiment config (TOML)")
+    s.set_defaults(fn=cmd_run)
+    return p
+
+
+def main(argv=None) -> int:
+    from ._strict import ConfigError
+    from .campaign import CampaignError
+
+    args = build_parser().parse_args(argv)
+    try:
+        return args.fn(args)
+    except (CampaignError, ConfigError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    except (FileNotFoundError, KeyError, ValueError) as e:
+        if os.environ.get("PVVJAX_DEBUG"):
+            raise
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

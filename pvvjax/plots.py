@@ -1,0 +1,80 @@
+"""Matplotlib figures in the style of the paper (time histories, 4P PVV per window)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+from .campaign import Campaign  # noqa: E402
+
+__all__ = ["pvv_vs_airspeed", "save", "time_histories"]
+
+
+def save(fig, path) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110, bbox_inches="tight")
+    plt.close(fig)
+    return path
+
+
+def pvv_vs_airspeed(peaks: pd.DataFrame, weights=(15000.0, 20000.0), tol_lb=600.0, title=None):
+    """Peak PVV against airspeed in level flight, one series per weight (±tol_lb),
+    sea level (density ratio ≥ 0.97) and rotor speed within 1 % of the median."""
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    level = peaks[(peaks.maneuver == "level") & (peaks.density_ratio >= 0.97)]
+    rpm0 = level.rotor_rpm.median()
+    level = level[(level.rotor_rpm - rpm0).abs() < 0.01 * rpm0]
+    for w, marker in zip(weights, "os^v"):
+        g = level[(level.gross_weight_lb - w).abs() <= tol_lb].sort_values("airspeed_kt")
+        ax.plot(g.airspeed_kt, g.peak_pvv_g, marker=marker, label=f"GW {w / 1000:.0f} klb (n={len(g)})")
+    ax.set_xlabel("true airspeed, kt")
+    ax.set_ylabel("peak PVV (4P), g")
+    ax.set_title(title or "Level flight: 4P pilot-floor vibration vs airspeed")
+    ax.grid(alpha=0.3)
+    ax.legend()
+    return fig
+
+
+def time_histories(campaign: Campaign, windows: pd.DataFrame, counters, panels, title=""):
+    """Stacked time histories of one or more consecutive counters (paper Figs 1-9).
+
+    Args:
+        campaign: the campaign.
+        windows: the long window table (`databases.window_table`).
+        counters: counters drawn one after another (segments of one condition).
+        panels: list of (label, [channels]); the channel "pvv" draws the 4P PVV per window.
+    """
+    fig, axes = plt.subplots(len(panels), 1, figsize=(7.5, 1.9 * len(panels)), sharex=True)
+    axes = np.atleast_1d(axes)
+    t0 = 0.0
+    for k, counter in enumerate(counters):
+        rec = campaign.records[counter]
+        t = rec.time_s.to_numpy() + t0
+        for ax, (label, chans) in zip(axes, panels):
+            for ch in chans:
+                if ch == "pvv":
+                    w = windows[windows.counter == counter]
+                    ax.step(w.time_s + t0, w.pvv_g, where="mid", color="C3", label="4P PVV" if k == 0 else None)
+                    ax.plot(w.time_s + t0, w.pvv_g, "o", color="C3", ms=3)
+                else:
+                    ax.plot(t, rec[ch].to_numpy(), lw=0.6 if ch == "az_g" else 1.0,
+                            label=ch if k == 0 else None)
+            ax.set_ylabel(label)
+        if k:
+            for ax in axes:
+                ax.axvline(t0, color="k", ls="--", lw=0.8)
+        t0 = t[-1] + (t[-1] - t[-2])
+    for ax in axes:
+        ax.grid(alpha=0.3)
+        if len(ax.get_legend_handles_labels()[0]) > 1:
+            ax.legend(fontsize=7, loc="upper left")
+    axes[-1].set_xlabel("time, s" + (" (segments joined; dashed line = counter boundary)" if len(counters) > 1 else ""))
+    fig.suptitle(title)
+    return fig

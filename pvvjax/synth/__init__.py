@@ -1,0 +1,27 @@
+"""Synthetic UH-60A flight-test campaigns with named, switchable physical effects.
+
+The generator writes campaigns in the data-contract format; nothing in the pipeline
+imports it. A scenario config switches effects on or off, rescales them or changes their
+parameters; the ground truth is written beside the campaign folder, never inside it.
+"""
+
+from ._conditions import NAMED, Condition, catalogue
+from ._generate import (
+    GENERATOR_VERSION,
+    EffectConfig,
+    SynthConfig,
+    cached_campaign,
+    default_cache_dir,
+    describe_effects,
+    generate,
+    ground_truth,
+    load_synth_config,
+    write_synthetic,
+)
+from ._vibration import EFFECTS, Effect
+
+__all__ = [
+    "EFFECTS", "GENERATOR_VERSION", "NAMED", "Condition", "Effect", "EffectConfig", "SynthConfig",
+    "cached_campaign", "catalogue", "default_cache_dir", "describe_effects", "generate", "ground_truth",
+    "load_synth_config", "write_synthetic",
+]

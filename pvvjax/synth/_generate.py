@@ -1,0 +1,268 @@
+"""Generate, write and cache synthetic UH-60A flight-test campaigns."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+import pandas as pd
+
+from .._strict import from_dict, to_dict
+from ..campaign import write_campaign
+from ..config import config_hash, load_toml
+from ..constants import UH60A
+from . import _flight
+from ._conditions import DEFAULT_COUNTS, NAMED, Condition, catalogue, condition_rng, pilot_plan
+from ._vibration import EFFECTS, amplitude_4p, vibration_state
+
+GENERATOR_VERSION = "1"
+
+
+@dataclass(frozen=True)
+class EffectConfig:
+    """Switch, scale and parameter overrides of one named effect (`None`: its default)."""
+
+    enabled: bool | None = None
+    scale: float = 1.0
+    params: dict[str, float] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class SynthConfig:
+    """A synthetic campaign.
+
+    Attributes:
+        name: campaign name (recorded in campaign.toml).
+        seed: random seed; same config and seed give the same campaign.
+        sample_rate_hz: time-series sample rate (≥ 64 samples per revolution up to 115 % rpm).
+        dynamics_rate_hz: rate of the flight-dynamics model (states are interpolated).
+        noise_g: broadband measurement noise on `az_g`, g (standard deviation).
+        scatter: condition-to-condition scatter of the 4P level (relative std).
+        format: time-series file format.
+        conditions: generate only these condition ids (empty: all).
+        counts: random conditions per maneuver kind, beyond the named ones and the sweep.
+        effects: per-effect overrides by name (see `pvvjax.synth.EFFECTS`).
+    """
+
+    name: str = "uh60a-synthetic"
+    seed: int = 0
+    sample_rate_hz: float = 320.0
+    dynamics_rate_hz: float = 50.0
+    noise_g: float = 0.02
+    scatter: float = 0.04
+    format: Literal["parquet", "csv"] = "parquet"
+    conditions: tuple[str, ...] = ()
+    counts: dict[str, int] = field(default_factory=dict)
+    effects: dict[str, EffectConfig] = field(default_factory=dict)
+
+    def __post_init__(self):
+        for name, e in self.effects.items():
+            if name not in EFFECTS:
+                raise ValueError(f"effects.{name}: unknown effect; known: {', '.join(EFFECTS)}")
+            unknown = set(e.params) - set(EFFECTS[name].params)
+            if unknown:
+                raise ValueError(f"effects.{name}.params: unknown {sorted(unknown)}; "
+                                 f"known: {', '.join(EFFECTS[name].params)}")
+        for kind, n in self.counts.items():
+            if kind not in DEFAULT_COUNTS:
+                raise ValueError(f"counts.{kind}: unknown maneuver; known: {', '.join(DEFAULT_COUNTS)}")
+            if n < 0:
+                raise ValueError(f"counts.{kind}: must be >= 0, got {n}")
+        if self.sample_rate_hz < 64 * 1.15 * UH60A.nominal_rpm / 60:
+            raise ValueError(f"sample_rate_hz {self.sample_rate_hz} gives fewer than 64 samples per revolution")
+
+    def effect_settings(self) -> dict[str, tuple[bool, float, dict]]:
+        """name -> (enabled, scale, params) with defaults filled in."""
+        out = {}
+        for name, eff in EFFECTS.items():
+            o = self.effects.get(name, EffectConfig())
+            on = eff.default_on if o.enabled is None else o.enabled
+            out[name] = (on, o.scale, {**eff.params, **o.params})
+        return out
+
+
+def load_synth_config(path) -> SynthConfig:
+    from .._strict import ConfigError
+
+    try:
+        return from_dict(SynthConfig, load_toml(path))
+    except ConfigError as e:
+        raise ConfigError(f"{path}: {e}") from None
+
+
+def ground_truth(cfg: SynthConfig) -> dict:
+    """What the generator put into the data: every effect's setting, and which differ from
+    the defaults (the 'hidden' effects of a scenario)."""
+    effects = []
+    default = SynthConfig().effect_settings()
+    for name, (on, scale, params) in cfg.effect_settings().items():
+        eff = EFFECTS[name]
+        effects.append(dict(
+            name=name, enabled=on, scale=scale, params=params, kind=eff.kind, formula=eff.formula,
+            physics=eff.physics, channels=list(eff.channels), default=dict(enabled=default[name][0], params=default[name][2]),
+            changed=(on, scale, params) != default[name],
+        ))
+    return dict(generator_version=GENERATOR_VERSION, config=to_dict(cfg), effects=effects,
+                hidden=[e["name"] for e in effects if e["changed"]])
+
+
+def _simulate(conds: list[Condition], cfg: SynthConfig):
+    dt = 1.0 / cfg.dynamics_rate_hz
+    t_max = max(c.duration_s for c in conds)
+    t = np.arange(0.0, t_max + dt, dt)
+    init = {k: np.array([getattr(c, a) for c in conds], float) for k, a in (
+        ("v_kt", "airspeed_kt"), ("w_lb", "gross_weight_lb"), ("sigma", "density_ratio"),
+        ("rpm_set", "rpm"), ("climb_fpm", "climb_fpm"))}
+    init["phi_deg"] = np.array([c.intensity if c.maneuver == "turn" else 0.0 for c in conds])
+    n0 = 1.0 / np.cos(np.deg2rad(init["phi_deg"]))
+    coll_trim = _flight.collective_for_power(
+        _flight.power_required_hp(init["v_kt"], init["w_lb"], init["sigma"], init["rpm_set"], init["climb_fpm"], n0),
+        init["rpm_set"])
+    plans = [pilot_plan(c, t, cfg.seed, ct) for c, ct in zip(conds, coll_trim)]
+    sched = {k: np.stack([p[k] for p in plans]) for k in plans[0]}
+    states = _flight.simulate(init, sched, dt)
+    states["gross_weight_lb"] = np.broadcast_to(init["w_lb"][:, None], states["nz_g"].shape)
+    states["density_ratio"] = np.broadcast_to(init["sigma"][:, None], states["nz_g"].shape)
+    return t, states
+
+
+def generate(cfg: SynthConfig = SynthConfig()) -> tuple[pd.DataFrame, dict[str, pd.DataFrame], dict]:
+    """Generate a campaign in memory.
+
+    Returns:
+        (counters table, counter -> time series, ground truth).
+    """
+    conds = catalogue(cfg.seed, cfg.counts)
+    if cfg.conditions:
+        known = {c.id for c in conds}
+        missing = sorted(set(cfg.conditions) - known)
+        if missing:
+            raise ValueError(f"conditions: unknown condition ids {missing}")
+        conds = [c for c in conds if c.id in set(cfg.conditions)]
+    t, states = _simulate(conds, cfg)
+    dt = float(t[1] - t[0])
+    settings = cfg.effect_settings()
+    vstate = vibration_state(states, UH60A)
+    # Condition-to-condition scatter (a per-condition constant, so its order with the lag is
+    # immaterial); the paper's named conditions are the calibration anchors and carry none.
+    named = {c.id for c in NAMED}
+    scat = np.array([1.0 + (0.0 if c.id in named else cfg.scatter)
+                     * condition_rng(cfg.seed, "scatter:" + c.id).standard_normal() for c in conds])
+    a4, _ = amplitude_4p(vstate, settings, dt)
+    a4 = a4 * np.maximum(scat, 0.5)[:, None]
+    phi4 = 1.2 * vstate["mu"] + 3.0 * (vstate["loading"] - 0.07)
+
+    rows, records = [], {}
+    for k, c in enumerate(conds):
+        rng = condition_rng(cfg.seed, "signal:" + c.id)
+        ts = np.arange(0.0, c.duration_s, 1.0 / cfg.sample_rate_hz)
+        interp = lambda arr: np.interp(ts, t, arr[k])  # noqa: E731
+        rpm = interp(states["rotor_rpm"])
+        psi = np.concatenate([[0.0], np.cumsum(0.5 * (rpm[1:] + rpm[:-1]) * np.diff(ts))]) * 2 * np.pi / 60
+        psi += rng.uniform(0, 2 * np.pi)
+        amp4 = interp(a4)
+        nz = interp(states["nz_g"])
+        a1, a2 = rng.uniform(0.015, 0.04), 0.01 + 0.05 * np.abs(nz - 1.0)
+        p1, p2, p4, p8 = rng.uniform(0, 2 * np.pi, 4)
+        az = (nz + a1 * np.cos(psi + p1) + a2 * np.cos(2 * psi + p2)
+              + amp4 * np.cos(4 * psi + p4 + interp(phi4))
+              + 0.2 * amp4 * np.cos(8 * psi + p8)
+              + cfg.noise_g * rng.standard_normal(ts.size))
+        ch = {
+            "time_s": ts, "az_g": az, "azimuth_deg": np.mod(np.rad2deg(psi), 360.0), "rotor_rpm": rpm,
+        }
+        for name in ("airspeed_kt", "pitch_rate_dps", "roll_angle_deg", "climb_rate_fpm", "collective_pct",
+                     "lateral_pct", "longitudinal_pct", "pedal_pct", "roll_rate_dps", "yaw_rate_dps",
+                     "pitch_angle_deg", "nz_g", "altitude_ft", "shaft_power_hp", "sideslip_deg"):
+            ch[name] = interp(states[name])
+        for stick in ("collective_pct", "lateral_pct", "longitudinal_pct", "pedal_pct"):  # unfiltered sticks
+            ch[stick] = np.clip(ch[stick] + 0.15 * rng.standard_normal(ts.size), 0.0, 100.0)
+        df = pd.DataFrame(ch).astype(np.float32)
+        df["time_s"] = ts  # keep time exact (float64)
+        names = c.counter_names
+        if len(names) == 1:
+            records[names[0]] = df
+            rows.append(_row(names[0], c, 1))
+        else:  # one continuous flight cut into equal segments, each with time from its start
+            cut = np.array_split(np.arange(len(df)), len(names))
+            for seg, (name, idx) in enumerate(zip(names, cut), start=1):
+                part = df.iloc[idx].reset_index(drop=True)
+                part["time_s"] = ts[idx] - ts[idx[0]]
+                records[name] = part
+                rows.append(_row(name, c, seg))
+    return pd.DataFrame(rows), records, ground_truth(cfg)
+
+
+def _row(counter: str, c: Condition, segment: int) -> dict:
+    return dict(counter=counter, maneuver=c.maneuver, condition=c.id, segment=segment,
+                gross_weight_lb=c.gross_weight_lb, density_ratio=round(c.density_ratio, 4),
+                description=c.description or f"{c.maneuver}, {c.airspeed_kt:.0f} kt")
+
+
+def write_synthetic(out, cfg: SynthConfig = SynthConfig(), truth_path=None) -> tuple[Path, Path]:
+    """Generate a campaign and write it to `out`; the ground truth goes to `truth_path`
+    (default: `<out>.truth.json`, beside the folder, never inside it).
+
+    Returns:
+        (campaign folder, ground-truth file).
+    """
+    out = Path(out)
+    truth_path = Path(truth_path) if truth_path else out.with_name(out.name + ".truth.json")
+    if truth_path.resolve().is_relative_to(out.resolve()):
+        raise ValueError(f"ground truth {truth_path} must not be inside the campaign folder {out}")
+    counters, records, truth = generate(cfg)
+    write_campaign(out, counters, records, fmt=cfg.format,
+                   provenance=dict(generator="pvvjax.synth", generator_version=GENERATOR_VERSION,
+                                   name=cfg.name, seed=cfg.seed, config_hash=config_hash(cfg)))
+    truth_path.parent.mkdir(parents=True, exist_ok=True)
+    truth_path.write_text(json.dumps(truth, indent=2))
+    return out, truth_path
+
+
+def default_cache_dir() -> Path:
+    """`$PVVJAX_CACHE`, else `.cache/` of the source checkout, else `~/.cache/pvvjax`."""
+    env = os.environ.get("PVVJAX_CACHE")
+    if env:
+        return Path(env)
+    root = Path(__file__).resolve().parents[2]
+    return root / ".cache" if (root / "pyproject.toml").exists() else Path.home() / ".cache" / "pvvjax"
+
+
+def cached_campaign(cfg: SynthConfig = SynthConfig(), cache_dir=None) -> Path:
+    """The folder of a generated campaign, generating it once per config and generator
+    version. Safe under concurrent callers (the folder appears atomically)."""
+    cache_dir = Path(cache_dir) if cache_dir else default_cache_dir()
+    key = f"{cfg.name}-{config_hash(cfg)}-v{GENERATOR_VERSION}"
+    final = cache_dir / "campaigns" / key
+    if (final / "counters.csv").exists():
+        return final
+    final.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(dir=final.parent, prefix=".tmp-"))
+    try:
+        write_synthetic(tmp / "campaign", cfg, truth_path=tmp / "truth.json")
+        shutil.move(str(tmp / "truth.json"), str(final.parent / f"{key}.truth.json"))
+        try:
+            os.rename(tmp / "campaign", final)
+        except OSError:
+            if not (final / "counters.csv").exists():
+                raise
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return final
+
+
+def describe_effects() -> pd.DataFrame:
+    """The effect library as a table (name, kind, default, formula, physics, parameters)."""
+    return pd.DataFrame([dict(name=e.name, kind=e.kind, default_on=e.default_on, formula=e.formula,
+                              parameters=", ".join(f"{k}={v:g}" for k, v in e.params.items()), physics=e.physics)
+                         for e in EFFECTS.values()])
+
+
+__all__ = ["EffectConfig", "SynthConfig", "cached_campaign", "default_cache_dir", "describe_effects", "generate",
+           "ground_truth", "load_synth_config", "write_synthetic", "GENERATOR_VERSION"]

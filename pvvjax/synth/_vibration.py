@@ -1,0 +1,184 @@
+"""The 4/rev pilot-floor vibration of the synthetic campaign, built from named effects.
+
+The quasi-static 4P amplitude is a sum of additive effects, each a function of the flight
+state (see `EFFECTS` for every formula), multiplied by the airframe's response at 4Ω
+(`rotor_resonance`), and then passed through a first-order lag (`dynamic_lag`): the
+vibratory response follows a change of flight state with a delay.
+
+    A4_static = Σ_additive scale_e · f_e(state)
+    A4        = lag_τ( H(4Ω) · A4_static · (1 + scatter) )
+
+Each effect has an on/off switch, a scale and named parameters, all set from the
+generator config. Symbols: μ advance ratio, L = C_W/σ·n_z blade loading, ḣ climb rate
+(ft/min), q pitch rate (deg/s), q̇ pitch acceleration (deg/s²), p roll rate (deg/s),
+β sideslip (deg), f₄ = 4Ω/2π (Hz), s(x) = w·softplus(x/w) a smooth ramp.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+
+def _ramp(x, w):
+    """Smooth max(x, 0) with corner width w."""
+    return w * np.logaddexp(0.0, x / w)
+
+
+@dataclass(frozen=True)
+class Effect:
+    """A named physical effect on the 4P amplitude."""
+
+    name: str
+    kind: str  # "additive", "gain" or "lag"
+    formula: str
+    physics: str
+    params: dict
+    channels: tuple[str, ...]
+    default_on: bool = True
+    fn: Callable | None = None
+
+
+def _baseline(s, a0):
+    return np.full_like(s["mu"], a0)
+
+
+def _transition(s, a, mu0, width):
+    return a * np.exp(-(((s["mu"] - mu0) / width) ** 2))
+
+
+def _high_speed(s, a, mu0):
+    return a * _ramp(s["mu"] - mu0, 0.01) ** 2
+
+
+def _blade_loading(s, a, l0):
+    return a * _ramp(s["loading"] - l0, 0.005)
+
+
+def _dynamic_stall(s, a, knee, saturation):
+    return a * saturation * np.tanh(_ramp(s["loading"] - knee, 0.004) / saturation)
+
+
+def _descent_bvi(s, a, mu0, mu_width, climb0, climb_width, l_ref):
+    return (a * (s["loading"] / l_ref) ** 2 * np.exp(-(((s["mu"] - mu0) / mu_width) ** 2))
+            * np.exp(-(((s["climb_fpm"] - climb0) / climb_width) ** 2)))
+
+
+def _pitch_rate(s, a):
+    return a * np.abs(s["q"])
+
+
+def _roll_rate(s, a):
+    return a * np.abs(s["p"])
+
+
+def _pitch_acceleration(s, a):
+    return a * np.abs(s["qdot"])
+
+
+def _sideslip(s, a):
+    return a * np.abs(s["beta"])
+
+
+def _rotor_resonance(s, gain, f_mode, bandwidth, f_ref):
+    h = lambda f: 1.0 + gain / (1.0 + ((f - f_mode) / bandwidth) ** 2)  # noqa: E731
+    return h(s["f4"]) / h(f_ref)
+
+
+EFFECTS: dict[str, Effect] = {e.name: e for e in [
+    Effect("baseline", "additive", "a0",
+           "steady 4P of the rotor in any flight condition (hub loads at 4Ω)",
+           dict(a0=0.040), (), fn=_baseline),
+    Effect("transition", "additive", "a·exp(−((μ − μ0)/width)²)",
+           "rotor wake close to the disk at low speed (transition, μ ≈ 0.05–0.12): blade-vortex interaction",
+           dict(a=0.09, mu0=0.08, width=0.06), ("advance_ratio",), fn=_transition),
+    Effect("high_speed", "additive", "a·s(μ − μ0)²",
+           "advancing-blade compressibility and negative lift at high speed (μ ≳ 0.3)",
+           dict(a=14.2, mu0=0.26), ("advance_ratio",), fn=_high_speed),
+    Effect("blade_loading", "additive", "a·s(L − l0)",
+           "4P hub loads grow with blade loading C_W/σ·n (weight, density, rotor speed, load factor)",
+           dict(a=0.7, l0=0.055), ("blade_loading",), fn=_blade_loading),
+    Effect("dynamic_stall", "additive", "a·sat·tanh(s(L − knee)/sat)",
+           "retreating-blade dynamic stall above a blade-loading knee (pull-ups, tight turns, high weight/altitude)",
+           dict(a=5.5, knee=0.12, saturation=0.05), ("blade_loading",), fn=_dynamic_stall),
+    Effect("descent_bvi", "additive",
+           "a·(L/l_ref)²·exp(−((μ − mu0)/mu_width)²)·exp(−((ḣ − climb0)/climb_width)²)",
+           "descent at low to moderate speed puts the wake of a loaded rotor into the disk: blade-vortex "
+           "interaction (strongest in powered descent and recovery from autorotation)",
+           dict(a=0.15, mu0=0.15, mu_width=0.07, climb0=-900.0, climb_width=550.0, l_ref=0.07),
+           ("advance_ratio", "climb_rate_fpm", "blade_loading"), fn=_descent_bvi),
+    Effect("pitch_rate", "additive", "a·|q|",
+           "maneuver transient: rotor flapping and inflow change with body pitch rate",
+           dict(a=0.003), ("pitch_rate_dps",), fn=_pitch_rate),
+    Effect("roll_rate", "additive", "a·|p|",
+           "maneuver transient: asymmetric inflow and flapping with roll rate",
+           dict(a=0.0015), ("roll_rate_dps",), fn=_roll_rate),
+    Effect("pitch_acceleration", "additive", "a·|q̇|",
+           "maneuver transient: hub moment demand during pitch acceleration",
+           dict(a=0.004), ("pitch_rate_dps",), default_on=False, fn=_pitch_acceleration),
+    Effect("sideslip", "additive", "a·|β|",
+           "tail-rotor and fuselage interference with the main-rotor wake in sideslip (pedal)",
+           dict(a=0.005), ("sideslip_deg", "pedal_pct"), default_on=False, fn=_sideslip),
+    Effect("rotor_resonance", "gain", "H(f4)/H(f_ref), H(f) = 1 + gain/(1 + ((f − f_mode)/bandwidth)²)",
+           "airframe response at 4Ω near a fuselage mode (H-60 pilot-station peak at 17–17.5 Hz)",
+           dict(gain=0.5, f_mode=17.4, bandwidth=0.6, f_ref=17.19), ("rotor_rpm",), fn=_rotor_resonance),
+    Effect("dynamic_lag", "lag", "τ·dA/dt = A_static − A",
+           "rotor inflow and wake settle after a change of flight state: the vibration lags the state",
+           dict(tau_s=0.6), (), fn=None),
+]}
+
+
+def vibration_state(states: dict, aircraft) -> dict:
+    """The quantities effects use, from simulated (K, N) state arrays."""
+    from ..constants import KT_TO_FT_S, RPM_TO_RAD_S
+
+    vt = states["rotor_rpm"] * RPM_TO_RAD_S * aircraft.rotor_radius_ft
+    mu = states["airspeed_kt"] * KT_TO_FT_S / vt
+    rho = aircraft.rho0_slug_ft3 * states["density_ratio"]
+    cw = states["gross_weight_lb"] / (rho * aircraft.disk_area_ft2 * vt**2)
+    return dict(
+        mu=mu, loading=cw / aircraft.solidity * states["nz_g"], climb_fpm=states["climb_rate_fpm"],
+        q=states["pitch_rate_dps"], p=states["roll_rate_dps"], qdot=states["pitch_accel_dps2"],
+        beta=states["sideslip_deg"], f4=aircraft.blades * states["rotor_rpm"] / 60.0,
+    )
+
+
+def first_order_lag(x: np.ndarray, tau: float, dt: float) -> np.ndarray:
+    """y' = (x − y)/τ along the last axis, exact for piecewise-constant input; y(0) = x(0)."""
+    if tau <= 0:
+        return x
+    a = 1.0 - np.exp(-dt / tau)
+    y = np.empty_like(x)
+    y[..., 0] = x[..., 0]
+    for i in range(1, x.shape[-1]):
+        y[..., i] = y[..., i - 1] + a * (x[..., i] - y[..., i - 1])
+    return y
+
+
+def amplitude_4p(state: dict, settings: dict, dt: float) -> tuple[np.ndarray, dict]:
+    """4P amplitude (g) from the vibration state.
+
+    Args:
+        state: from `vibration_state`, (K, N) arrays.
+        settings: effect name -> (enabled, scale, params).
+        dt: sample step of the state arrays, s.
+
+    Returns:
+        (A4 after gain and lag, per-effect additive contributions before the lag).
+    """
+    parts = {}
+    total = np.zeros_like(state["mu"])
+    for name, eff in EFFECTS.items():
+        on, scale, params = settings[name]
+        if eff.kind == "additive" and on:
+            parts[name] = scale * eff.fn(state, **params)
+            total = total + parts[name]
+    gain_on, gain_scale, gain_params = settings["rotor_resonance"]
+    if gain_on:
+        total = total * (1.0 + gain_scale * (EFFECTS["rotor_resonance"].fn(state, **gain_params) - 1.0))
+    lag_on, lag_scale, lag_params = settings["dynamic_lag"]
+    if lag_on:
+        total = first_order_lag(total, lag_scale * lag_params["tau_s"], dt)
+    return total, parts
