@@ -16,7 +16,9 @@ import numpy as np
 
 from .campaign import Campaign
 
-__all__ = ["RecordBatch", "to_batch"]
+__all__ = ["BLOCK", "RecordBatch", "sample_widths", "to_batch"]
+
+BLOCK = 64  # batches are padded to a multiple of this many samples
 
 
 @dataclasses.dataclass(frozen=True)
@@ -26,7 +28,10 @@ class RecordBatch:
     Attributes:
         time: (B, T) time from record start, s.
         rev: (B, T) unwrapped rotor azimuth in revolutions.
-        psi: (B, T) reference-blade azimuth, rad, wrapped to [0, 2π).
+        cos_psi, sin_psi: (B, T) reference-blade azimuth ψ as a unit phasor (computed in
+            float64 from the wrapped azimuth, so it carries no wrap or rounding artefact).
+        width: (B, T) revolutions each sample stands for (half-way to each neighbour); 0 in
+            padding, so it is also the sample's weight in a harmonic analysis.
         az: (B, T) pilot-floor vertical acceleration, g (0 in padding).
         x: (B, T, C) flight-state channels named by `channels`, canonical units.
         mask: (B, T) True on real samples.
@@ -36,7 +41,9 @@ class RecordBatch:
 
     time: jax.Array
     rev: jax.Array
-    psi: jax.Array
+    cos_psi: jax.Array
+    sin_psi: jax.Array
+    width: jax.Array
     az: jax.Array
     x: jax.Array
     mask: jax.Array
@@ -54,9 +61,15 @@ class RecordBatch:
 
 jax.tree_util.register_dataclass(
     RecordBatch,
-    data_fields=["time", "rev", "psi", "az", "x", "mask"],
+    data_fields=["time", "rev", "cos_psi", "sin_psi", "width", "az", "x", "mask"],
     meta_fields=["counters", "channels"],
 )
+
+
+def sample_widths(rev: np.ndarray) -> np.ndarray:
+    """Revolutions each sample stands for: half-way to each neighbour (ends: one step)."""
+    d = np.diff(rev)
+    return 0.5 * (np.r_[d[:1], d] + np.r_[d, d[-1:]])
 
 
 def _pad_linear(v: np.ndarray, n: int) -> np.ndarray:
@@ -87,8 +100,9 @@ def to_batch(campaign: Campaign, channels: Sequence[str], counters: Sequence[str
         if missing:
             raise KeyError(f"counter {c!r} has no channel(s) {missing}")
     T = max(max(len(r) for r in recs), min_length)
+    T = -(-T // BLOCK) * BLOCK  # whole blocks for the harmonic analysis
     B, C = len(recs), len(channels)
-    out = {k: np.zeros((B, T), dtype) for k in ("time", "rev", "psi", "az")}
+    out = {k: np.zeros((B, T), dtype) for k in ("time", "rev", "cos_psi", "sin_psi", "width", "az")}
     x = np.zeros((B, T, C), dtype)
     mask = np.zeros((B, T), bool)
     for i, r in enumerate(recs):
@@ -99,10 +113,13 @@ def to_batch(campaign: Campaign, channels: Sequence[str], counters: Sequence[str
         out["time"][i] = _pad_linear(t, pad)
         rev = _pad_linear(rev, pad)  # float64 until stored: psi keeps full precision
         out["rev"][i] = rev
-        out["psi"][i] = np.deg2rad(np.mod(rev * 360.0, 360.0))
+        psi = 2.0 * np.pi * np.mod(rev, 1.0)
+        out["cos_psi"][i], out["sin_psi"][i] = np.cos(psi), np.sin(psi)
+        out["width"][i, :n] = sample_widths(rev[:n])
         out["az"][i, :n] = r["az_g"].to_numpy(np.float64)
         vals = r[list(channels)].to_numpy(np.float64)
         x[i, :n] = vals
         x[i, n:] = vals[-1]
         mask[i, :n] = True
-    return RecordBatch(out["time"], out["rev"], out["psi"], out["az"], x, mask, tuple(counters), tuple(channels))
+    return RecordBatch(out["time"], out["rev"], out["cos_psi"], out["sin_psi"], out["width"], out["az"], x, mask,
+                       tuple(counters), tuple(channels))
