@@ -164,3 +164,14 @@ def test_synth_cli_with_plots(tmp_path, capsys):
     assert load_campaign(tmp_path / "c").provenance["seed"] == 4
     for f in ("pvv_vs_airspeed.png", "pullup_11022.png", "autorotation_AR60.png"):
         assert (tmp_path / "fig" / f).stat().st_size > 10_000
+
+
+def test_shipped_scenario_configs_load_and_differ_from_default():
+    from pathlib import Path
+
+    from pvvjax.synth import ground_truth
+
+    folder = Path(__file__).parents[1] / "experiments" / "configs" / "scenarios"
+    hidden = {p.stem: ground_truth(load_synth_config(p))["hidden"] for p in sorted(folder.glob("*.toml"))}
+    assert hidden == {"long-lag": ["dynamic_lag"], "null": [], "pitch-acceleration": ["pitch_acceleration"],
+                      "sideslip": ["sideslip"]}
