@@ -178,6 +178,40 @@ def cmd_run(args) -> int:
     return 0
 
 
+def enable_compilation_cache():
+    """Reuse compiled XLA programs across runs (`.cache/jax`), unless the user set a cache."""
+    import jax
+
+    if not os.environ.get("JAX_COMPILATION_CACHE_DIR"):
+        from .synth import default_cache_dir
+
+        jax.config.update("jax_compilation_cache_dir", str(default_cache_dir() / "jax"))
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+
+
+def cmd_sweep(args) -> int:
+    """Train the config's family of nets; resumable."""
+    from tqdm.auto import tqdm
+
+    from .config import load_config
+    from .databases import build_databases
+    from .io import write_config
+    from .sweep import run_sweep
+
+    cfg = load_config(args.config)
+    enable_compilation_cache()
+    out = Path(args.out) if args.out else Path(cfg.out_dir) / cfg.name / "sweep"
+    campaign, _ = resolve_campaign(cfg)
+    dbs = build_databases(campaign, cfg.analysis)
+    write_config(cfg, out / "config.toml")
+    t0 = time.perf_counter()
+    res = run_sweep(cfg, dbs, out, progress=lambda **kw: tqdm(desc="nets", unit="net", **kw))
+    cols = ["val_rms_g", "test_rms_g", "test_max_abs_g", "test_p95_abs_g", "steps"]
+    print(res.groupby(["database", "architecture"])[cols].median().round(4).to_string())
+    print(f"{len(res)} nets in {out / 'results.parquet'} ({time.perf_counter() - t0:.1f} s)")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="pvvjax", description="Helicopter pilot-floor 4/rev vibration (PVV) toolkit.")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -211,6 +245,13 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--config", help="experiment config")
     s.set_defaults(fn=cmd_plot)
 
+    s = sub.add_parser("sweep", help="train a sweep of networks (databases x architectures x seeds x folds)",
+                       description="Train every net of the config's [sweep] with its [train] settings. "
+                                   "Resumable: run it again after an interruption to finish the rest.")
+    s.add_argument("config", help="experiment config (TOML), e.g. experiments/configs/sweep-small.toml")
+    s.add_argument("--out", default=None, help="sweep folder (default: OUT_DIR/NAME/sweep)")
+    s.set_defaults(fn=cmd_sweep)
+
     s = sub.add_parser("run", help="run an experiment config end to end (the main job)",
                        description="Campaign, databases and figures for one experiment config.")
     s.add_argument("config", help="experiment config (TOML)")
@@ -221,11 +262,12 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv=None) -> int:
     from ._strict import ConfigError
     from .campaign import CampaignError
+    from .train import TrainingError
 
     args = build_parser().parse_args(argv)
     try:
         return args.fn(args)
-    except (CampaignError, ConfigError) as e:
+    except (CampaignError, ConfigError, TrainingError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
     except (FileNotFoundError, KeyError, ValueError) as e:

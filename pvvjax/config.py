@@ -29,6 +29,8 @@ __all__ = [
     "ColumnMap",
     "ConfigError",
     "ExperimentConfig",
+    "SweepConfig",
+    "TrainConfig",
     "config_hash",
     "load_config",
     "load_toml",
@@ -117,6 +119,80 @@ class AnalysisConfig:
 
 
 @dataclass(frozen=True)
+class TrainConfig:
+    """Full-batch training of one net.
+
+    Attributes:
+        optimizer: "adam" (first order) or "lm" (Levenberg-Marquardt, second order).
+        learning_rate: Adam step size.
+        max_steps: optimizer steps at most.
+        eval_every: steps between validation evaluations.
+        patience: evaluations without a better validation RMS before stopping.
+        weight_decay: decoupled weight decay (AdamW) when > 0.
+        lm_damping: initial Levenberg-Marquardt damping λ.
+        divergence_factor: a training loss above this multiple of the initial loss is divergence.
+    """
+
+    optimizer: Literal["adam", "lm"] = "adam"
+    learning_rate: float = 3e-3
+    max_steps: int = 6000
+    eval_every: int = 50
+    patience: int = 10
+    weight_decay: float = 0.0
+    lm_damping: float = 1e-2
+    divergence_factor: float = 1e3
+
+    def __post_init__(self):
+        for name in ("learning_rate", "max_steps", "eval_every", "patience", "lm_damping", "divergence_factor"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"train.{name} must be > 0, got {getattr(self, name)}")
+        if self.weight_decay < 0:
+            raise ValueError(f"train.weight_decay must be >= 0, got {self.weight_decay}")
+
+
+@dataclass(frozen=True)
+class SweepConfig:
+    """A family of nets trained together: databases × architectures × seeds × folds.
+
+    Attributes:
+        databases: which of db1, db2, db3.
+        family: "mlp" (back-propagation nets) or "rbf" (radial-basis-function nets).
+        hidden: MLP hidden-layer widths per architecture, e.g. [[10, 5], [15, 5]].
+        centers: RBF centre counts per architecture.
+        seeds: number of initialisation seeds (0 .. seeds-1).
+        folds: k of the k-fold split by condition.
+        test_folds: outer folds to run (empty: all k, so every condition is held out once).
+        split_seed: seed of the assignment of conditions to folds.
+        chunk_evals: evaluations per compiled chunk; finished nets leave the batch between chunks.
+    """
+
+    databases: tuple[str, ...] = ("db1", "db2", "db3")
+    family: Literal["mlp", "rbf"] = "mlp"
+    hidden: tuple[tuple[int, ...], ...] = ((10, 5),)
+    centers: tuple[int, ...] = (20,)
+    seeds: int = 1
+    folds: int = 5
+    test_folds: tuple[int, ...] = ()
+    split_seed: int = 0
+    chunk_evals: int = 4
+
+    def __post_init__(self):
+        bad = [d for d in self.databases if d not in ("db1", "db2", "db3")]
+        if bad or not self.databases:
+            raise ValueError(f"sweep.databases: unknown {bad}; use db1, db2, db3")
+        if any(not h or min(h) < 1 for h in self.hidden):
+            raise ValueError(f"sweep.hidden: every architecture needs widths >= 1, got {self.hidden}")
+        if self.seeds < 1 or self.folds < 3 or self.chunk_evals < 1:
+            raise ValueError("sweep.seeds must be >= 1, sweep.folds >= 3, sweep.chunk_evals >= 1")
+        if any(not 0 <= f < self.folds for f in self.test_folds):
+            raise ValueError(f"sweep.test_folds must lie in 0..{self.folds - 1}, got {self.test_folds}")
+
+    @property
+    def fold_list(self) -> tuple[int, ...]:
+        return self.test_folds or tuple(range(self.folds))
+
+
+@dataclass(frozen=True)
 class ExperimentConfig:
     """One experiment: a campaign and the pipeline settings applied to it."""
 
@@ -125,6 +201,8 @@ class ExperimentConfig:
     seed: int = 0
     campaign: CampaignConfig = field(default_factory=CampaignConfig)
     analysis: AnalysisConfig = field(default_factory=AnalysisConfig)
+    train: TrainConfig = field(default_factory=TrainConfig)
+    sweep: SweepConfig = field(default_factory=SweepConfig)
 
     def with_(self, **changes) -> "ExperimentConfig":
         return dataclasses.replace(self, **changes)

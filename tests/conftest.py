@@ -59,3 +59,22 @@ def default_dbs(default_campaign):
     from pvvjax.databases import build_databases
 
     return build_databases(default_campaign)
+
+
+SMALL_COUNTS = dict(level=10, climb=3, descent=3, turn=3, roll=3, pushover=2, pullup=3, autorotation=1, flare=2)
+
+
+@pytest.fixture(scope="session")
+def small_campaign_dir():
+    """A small synthetic campaign (named conditions, the level sweep and a few of each kind)."""
+    from pvvjax.synth import SynthConfig, cached_campaign
+
+    return cached_campaign(SynthConfig(name="small", counts=SMALL_COUNTS))
+
+
+@pytest.fixture(scope="session")
+def small_dbs(small_campaign_dir):
+    from pvvjax.campaign import load_campaign
+    from pvvjax.databases import build_databases
+
+    return build_databases(load_campaign(small_campaign_dir))

@@ -1,0 +1,366 @@
+"""Sweeps: many nets (databases × architectures × seeds × folds) trained in one program.
+
+Nets of one depth share a compiled program: hidden layers are allocated at the widest
+architecture of the sweep and masked (`networks`), and the inputs of db1-db3 (6, 8 and 7)
+are padded to 8 with an input mask. The stacked nets are vmapped; when more than one JAX
+device exists the net axis is sharded across them (`jax.sharding`). Training runs in
+chunks of `chunk_evals` evaluations; between chunks finished nets leave the batch, which
+shrinks to the next power of two, so the cost follows the nets' own step counts rather
+than the slowest net's.
+
+The shell around it (`run_sweep`) is resumable: the parameters of each finished net are
+written to `params/<net_id>.npz`, then the result rows of the nets that finished together
+to one file in `parts/`, each under a temporary name and renamed (a net counts as done
+once its row is in a part), so a sweep killed at any point and run again with the
+same config trains only the missing nets, keeps every finished one, and leaves no
+duplicate row and no half-written file. `results.parquet` gathers the parts at the end.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from functools import partial
+import math
+import time
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pandas as pd
+
+from . import train as _train
+from ._strict import to_dict
+from .config import ExperimentConfig, config_hash
+from .databases import DB_INPUTS, OUTPUT
+from .networks import architecture_name, mlp_apply, mlp_init, n_weights, rbf_apply, rbf_fit, scaling
+
+__all__ = ["N_INPUTS", "collect", "load_params", "net_table", "run_sweep", "save_params", "stack_data", "train_nets"]
+
+N_INPUTS = max(len(v) for v in DB_INPUTS.values())  # every database padded to this many inputs
+
+
+# --------------------------------------------------------------------------- planning
+
+
+def net_table(cfg: ExperimentConfig) -> pd.DataFrame:
+    """One row per net of the sweep, with a stable id (same config -> same ids)."""
+    sw, tr = cfg.sweep, cfg.train
+    archs = sw.hidden if sw.family == "mlp" else tuple((c,) for c in sw.centers)
+    rows = []
+    for db in sw.databases:
+        for hidden in archs:
+            for seed in range(sw.seeds):
+                for fold in sw.fold_list:
+                    key = dict(db=db, family=sw.family, hidden=list(hidden), seed=seed, fold=fold, k=sw.folds,
+                               split_seed=sw.split_seed, train=to_dict(tr), analysis=to_dict(cfg.analysis),
+                               campaign=to_dict(cfg.campaign), exp_seed=cfg.seed)
+                    net_id = hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:16]
+                    rows.append(dict(net_id=net_id, database=db, family=sw.family, hidden="-".join(map(str, hidden)),
+                                     architecture=architecture_name(len(DB_INPUTS[db]), hidden) if sw.family == "mlp"
+                                     else f"rbf-{hidden[0]}", depth=len(hidden), seed=seed, test_fold=fold,
+                                     optimizer=tr.optimizer if sw.family == "mlp" else "kmeans+lstsq"))
+    return pd.DataFrame(rows)
+
+
+def stack_data(dbs: dict, databases, folds: int, split_seed: int):
+    """Per-database arrays padded to `N_INPUTS` inputs.
+
+    Returns:
+        dict db -> (x (n, N_INPUTS), y (n,), in_mask (N_INPUTS,), fold of each row (n,)).
+    """
+    out = {}
+    for db in databases:
+        df = dbs[db]
+        cols = list(DB_INPUTS[db])
+        x = np.zeros((len(df), N_INPUTS), np.float32)
+        x[:, : len(cols)] = df[cols].to_numpy(np.float32)
+        mask = (np.arange(N_INPUTS) < len(cols)).astype(np.float32)
+        out[db] = (x, df[OUTPUT].to_numpy(np.float32), mask, _train.condition_folds(df.condition, folds, split_seed))
+    return out
+
+
+# --------------------------------------------------------------------------- core
+
+
+def _stack(trees):
+    return jax.tree.map(lambda *a: np.stack([np.asarray(v) for v in a]), *trees)
+
+
+def _take(tree, idx):
+    return jax.tree.map(lambda a: a[idx], tree)
+
+
+def _bucket(n: int, multiple: int) -> int:
+    b = 1 << max(0, math.ceil(math.log2(max(n, 1))))
+    return max(multiple, -(-b // multiple) * multiple)
+
+
+def _sharded(state, consts, data, n_dev):
+    """Shard the net axis (axis 1 of the (groups, nets, ...) layout) over the devices;
+    the groups' data are replicated."""
+    if n_dev <= 1:
+        return state, consts, data
+    from jax.sharding import Mesh, NamedSharding, PartitionSpec
+
+    mesh = Mesh(np.array(jax.devices()), ("nets",))
+    nets = NamedSharding(mesh, PartitionSpec(None, "nets"))
+    return (jax.device_put(state, nets), jax.device_put(consts, nets),
+            jax.device_put(data, NamedSharding(mesh, PartitionSpec())))
+
+
+def _inner(f):
+    return jax.vmap(f, in_axes=(0, 0, None))  # the nets of a group share its data
+
+
+@partial(jax.jit, static_argnames=("cfg", "apply"))
+def _init_chunk(train_params, consts, data, cfg, apply):
+    return jax.vmap(_inner(lambda p, c, d: _train.init_state({**c, **p}, d, cfg, apply)))(train_params, consts, data)
+
+
+@partial(jax.jit, static_argnames=("cfg", "chunk_evals", "apply"))
+def _run_chunk(state, consts, data, cfg, chunk_evals, apply):
+    run = _inner(lambda s, c, d: _train.run(s, c, d, cfg, chunk_evals, apply))
+    new = jax.vmap(run)(state, consts, data)
+    return new, jax.vmap(jax.vmap(lambda s: _train.done(s, cfg)))(new)
+
+
+@partial(jax.jit, static_argnames=("apply",))
+def predict_many(params, x, apply=mlp_apply):
+    """Predictions of stacked nets (N, ...) on stacked inputs (N, n, d) -> (N, n)."""
+    return jax.vmap(apply)(params, x)
+
+
+def train_nets(params, data: _train.Data, group, cfg, *, chunk_evals: int = 8, on_done=None, apply=mlp_apply):
+    """Train a stack of nets (leading axis N) to completion, with compaction.
+
+    Nets that train on the same data (same database and split) form a group, and the
+    data enter once per group: the compiled step is vmapped over groups and, inside, over
+    the nets of a group with the data shared, so a layer of all the nets of a group is one
+    large matrix product rather than N small ones.
+
+    Args:
+        params: stacked parameters (N, ...).
+        data: `Data` of each group, stacked (G, ...).
+        group: (N,) group index of each net.
+        cfg: `TrainConfig`. chunk_evals: evaluations per chunk.
+        on_done: callback(indices, fits, seconds) for nets that just finished (host arrays).
+
+    Returns:
+        Stacked `Fit` of all nets (host arrays), in input order.
+    """
+    group = np.asarray(group)
+    n, n_groups = group.size, jax.tree.leaves(data)[0].shape[0]
+    consts = {k: v for k, v in params.items() if k not in _train.TRAINABLE}
+    n_dev = jax.device_count()
+    state = None
+    active = np.arange(n)
+    spent = np.zeros(n)
+    while active.size:
+        # (G, M) table of net indices: each group's active nets, padded with repeats
+        per = [active[group[active] == g] for g in range(n_groups)]
+        # batch sizes are powers of two, at least 8: few shapes, so few compilations
+        width = max(8, _bucket(max(len(a) for a in per), n_dev))
+        table = np.stack([np.resize(a if len(a) else np.flatnonzero(group == g)[:1], width) for g, a in enumerate(per)])
+        real = np.stack([np.arange(width) < len(a) for a in per])
+        t0 = time.perf_counter()
+        c = _take(consts, table)
+        if state is None:
+            st = _init_chunk({k: v for k, v in _take(params, table).items() if k in _train.TRAINABLE}, c, data, cfg,
+                             apply)
+        else:
+            st = _take(state, table)
+        new, fin = _run_chunk(*_sharded(st, c, data, n_dev), cfg, chunk_evals, apply)
+        fin = np.asarray(fin)
+        new = jax.tree.map(np.asarray, new)
+        dt = time.perf_counter() - t0
+        ids, fin = table[real], fin[real]
+        spent[ids] += dt / ids.size
+        if state is None:  # allocate the full state once, from the first chunk's layout
+            state = jax.tree.map(lambda a: np.zeros((n,) + a.shape[2:], a.dtype), new)
+        state = jax.tree.map(lambda full, part: _scatter(full, ids, part[real]), state, new)
+        finished = ids[fin]
+        if on_done is not None and finished.size:
+            fits = _train.result(_take(state, finished), _take(consts, finished))
+            on_done(finished, jax.tree.map(np.asarray, fits), spent[finished])
+        active = np.setdiff1d(active, finished)
+    return jax.tree.map(np.asarray, _train.result(state, consts))
+
+
+def _scatter(full, idx, part):
+    full = np.array(full, copy=True)
+    full[idx] = part
+    return full
+
+
+# --------------------------------------------------------------------------- files
+
+
+def save_params(path, params: dict, meta: dict) -> Path:
+    """Save parameters as `.npz` (no pickle), written atomically; `meta` is stored as JSON."""
+    path = Path(path)
+    flat = {"/".join(str(getattr(k, "key", getattr(k, "idx", k))) for k in kp): np.asarray(v)
+            for kp, v in jax.tree_util.tree_flatten_with_path(params)[0]}
+    flat["__meta__"] = np.array(json.dumps(meta))
+    tmp = path.with_name(path.name + ".tmp.npz")
+    np.savez(tmp, **flat)
+    tmp.replace(path)
+    return path
+
+
+def load_params(path) -> tuple[dict, dict]:
+    """Load parameters saved by `save_params` (with `allow_pickle=False`)."""
+    with np.load(path, allow_pickle=False) as z:
+        meta = json.loads(str(z["__meta__"]))
+        out: dict = {}
+        for key in z.files:
+            if key == "__meta__":
+                continue
+            parts = key.split("/")
+            node = out
+            for p in parts[:-1]:
+                node = node.setdefault(p, {})
+            node[parts[-1]] = z[key]
+    for group in ("layers", "masks"):
+        if group in out:  # sequences were flattened with integer keys
+            out[group] = tuple(out[group][str(i)] for i in range(len(out[group])))
+    return out, meta
+
+
+def _split_sizes(data, sw) -> tuple[int, int]:
+    """Largest train and validation row counts over databases and folds (common padding)."""
+    n_tr = n_va = 0
+    for _, _, _, folds in data.values():
+        for f in range(sw.folds):
+            w_tr, w_va, _ = _train.split_masks(folds, f, sw.folds)
+            n_tr, n_va = max(n_tr, int(w_tr.sum())), max(n_va, int(w_va.sum()))
+    return n_tr, n_va
+
+
+def _atomic_parquet(df: pd.DataFrame, path: Path):
+    tmp = path.with_name(path.name + ".tmp")
+    df.to_parquet(tmp, index=False)
+    tmp.replace(path)
+
+
+def run_sweep(cfg: ExperimentConfig, dbs: dict, out: Path, *, progress=None, log=print) -> pd.DataFrame:
+    """Train every net of `cfg.sweep` not yet finished in `out`; return all result rows.
+
+    Args:
+        cfg: experiment config (sweep, train, analysis).
+        dbs: databases (`build_databases`).
+        out: sweep folder (created; reused to resume).
+        progress: optional tqdm-like factory `progress(total=, initial=)`.
+    """
+    out = Path(out)
+    (out / "parts").mkdir(parents=True, exist_ok=True)
+    (out / "params").mkdir(exist_ok=True)
+    nets = net_table(cfg)
+    done_ids = set(collect(out).get("net_id", pd.Series(dtype=str)))
+    todo = nets[~nets.net_id.isin(done_ids)].reset_index(drop=True)
+    log(f"sweep: {len(nets)} nets, {len(nets) - len(todo)} already finished, {len(todo)} to train")
+    data = stack_data(dbs, cfg.sweep.databases, cfg.sweep.folds, cfg.sweep.split_seed)
+    bar = progress(total=len(nets), initial=len(nets) - len(todo)) if progress else None
+    chash = config_hash(cfg)
+    sw = cfg.sweep
+    # One program per depth: on CPU a training step costs about the same for 30 nets as for
+    # 300 (kernel overheads dominate), so fewer, larger batches beat less padding.
+    groups = [g for _, g in todo.groupby("depth", sort=True)] if sw.family == "mlp" else [todo]
+    for group in groups:
+        if group.empty:
+            continue
+        group = group.reset_index(drop=True)
+        if sw.family == "rbf":
+            _run_rbf(group, data, dbs, cfg, out, chash, bar)
+            continue
+        depth = int(group.depth.iloc[0])
+        max_hidden = tuple(int(max(int(h.split("-")[i]) for h in group.hidden)) for i in range(depth))
+        keys = sorted(set(zip(group.database, group.test_fold)))
+        n_tr, n_va = _split_sizes(data, sw)
+        gdata = []
+        for db, fold in keys:
+            x, y, in_mask, folds = data[db]
+            w_tr, w_va, _ = _train.split_masks(folds, fold, sw.folds)
+            gdata.append(_train.make_data(x, y, w_tr, w_va, n_tr, n_va))
+        params = []
+        for r in group.itertuples():
+            x, y, in_mask, folds = data[r.database]
+            w_tr, _, _ = _train.split_masks(folds, r.test_fold, sw.folds)
+            sc = scaling(x[w_tr > 0], y[w_tr > 0], in_mask)
+            hidden = tuple(int(v) for v in r.hidden.split("-"))
+            params.append(mlp_init(jax.random.key(r.seed), N_INPUTS, hidden, max_hidden=max_hidden, in_mask=in_mask,
+                                   scale=sc))
+        gid = np.array([keys.index((r.database, r.test_fold)) for r in group.itertuples()])
+
+        def on_done(idx, fits, seconds, group=group):
+            _finish(group.iloc[idx], fits, seconds, data, dbs, cfg, out, chash)
+            if bar is not None:
+                bar.update(len(idx))
+
+        train_nets(_stack(params), _stack(gdata), gid, cfg.train, chunk_evals=sw.chunk_evals, on_done=on_done)
+    if bar is not None:
+        bar.close()
+    results = collect(out)
+    _atomic_parquet(results, out / "results.parquet")
+    return results
+
+
+def collect(out: Path) -> pd.DataFrame:
+    """All finished result rows of a sweep folder."""
+    parts = sorted((Path(out) / "parts").glob("*.parquet"))
+    if not parts:
+        return pd.DataFrame()
+    return pd.concat([pd.read_parquet(p, columns=None) for p in parts], ignore_index=True)
+
+
+def _finish(rows: pd.DataFrame, fits, seconds, data, dbs, cfg, out: Path, chash: str, apply=mlp_apply):
+    """Write the parameters and result rows of nets that just finished (one part file)."""
+    failed = np.asarray(fits.failed_step)
+    for j, r in enumerate(rows.itertuples()):
+        if failed[j] >= 0:
+            raise _train.TrainingError(
+                f"net {r.database} {r.architecture} seed {r.seed} fold {r.test_fold} ({r.net_id}): training loss "
+                f"not finite or diverging at step {int(failed[j])}; lower train.learning_rate or check the data")
+    x = np.stack([data[db][0] for db in rows.database])
+    preds = np.asarray(predict_many(fits.params, x, apply))
+    out_rows = []
+    for j, r in enumerate(rows.itertuples()):
+        p = jax.tree.map(lambda a: a[j], fits.params)
+        out_rows.append(_net_row(r, p, preds[j], float(seconds[j]), int(fits.best_step[j]), int(fits.steps[j]), data,
+                                 dbs, cfg, out, chash))
+    _atomic_parquet(pd.DataFrame(out_rows), out / "parts" / f"{rows.net_id.iloc[0]}-{len(rows)}.parquet")
+
+
+def _net_row(r, p, pred, seconds, best_step, steps, data, dbs, cfg, out, chash) -> dict:
+    """Save one net's parameters and return its result row."""
+    x, y, in_mask, folds = data[r.database]
+    w_tr, w_va, w_te = _train.split_masks(folds, r.test_fold, cfg.sweep.folds)
+    row = {k: v for k, v in r._asdict().items() if k != "Index"}
+    for split, w in (("train", w_tr), ("val", w_va), ("test", w_te)):
+        for k, v in _train.masked_metrics(pred, y, w).items():
+            row[f"{split}_{k}"] = v
+    n_in = len(DB_INPUTS[r.database])
+    hidden = [int(v) for v in r.hidden.split("-")]
+    row.update(best_step=best_step, steps=steps, wall_s=seconds, config_hash=chash, n_inputs=n_in,
+               n_weights=n_weights(n_in, hidden) if r.family == "mlp" else hidden[0] * (n_in + 2) + 1,
+               predictions=json.dumps(np.round(pred, 6).tolist()), conditions=json.dumps(dbs[r.database].condition.tolist()),
+               split=json.dumps(np.where(w_te > 0, "test", np.where(w_va > 0, "val", "train")).tolist()))
+    meta = dict(net_id=r.net_id, database=r.database, architecture=r.architecture, family=r.family,
+                inputs=list(DB_INPUTS[r.database]), seed=int(r.seed), test_fold=int(r.test_fold))
+    save_params(out / "params" / f"{r.net_id}.npz", jax.tree.map(np.asarray, p), meta)
+    return row
+
+
+def _run_rbf(group, data, dbs, cfg, out, chash, bar):
+    for r in group.itertuples():
+        x, y, in_mask, folds = data[r.database]
+        w_tr, _, _ = _train.split_masks(folds, r.test_fold, cfg.sweep.folds)
+        t0 = time.perf_counter()
+        sel = w_tr > 0
+        p = jax.tree.map(np.asarray, rbf_fit(jax.random.key(r.seed), x[sel], y[sel], int(r.hidden), in_mask=in_mask))
+        pred = np.asarray(rbf_apply(p, x))
+        row = _net_row(r, p, pred, time.perf_counter() - t0, 0, 0, data, dbs, cfg, out, chash)
+        _atomic_parquet(pd.DataFrame([row]), out / "parts" / f"{r.net_id}-1.parquet")
+        if bar is not None:
+            bar.update(1)

@@ -1,0 +1,224 @@
+"""Full-batch training of the networks, with splits by flight condition.
+
+Every row of a database is a flight condition, so a split is a partition of conditions;
+rows are never split. `condition_folds` assigns each condition to one of k folds; for fold
+f the test set is fold f, the validation set (early stopping) is fold f+1, and the rest
+trains. Across the k folds every condition is predicted exactly once by a net that never
+saw it: the held-out predictions of the correlation plots.
+
+Data enter as full arrays with 0/1 row weights (train, validation, test), so nets trained
+on different splits, databases and seeds have the same shapes and vmap together.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+
+from .networks import mlp_apply
+
+__all__ = ["TRAINABLE", "Data", "Fit", "TrainState", "TrainingError", "condition_folds", "done", "fit", "init_state", "make_data",
+           "masked_metrics", "result", "run", "split_masks"]
+
+
+class TrainingError(RuntimeError):
+    """A net whose loss became NaN or diverged."""
+
+
+class Fit(NamedTuple):
+    """Result of training one net (a batch of nets when vmapped).
+
+    Attributes:
+        params: parameters at the best validation RMS.
+        best_step: step of the best validation RMS.
+        best_val_rms: validation RMS at that step, g.
+        steps: steps run.
+        failed_step: first step with a non-finite or diverging loss (-1: none).
+    """
+
+    params: dict
+    best_step: jax.Array
+    best_val_rms: jax.Array
+    steps: jax.Array
+    failed_step: jax.Array
+
+
+def condition_folds(conditions, k: int, seed: int) -> np.ndarray:
+    """Fold index (0..k-1) of each row, assigned per condition in a seeded random order."""
+    conditions = np.asarray(conditions)
+    uniq = np.unique(conditions)
+    if k < 3 or k > len(uniq):
+        raise ValueError(f"k-fold needs 3 <= k <= number of conditions ({len(uniq)}), got k={k}")
+    order = np.random.default_rng(seed).permutation(len(uniq))
+    fold_of = {c: i % k for i, c in zip(range(len(uniq)), uniq[order])}
+    return np.array([fold_of[c] for c in conditions])
+
+
+def split_masks(folds: np.ndarray, test_fold: int, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(train, validation, test) 0/1 row weights for one outer fold."""
+    test = folds == test_fold
+    val = folds == (test_fold + 1) % k
+    return (~test & ~val).astype(np.float32), val.astype(np.float32), test.astype(np.float32)
+
+
+TRAINABLE = ("layers", "centers", "log_width", "w", "b")  # masks and scalings never train
+
+
+def _split(params: dict) -> tuple[dict, dict]:
+    return ({k: v for k, v in params.items() if k in TRAINABLE},
+            {k: v for k, v in params.items() if k not in TRAINABLE})
+
+
+def _wmse(pred, y, w, y_scale):
+    return jnp.sum(w * ((pred - y) / y_scale) ** 2) / jnp.maximum(jnp.sum(w), 1.0)
+
+
+def _wrms(pred, y, w):
+    return jnp.sqrt(jnp.sum(w * (pred - y) ** 2) / jnp.maximum(jnp.sum(w), 1.0))
+
+
+class TrainState(NamedTuple):
+    """Everything a net's training needs to continue (vmap it over nets)."""
+
+    opt: tuple  # optimizer state: (weights, adam state) or (weights, LM damping)
+    best: dict  # weights at the best validation RMS
+    best_val: jax.Array
+    best_step: jax.Array
+    step: jax.Array
+    since: jax.Array  # evaluations since the last improvement
+    failed: jax.Array  # first step with a non-finite or diverging loss, -1: none
+    limit: jax.Array  # loss above which training counts as diverging
+
+
+class Data(NamedTuple):
+    """One net's training and validation rows (padded rows carry weight 0).
+
+    Only these rows are computed in a training step (test rows never enter), so the
+    cost follows the training set, not the database.
+    """
+
+    x: jax.Array  # (n_train, d)
+    y: jax.Array  # (n_train,)
+    w: jax.Array  # (n_train,) 0/1
+    x_val: jax.Array  # (n_val, d)
+    y_val: jax.Array
+    w_val: jax.Array
+
+
+def make_data(x, y, w_train, w_val, n_train: int | None = None, n_val: int | None = None) -> Data:
+    """Select a split's rows (NumPy, outside jit), padded to `n_train`/`n_val` rows."""
+    x, y = np.asarray(x, np.float32), np.asarray(y, np.float32)
+
+    def take(w, n):
+        idx = np.flatnonzero(np.asarray(w) > 0)
+        n = len(idx) if n is None else n
+        if n < len(idx):
+            raise ValueError(f"{len(idx)} rows do not fit in {n}")
+        pad = np.full(n - len(idx), idx[0] if len(idx) else 0)
+        sel = np.concatenate([idx, pad]).astype(int)
+        return x[sel], y[sel], (np.arange(n) < len(idx)).astype(np.float32)
+
+    return Data(*take(w_train, n_train), *take(w_val, n_val))
+
+
+def _optimizer(cfg):
+    if cfg.weight_decay:
+        return optax.adamw(cfg.learning_rate, weight_decay=cfg.weight_decay)
+    return optax.adam(cfg.learning_rate)
+
+
+def _lm_step(t, lam, const, data, apply):
+    from jax.flatten_util import ravel_pytree
+
+    f, unravel = ravel_pytree(t)
+    sw = jnp.sqrt(data.w)
+    resid = lambda g: sw * (apply({**const, **unravel(g)}, data.x) - data.y) / const["y_scale"]  # noqa: E731
+    r = resid(f)
+    J = jax.jacfwd(resid)(f)
+    H = J.T @ J
+    d = jnp.linalg.solve(H + lam * jnp.diag(jnp.diag(H)) + 1e-6 * jnp.eye(f.size), -(J.T @ r))
+    loss, new_loss = jnp.sum(r**2), jnp.sum(resid(f + d) ** 2)
+    ok = jnp.isfinite(new_loss) & (new_loss < loss)
+    return unravel(jnp.where(ok, f + d, f)), jnp.where(ok, lam / 3.0, lam * 2.0), loss / jnp.maximum(jnp.sum(data.w), 1.0)
+
+
+def init_state(params: dict, data: Data, cfg, apply=mlp_apply) -> TrainState:
+    """Initial training state of one net (`cfg`: a `TrainConfig`)."""
+    t, const = _split(params)
+    loss0 = _wmse(apply(params, data.x), data.y, data.w, const["y_scale"])
+    opt = (t, _optimizer(cfg).init(t)) if cfg.optimizer == "adam" else (t, jnp.asarray(cfg.lm_damping, jnp.float32))
+    zero = jnp.zeros((), jnp.int32)
+    val0 = _wrms(apply(params, data.x_val), data.y_val, data.w_val)
+    return TrainState(opt, t, val0, zero, zero, zero, jnp.full((), -1, jnp.int32),
+                      cfg.divergence_factor * (loss0 + 1e-12))
+
+
+def done(state: TrainState, cfg) -> jax.Array:
+    return (state.step >= cfg.max_steps) | (state.since >= cfg.patience) | (state.failed >= 0)
+
+
+def run(state: TrainState, const: dict, data: Data, cfg, max_evals: int | None = None, apply=mlp_apply) -> TrainState:
+    """Continue training one net for at most `max_evals` evaluations (None: until done).
+
+    Each evaluation follows `cfg.eval_every` optimizer steps; the weights of the best
+    validation RMS are kept, and training stops after `cfg.patience` evaluations without
+    improvement, at `cfg.max_steps`, or at the first non-finite or diverging loss.
+    Only weights and biases train: masks and scalings (`const`) are constants.
+    """
+    opt = _optimizer(cfg)
+    full = lambda t: {**const, **t}  # noqa: E731
+    loss_fn = lambda t: _wmse(apply(full(t), data.x), data.y, data.w, const["y_scale"])  # noqa: E731
+    grad_fn = jax.value_and_grad(loss_fn)
+
+    def step(carry, _):
+        (t, s), bad = carry
+        if cfg.optimizer == "adam":
+            loss, g = grad_fn(t)
+            upd, s = opt.update(g, s, t)
+            t = optax.apply_updates(t, upd)
+        else:
+            t, s, loss = _lm_step(t, s, const, data, apply)
+        return ((t, s), bad | ~jnp.isfinite(loss) | (loss > state.limit)), None
+
+    def cond(c):
+        st, n = c
+        ok = ~done(st, cfg)
+        return ok if max_evals is None else ok & (n < max_evals)
+
+    def body(c):
+        st, n = c
+        (o, bad), _ = jax.lax.scan(step, (st.opt, jnp.zeros((), bool)), None, length=cfg.eval_every)
+        stp = st.step + cfg.eval_every
+        val = _wrms(apply(full(o[0]), data.x_val), data.y_val, data.w_val)
+        bad = bad | ~jnp.isfinite(val)
+        better = (val < st.best_val) & ~bad
+        best = jax.tree.map(lambda new, old: jnp.where(better, new, old), o[0], st.best)
+        return TrainState(o, best, jnp.where(better, val, st.best_val), jnp.where(better, stp, st.best_step), stp,
+                          jnp.where(better, 0, st.since + 1), jnp.where(bad & (st.failed < 0), stp, st.failed),
+                          st.limit), n + 1
+
+    return jax.lax.while_loop(cond, body, (state, jnp.zeros((), jnp.int32)))[0]
+
+
+def result(state: TrainState, const: dict) -> Fit:
+    return Fit({**const, **state.best}, state.best_step, state.best_val, state.step, state.failed)
+
+
+def fit(params: dict, data: Data, cfg, apply=mlp_apply) -> Fit:
+    """Train one net to completion (pure; jit and vmap it). See `run` and `make_data`."""
+    _, const = _split(params)
+    return result(run(init_state(params, data, cfg, apply), const, data, cfg, apply=apply), const)
+
+
+def masked_metrics(pred, y, w) -> dict:
+    """RMS, max and 95th-percentile absolute error (g) over rows with weight > 0 (NumPy)."""
+    pred, y, w = (np.asarray(v) for v in (pred, y, w))
+    e = np.abs(pred - y)[w > 0]
+    if e.size == 0:
+        return dict(rms_g=np.nan, max_abs_g=np.nan, p95_abs_g=np.nan, n=0)
+    return dict(rms_g=float(np.sqrt(np.mean(e**2))), max_abs_g=float(e.max()),
+                p95_abs_g=float(np.percentile(e, 95)), n=int(e.size))

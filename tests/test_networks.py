@@ -1,0 +1,72 @@
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from pvvjax.networks import architecture_name, mlp_apply, mlp_init, mlp_pad, n_weights, rbf_apply, rbf_fit, scaling
+
+
+def _numpy_mlp(params, x):
+    """Independent NumPy forward pass."""
+    h = (x - np.asarray(params["x_shift"])) / np.asarray(params["x_scale"])
+    for layer in params["layers"][:-1]:
+        h = np.tanh(h @ np.asarray(layer["w"]) + np.asarray(layer["b"]))
+    out = h @ np.asarray(params["layers"][-1]["w"]) + np.asarray(params["layers"][-1]["b"])
+    return out[:, 0] * float(params["y_scale"]) + float(params["y_shift"])
+
+
+def test_mlp_matches_numpy_reference_with_scaling():
+    rng = np.random.default_rng(0)
+    x = rng.normal(50, 10, (40, 6)).astype(np.float32)
+    y = rng.uniform(0.05, 0.3, 40).astype(np.float32)
+    p = mlp_init(jax.random.key(0), 6, (10, 5), scale=scaling(x, y))
+    np.testing.assert_allclose(mlp_apply(p, x), _numpy_mlp(p, x), rtol=1e-5, atol=1e-6)
+    assert architecture_name(6, (10, 5)) == "6-10-5-1" and n_weights(6, (10, 5)) == 131
+
+
+@pytest.mark.parametrize("hidden, max_hidden, n_in, n_pad", [((10, 5), (32, 8), 6, 8), ((3,), (16,), 7, 8)])
+def test_padded_net_equals_unpadded_twin_gradients_included(hidden, max_hidden, n_in, n_pad):
+    rng = np.random.default_rng(1)
+    x = rng.normal(size=(30, n_in)).astype(np.float32)
+    y = rng.normal(size=30).astype(np.float32)
+    p = mlp_init(jax.random.key(2), n_in, hidden, scale=scaling(x, y))
+    pp = mlp_pad(p, max_hidden, n_pad)
+    xp = np.concatenate([x, rng.normal(size=(30, n_pad - n_in)).astype(np.float32)], 1)  # junk in padded inputs
+    np.testing.assert_allclose(mlp_apply(pp, xp), mlp_apply(p, x), rtol=1e-6, atol=1e-7)
+
+    loss = lambda layers, params, xx: jnp.mean((mlp_apply({**params, "layers": layers}, xx) - y) ** 2)  # noqa: E731
+    g = jax.grad(loss)(p["layers"], p, x)
+    gp = jax.grad(loss)(pp["layers"], pp, xp)
+    for a, b in zip(g, gp):
+        for k in ("w", "b"):
+            real = b[k][tuple(slice(0, s) for s in a[k].shape)]
+            np.testing.assert_allclose(real, a[k], rtol=1e-5, atol=1e-7)
+            padded = np.asarray(b[k]).copy()
+            padded[tuple(slice(0, s) for s in a[k].shape)] = 0
+            assert not padded.any()  # padded units and inputs receive exactly zero gradient
+
+
+def test_init_with_max_hidden_is_a_padded_init():
+    p = mlp_init(jax.random.key(3), 8, (4, 5), max_hidden=(16, 5), in_mask=np.r_[np.ones(6), 0, 0])
+    assert p["layers"][0]["w"].shape == (8, 16)
+    assert np.asarray(p["masks"][0]).sum() == 4 and np.asarray(p["in_mask"]).sum() == 6
+    with pytest.raises(ValueError, match="does not fit"):
+        mlp_init(jax.random.key(3), 8, (20, 5), max_hidden=(16, 5))
+
+
+def test_rbf_network_fits_a_smooth_function_and_matches_least_squares():
+    rng = np.random.default_rng(4)
+    x = rng.uniform(-2, 2, (200, 2)).astype(np.float32)
+    y = (np.sin(x[:, 0]) + 0.5 * x[:, 1] ** 2).astype(np.float32)
+    p = rbf_fit(jax.random.key(0), x, y, 25)
+    xt = rng.uniform(-2, 2, (200, 2)).astype(np.float32)
+    yt = np.sin(xt[:, 0]) + 0.5 * xt[:, 1] ** 2
+    assert np.sqrt(np.mean((np.asarray(rbf_apply(p, xt)) - yt) ** 2)) < 0.06 * yt.std()  # held-out points
+    # output weights are the ridge least-squares solution (ridge 1e-3) for the fitted centres and widths
+    z = (x - np.asarray(p["x_shift"])) / np.asarray(p["x_scale"])
+    d2 = ((z[:, None, :] - np.asarray(p["centers"])) ** 2).sum(-1)
+    phi = np.exp(-0.5 * d2 / np.exp(2 * np.asarray(p["log_width"])))
+    A = np.c_[phi, np.ones(len(x))]
+    t = (y - float(p["y_shift"])) / float(p["y_scale"])
+    sol = np.linalg.solve(A.T @ A + 1e-3 * np.eye(A.shape[1]), A.T @ t)
+    np.testing.assert_allclose(A @ np.r_[np.asarray(p["w"]), float(p["b"])], A @ sol, atol=2e-3)

@@ -1,0 +1,159 @@
+"""Sweeps: many nets in one program, resumable, sharded when devices allow."""
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import jax
+import numpy as np
+import pandas as pd
+import pytest
+
+from pvvjax.config import ExperimentConfig, SweepConfig, TrainConfig
+from pvvjax.databases import DB_INPUTS
+from pvvjax.networks import mlp_apply
+from pvvjax.sweep import load_params, net_table, run_sweep
+from pvvjax.train import TrainingError
+
+FAST = TrainConfig(learning_rate=1e-2, max_steps=600, eval_every=50, patience=4)
+
+
+def _cfg(**sweep):
+    base = dict(databases=("db1", "db3"), hidden=((4,), (6, 3)), seeds=2, folds=3, test_folds=(0,))
+    return ExperimentConfig(sweep=SweepConfig(**{**base, **sweep}), train=FAST)
+
+
+def test_sweep_results_params_and_resume(tmp_path, small_dbs):
+    cfg = _cfg()
+    res = run_sweep(cfg, small_dbs, tmp_path, log=lambda *a: None)
+    assert len(res) == 8 and res.net_id.is_unique
+    assert set(res.architecture) == {"6-4-1", "6-6-3-1", "7-4-1", "7-6-3-1"}
+    for col in ("train_rms_g", "val_rms_g", "test_rms_g", "test_max_abs_g", "test_p95_abs_g", "wall_s", "config_hash"):
+        assert res[col].notna().all()
+    assert (res.test_rms_g < 0.2).all()
+    # saved parameters reproduce the recorded predictions, and the split is by condition
+    row = res.iloc[0]
+    params, meta = load_params(tmp_path / "params" / f"{row.net_id}.npz")
+    assert meta["inputs"] == list(DB_INPUTS[row.database])
+    db = small_dbs[row.database]
+    x = np.zeros((len(db), 8), np.float32)
+    x[:, : len(meta["inputs"])] = db[meta["inputs"]].to_numpy(np.float32)
+    np.testing.assert_allclose(mlp_apply(params, x), pd.read_json(pd.io.common.StringIO(row.predictions)).iloc[:, 0],
+                               atol=1e-5)
+    split = pd.Series(pd.read_json(pd.io.common.StringIO(row.split)).iloc[:, 0].to_numpy(), index=db.condition)
+    assert split.groupby(level=0).nunique().max() == 1
+    # a second run trains nothing and changes nothing
+    lines = []
+    res2 = run_sweep(cfg, small_dbs, tmp_path, log=lines.append)
+    assert "0 to train" in lines[0]
+    pd.testing.assert_frame_equal(res.sort_values("net_id").reset_index(drop=True),
+                                  res2.sort_values("net_id").reset_index(drop=True))
+    # growing the sweep trains only the new nets
+    res3 = run_sweep(_cfg(seeds=3), small_dbs, tmp_path, log=lines.append)
+    assert "8 already finished, 4 to train" in lines[-1] and len(res3) == 12
+
+
+def test_net_ids_are_stable_and_config_sensitive():
+    a, b = net_table(_cfg()), net_table(_cfg())
+    assert list(a.net_id) == list(b.net_id)
+    c = net_table(ExperimentConfig(sweep=_cfg().sweep, train=TrainConfig(learning_rate=0.1)))
+    assert set(a.net_id).isdisjoint(c.net_id)
+
+
+def test_rbf_family(tmp_path, small_dbs):
+    res = run_sweep(ExperimentConfig(sweep=SweepConfig(databases=("db2",), family="rbf", centers=(8, 16), folds=3,
+                                                       test_folds=(0,))), small_dbs, tmp_path, log=lambda *a: None)
+    assert list(res.architecture) == ["rbf-8", "rbf-16"] or sorted(res.architecture) == ["rbf-16", "rbf-8"]
+    assert (res.test_rms_g < 0.2).all()
+
+
+def test_nan_stops_the_sweep_naming_net_and_step(tmp_path, small_dbs):
+    dbs = {k: v.copy() for k, v in small_dbs.items()}
+    dbs["db1"].loc[dbs["db1"].index[5], "mlf"] = np.nan
+    with pytest.raises(TrainingError, match=r"net db1 6-4-1 seed 0 fold 0 .*at step 50"):
+        run_sweep(_cfg(databases=("db1",), hidden=((4,),), seeds=1), dbs, tmp_path, log=lambda *a: None)
+
+
+def _sweep_config_file(tmp_path, campaign_dir, n_archs):
+    hidden = ", ".join(f"[{h}]" for h in range(2, 2 + n_archs))
+    cfg = tmp_path / "sweep.toml"
+    cfg.write_text(textwrap.dedent(f"""
+        name = "kill"
+        out_dir = "{tmp_path.as_posix()}"
+        [campaign]
+        path = "{Path(campaign_dir).as_posix()}"
+        [sweep]
+        databases = ["db1", "db2", "db3"]
+        hidden = [{hidden}]
+        seeds = 2
+        folds = 3
+        chunk_evals = 1
+        [train]
+        learning_rate = 0.003
+        max_steps = 3000
+        eval_every = 25
+        patience = 12
+    """))
+    return cfg
+
+
+def test_killed_sweep_resumes_without_duplicates_or_corrupt_files(tmp_path, small_campaign_dir):
+    cfg = _sweep_config_file(tmp_path, small_campaign_dir, n_archs=8)
+    out = tmp_path / "kill" / "sweep"
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    proc = subprocess.Popen([sys.executable, "-m", "pvvjax", "sweep", str(cfg)], env=env,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    deadline = time.time() + 240
+    while time.time() < deadline and not list((out / "parts").glob("*.parquet")):
+        time.sleep(0.05)
+    time.sleep(0.3)
+    assert proc.poll() is None, "the sweep finished before it could be killed; make it longer"
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+    finished_before = {p.name for p in (out / "parts").glob("*.parquet")}
+    assert finished_before and not (out / "results.parquet").exists()
+    total = 3 * 8 * 2 * 3
+    done = subprocess.run([sys.executable, "-m", "pvvjax", "sweep", str(cfg)], capture_output=True, text=True,
+                          timeout=600)
+    assert done.returncode == 0, done.stderr[-2000:]
+    res = pd.read_parquet(out / "results.parquet")
+    assert len(res) == total and res.net_id.is_unique
+    assert finished_before <= {p.name for p in (out / "parts").glob("*.parquet")}  # kept, not retrained
+    assert not list(out.rglob("*.tmp*"))
+    for p in (out / "params").glob("*.npz"):
+        load_params(p)  # every parameter file reads back
+
+
+SHARDING_SCRIPT = """
+import os, sys, json
+import jax, numpy as np
+from pvvjax.config import ExperimentConfig, SweepConfig, TrainConfig
+from pvvjax.campaign import load_campaign
+from pvvjax.databases import build_databases
+from pvvjax.sweep import run_sweep
+assert jax.device_count() == 2, jax.devices()
+dbs = build_databases(load_campaign(sys.argv[1]))
+cfg = ExperimentConfig(sweep=SweepConfig(databases=("db1",), hidden=((4,), (6,), (8,)), seeds=2, folds=3,
+                                         test_folds=(0,)),
+                       train=TrainConfig(learning_rate=1e-2, max_steps=600, eval_every=50, patience=4))
+res = run_sweep(cfg, dbs, sys.argv[2], log=lambda *a: None)
+print(json.dumps(dict(zip(res.net_id, res.val_rms_g))))
+"""
+
+
+def test_sweep_axis_is_sharded_over_devices_in_a_separate_process(tmp_path, small_campaign_dir, small_dbs):
+    env = {**os.environ, "XLA_FLAGS": "--xla_force_host_platform_device_count=2", "JAX_PLATFORMS": "cpu"}
+    out = subprocess.run([sys.executable, "-c", SHARDING_SCRIPT, str(small_campaign_dir), str(tmp_path / "two")],
+                         capture_output=True, text=True, env=env, timeout=600)
+    assert out.returncode == 0, out.stderr[-3000:]
+    two = pd.read_json(pd.io.common.StringIO(out.stdout.strip().splitlines()[-1]), typ="series")
+    cfg = ExperimentConfig(sweep=SweepConfig(databases=("db1",), hidden=((4,), (6,), (8,)), seeds=2, folds=3,
+                                             test_folds=(0,)),
+                           train=TrainConfig(learning_rate=1e-2, max_steps=600, eval_every=50, patience=4))
+    one = run_sweep(cfg, small_dbs, tmp_path / "one", log=lambda *a: None).set_index("net_id").val_rms_g
+    assert jax.device_count() == 1
+    np.testing.assert_allclose(two.loc[one.index].to_numpy(), one.to_numpy(), rtol=1e-4)
