@@ -3,39 +3,42 @@
 The pipeline: campaign → windowed harmonic analysis → peak PVV → databases 1-3 → networks
 → quasi-static replay. The numerical core is pure `jax.numpy`; files, CLI and plots sit
 at the edges.
+
+Names are imported lazily, so `pvvjax.npnet` (the NumPy evaluator for a simulator host)
+can be used without importing JAX.
 """
 
-from .batch import RecordBatch, to_batch
-from .campaign import (
-    MANEUVERS,
-    REQUIRED_CHANNELS,
-    Campaign,
-    CampaignError,
-    Problem,
-    campaign_from_frames,
-    load_campaign,
-    validate_campaign,
-    write_campaign,
-)
-from .config import AnalysisConfig, CampaignConfig, ColumnMap, ConfigError, ExperimentConfig, load_config
-from .constants import UH60A, Aircraft
-from .databases import DB_INPUTS, OUTPUT, build_databases, condition_peaks, peak_table
-from .features import (
-    advance_ratio,
-    blade_loading,
-    derive_features,
-    maneuver_load_factor,
-    thrust_coefficient,
-)
-from .harmonics import Windows, analyze, harmonic_windows, plan_windows
+import importlib
+
+_EXPORTS = {
+    "batch": ["RecordBatch", "to_batch"],
+    "campaign": ["MANEUVERS", "REQUIRED_CHANNELS", "Campaign", "CampaignError", "Problem", "campaign_from_frames",
+                 "load_campaign", "validate_campaign", "write_campaign"],
+    "config": ["AnalysisConfig", "CampaignConfig", "ColumnMap", "ConfigError", "ExperimentConfig", "SweepConfig",
+               "TrainConfig", "load_config"],
+    "constants": ["UH60A", "Aircraft"],
+    "databases": ["DB_INPUTS", "OUTPUT", "build_databases", "condition_peaks", "peak_table"],
+    "features": ["advance_ratio", "blade_loading", "derive_features", "maneuver_load_factor", "thrust_coefficient"],
+    "harmonics": ["Windows", "analyze", "harmonic_windows", "plan_windows"],
+    "networks": ["mlp_apply", "mlp_init", "rbf_apply", "rbf_fit"],
+    "npnet": ["NumpyNet"],
+    "sweep": ["run_sweep", "load_params"],
+    "train": ["fit", "make_data", "condition_folds"],
+}
+_WHERE = {name: mod for mod, names in _EXPORTS.items() for name in names}
 
 __version__ = "0.1.0"
+__all__ = sorted(_WHERE)
 
-__all__ = [
-    "Aircraft", "AnalysisConfig", "Campaign", "CampaignConfig", "CampaignError", "ColumnMap", "ConfigError",
-    "DB_INPUTS", "ExperimentConfig", "MANEUVERS", "OUTPUT", "Problem", "REQUIRED_CHANNELS", "RecordBatch", "UH60A",
-    "Windows", "advance_ratio", "analyze", "blade_loading", "build_databases", "campaign_from_frames",
-    "condition_peaks", "derive_features", "harmonic_windows", "load_campaign", "load_config",
-    "maneuver_load_factor", "peak_table", "plan_windows", "thrust_coefficient", "to_batch", "validate_campaign",
-    "write_campaign",
-]
+
+def __getattr__(name):
+    mod = _WHERE.get(name)
+    if mod is None:
+        raise AttributeError(f"module 'pvvjax' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{mod}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_WHERE))

@@ -78,3 +78,47 @@ def time_histories(campaign: Campaign, windows: pd.DataFrame, counters, panels, 
     axes[-1].set_xlabel("time, s" + (" (segments joined; dashed line = counter boundary)" if len(counters) > 1 else ""))
     fig.suptitle(title)
     return fig
+
+
+def correlation(pred: pd.DataFrame, title: str, band: float = 0.05):
+    """Predicted vs measured peak PVV with the 45-degree line and the ±band (paper Figs 10-12);
+    points outside the band are flagged (possible bad data) and labelled."""
+    fig, ax = plt.subplots(figsize=(5.2, 5.0))
+    lim = (0.0, max(0.35, float(max(pred.measured.max(), pred.predicted.max())) * 1.05))
+    ax.plot(lim, lim, "k-", lw=1, label="45° line")
+    for s in (band, -band):
+        ax.plot(lim, (lim[0] + s, lim[1] + s), "k--", lw=0.8)
+    inside = pred[~pred.outside_band]
+    out = pred[pred.outside_band]
+    ax.plot(inside.measured, inside.predicted, "o", ms=4, alpha=0.7, label=f"held out (n={len(inside)})")
+    ax.plot(out.measured, out.predicted, "s", ms=6, mfc="none", color="C3",
+            label=f"outside ±{band:g} g: possible bad data (n={len(out)})")
+    for r in out.reindex(out.error.abs().sort_values(ascending=False).index).head(8).itertuples():
+        ax.annotate(f"{r.condition} ({r.maneuver})", (r.measured, r.predicted), fontsize=6, xytext=(3, 2),
+                    textcoords="offset points")  # the largest misses; the full list is in the results table
+    rms = float(np.sqrt(np.mean(pred.error**2)))
+    ax.set_xlim(lim)
+    ax.set_ylim(lim)
+    ax.set_xlabel("flight-test peak PVV, g")
+    ax.set_ylabel("network peak PVV (held out), g")
+    ax.set_title(f"{title}\nheld-out RMS {rms:.3f} g")
+    ax.legend(fontsize=7, loc="upper left")
+    ax.grid(alpha=0.3)
+    return fig
+
+
+def size_search(val: pd.DataFrame, chosen: dict, title: str):
+    """Validation RMS against first-layer width (median and spread over seeds and folds),
+    with the path of the paper's search rule and its choice."""
+    fig, ax = plt.subplots(figsize=(6.0, 3.8))
+    ax.fill_between(val.index, val["q25"], val["q75"], alpha=0.25, label="25-75 % over seeds and folds")
+    ax.plot(val.index, val["median"], "o-", label="median validation RMS")
+    path = chosen["path"]
+    ax.plot(path, val.loc[path, "median"], "x", color="C3", ms=9, label="visited by the search rule")
+    ax.axvline(chosen["width"], color="C2", ls="--", label=f"chosen: {chosen['width']} PEs")
+    ax.set_xlabel("processing elements in the first hidden layer")
+    ax.set_ylabel("validation RMS, g")
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    return fig

@@ -34,6 +34,7 @@ from . import train as _train
 from ._strict import to_dict
 from .config import ExperimentConfig, config_hash
 from .databases import DB_INPUTS, OUTPUT
+from .npnet import read_npz
 from .networks import architecture_name, mlp_apply, mlp_init, n_weights, rbf_apply, rbf_fit, scaling
 
 __all__ = ["N_INPUTS", "collect", "load_params", "net_table", "run_sweep", "save_params", "stack_data", "train_nets"]
@@ -211,21 +212,7 @@ def save_params(path, params: dict, meta: dict) -> Path:
 
 def load_params(path) -> tuple[dict, dict]:
     """Load parameters saved by `save_params` (with `allow_pickle=False`)."""
-    with np.load(path, allow_pickle=False) as z:
-        meta = json.loads(str(z["__meta__"]))
-        out: dict = {}
-        for key in z.files:
-            if key == "__meta__":
-                continue
-            parts = key.split("/")
-            node = out
-            for p in parts[:-1]:
-                node = node.setdefault(p, {})
-            node[parts[-1]] = z[key]
-    for group in ("layers", "masks"):
-        if group in out:  # sequences were flattened with integer keys
-            out[group] = tuple(out[group][str(i)] for i in range(len(out[group])))
-    return out, meta
+    return read_npz(path)
 
 
 def _split_sizes(data, sw) -> tuple[int, int]:

@@ -1,0 +1,49 @@
+"""The paper's architecture search as a sweep plus a selection rule, with its plot.
+
+    python experiments/architecture_search.py experiments/configs/architecture-search.toml [--docs]
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+from pathlib import Path
+
+from tqdm.auto import tqdm
+
+from pvvjax import plots
+from pvvjax.cli import enable_compilation_cache, resolve_campaign
+from pvvjax.config import load_config
+from pvvjax.databases import build_databases
+from pvvjax.evaluation import search_architecture
+from pvvjax.sweep import run_sweep
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("config")
+    ap.add_argument("--docs", action="store_true")
+    args = ap.parse_args()
+    cfg = load_config(args.config)
+    enable_compilation_cache()
+    out = Path(cfg.out_dir) / cfg.name
+    campaign, _ = resolve_campaign(cfg)
+    dbs = build_databases(campaign, cfg.analysis)
+    res = run_sweep(cfg, dbs, out / "sweep", progress=lambda **kw: tqdm(desc="nets", **kw))
+    res["width"] = [int(h.split("-")[0]) for h in res.hidden]
+    for db, g in res.groupby("database"):
+        val = g.groupby("width").val_rms_g.agg(median="median", q25=lambda v: v.quantile(0.25),
+                                                q75=lambda v: v.quantile(0.75), count="size")
+        chosen = search_architecture(val["median"])
+        test = g[g.width == chosen["width"]].test_rms_g.median()
+        fig = plots.size_search(val, chosen, f"Architecture search, {db} (n-W-5-1, median of {int(val['count'].max())} nets)")
+        path = plots.save(fig, out / f"architecture_search_{db}.png")
+        print(val[["median", "q25", "q75"]].round(4).to_string())
+        print(f"{db}: search path {chosen['path']} -> {chosen['width']} PEs in the first layer "
+              f"(validation RMS {chosen['val_rms']:.4f} g, held-out test RMS {test:.4f} g); figure {path}")
+        if args.docs:
+            shutil.copy(path, Path("docs/figures") / path.name)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,91 @@
+"""A trained network as plain NumPy, for a simulator host (imports no JAX).
+
+`NumpyNet.load("net.npz")` reads a parameter file written by pvvjax (`.npz` read with
+`allow_pickle=False`); calling it evaluates the net. At load time the input and output
+scalings are folded into the first and last layers and masked (padding) units are
+dropped, so one prediction is a few small matrix-vector products. This file depends on
+NumPy only and can be copied next to the parameter file (`pvvjax export` does that).
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+__all__ = ["NumpyNet", "read_npz"]
+
+
+def read_npz(path) -> tuple[dict, dict]:
+    """Parameters and metadata of a pvvjax `.npz` parameter file (no pickle)."""
+    with np.load(path, allow_pickle=False) as z:
+        meta = json.loads(str(z["__meta__"])) if "__meta__" in z.files else {}
+        out: dict = {}
+        for key in z.files:
+            if key == "__meta__":
+                continue
+            *parents, leaf = key.split("/")
+            node = out
+            for p in parents:
+                node = node.setdefault(p, {})
+            node[leaf] = z[key]
+    for group in ("layers", "masks"):  # sequences were flattened with integer keys
+        if group in out:
+            out[group] = tuple(out[group][str(i)] for i in range(len(out[group])))
+    return out, meta
+
+
+class NumpyNet:
+    """An MLP or RBF network evaluated with NumPy (float64).
+
+    Args:
+        params: parameter dict (as saved by pvvjax).
+        meta: metadata (input names, architecture), optional.
+    """
+
+    def __init__(self, params: dict, meta: dict | None = None):
+        self.meta = dict(meta or {})
+        self.inputs = list(self.meta.get("inputs", []))
+        p = {k: v for k, v in params.items()}
+        in_mask = np.asarray(p["in_mask"], np.float64) > 0
+        self.n_in = int(in_mask.sum())
+        shift = np.asarray(p["x_shift"], np.float64)[in_mask]
+        scale = np.asarray(p["x_scale"], np.float64)[in_mask]
+        self.y_shift, self.y_scale = float(p["y_shift"]), float(p["y_scale"])
+        if "layers" in p:
+            self.kind = "mlp"
+            masks = [np.asarray(m) > 0 for m in p["masks"]] + [np.ones(1, bool)]
+            keep_in = in_mask
+            self.w, self.b = [], []
+            for layer, keep_out in zip(p["layers"], masks):
+                self.w.append(np.asarray(layer["w"], np.float64)[np.ix_(keep_in, keep_out)])
+                self.b.append(np.asarray(layer["b"], np.float64)[keep_out])
+                keep_in = keep_out
+            # fold input standardisation into the first layer, output scaling into the last
+            self.b[0] = self.b[0] - (shift / scale) @ self.w[0]
+            self.w[0] = self.w[0] / scale[:, None]
+            self.w[-1] = self.w[-1][:, 0] * self.y_scale
+            self.b[-1] = float(self.b[-1][0] * self.y_scale + self.y_shift)
+        else:
+            self.kind = "rbf"
+            self.centers = np.asarray(p["centers"], np.float64)[:, in_mask]
+            self.inv2w2 = 0.5 / np.exp(2 * np.asarray(p["log_width"], np.float64))
+            self.shift, self.scale = shift, scale
+            self.wo = np.asarray(p["w"], np.float64) * self.y_scale
+            self.bo = float(p["b"]) * self.y_scale + self.y_shift
+
+    @classmethod
+    def load(cls, path) -> "NumpyNet":
+        return cls(*read_npz(path))
+
+    def __call__(self, x):
+        """Peak PVV (g) for inputs x: (n_in,) or (n, n_in), physical units, database order."""
+        x = np.asarray(x, np.float64)
+        if self.kind == "rbf":
+            z = (x - self.shift) / self.scale
+            d2 = ((z[..., None, :] - self.centers) ** 2).sum(-1)
+            return np.exp(-d2 * self.inv2w2) @ self.wo + self.bo
+        h = x
+        for w, b in zip(self.w[:-1], self.b[:-1]):
+            h = np.tanh(h @ w + b)
+        return h @ self.w[-1] + self.b[-1]
