@@ -22,7 +22,10 @@ test: venv
 	$(PY) -m pytest -q -n 2 -m "not slow"
 
 bench: venv
+	$(PY) -m pip install --quiet -e '.[test,bench]'
 	$(PY) benchmarks/bench_harmonics.py
+	$(PY) benchmarks/bench_synth.py
+	$(PY) benchmarks/bench_sweep.py
 
 clean:
 	rm -rf $(VENV) runs .pytest_cache

@@ -212,6 +212,42 @@ def cmd_sweep(args) -> int:
     return 0
 
 
+def cmd_export(args) -> int:
+    """Copy a trained net and the NumPy evaluator into a folder a simulator host can use."""
+    import shutil
+
+    import pandas as pd
+
+    from . import npnet
+    from .sweep import load_params
+
+    sweep = Path(args.sweep)
+    res = pd.read_parquet(sweep / "results.parquet")
+    if args.net:
+        sel = res[res.net_id == args.net]
+        if sel.empty:
+            raise KeyError(f"{sweep / 'results.parquet'}: no net {args.net!r}")
+    else:  # best held-out net of the requested database
+        sel = res[res.database == args.database].sort_values("test_rms_g").head(1)
+        if sel.empty:
+            raise KeyError(f"{sweep / 'results.parquet'}: no net for database {args.database!r}")
+    row = sel.iloc[0]
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    shutil.copy(sweep / "params" / f"{row.net_id}.npz", out / "net.npz")
+    shutil.copy(npnet.__file__, out / "npnet.py")
+    _, meta = load_params(out / "net.npz")
+    (out / "README.md").write_text(
+        f"# Exported network {row.architecture} ({row.database}, net {row.net_id})\n\n"
+        f"Held-out RMS {row.test_rms_g:.4f} g. Needs NumPy only.\n\n"
+        "```python\nfrom npnet import NumpyNet\nnet = NumpyNet.load('net.npz')\n"
+        f"pvv_g = net([{', '.join(meta['inputs'])}])\n```\n\nInputs in this order, canonical units "
+        "(kt, lb, rpm, -, -, ft/min, %).\n")
+    print(f"exported {row.database} {row.architecture} (net {row.net_id}, held-out RMS {row.test_rms_g:.4f} g) to {out}")
+    print(f"inputs: {', '.join(meta['inputs'])}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="pvvjax", description="Helicopter pilot-floor 4/rev vibration (PVV) toolkit.")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -251,6 +287,14 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("config", help="experiment config (TOML), e.g. experiments/configs/sweep-small.toml")
     s.add_argument("--out", default=None, help="sweep folder (default: OUT_DIR/NAME/sweep)")
     s.set_defaults(fn=cmd_sweep)
+
+    s = sub.add_parser("export", help="export a trained net as a NumPy evaluator for a simulator host",
+                       description="Copy a net's parameters and the NumPy evaluator (no JAX) into a folder.")
+    s.add_argument("sweep", help="sweep folder (with results.parquet and params/)")
+    s.add_argument("--out", required=True, help="output folder")
+    s.add_argument("--net", default=None, help="net id (default: the best held-out net of --database)")
+    s.add_argument("--database", default="db1", choices=["db1", "db2", "db3"])
+    s.set_defaults(fn=cmd_export)
 
     s = sub.add_parser("run", help="run an experiment config end to end (the main job)",
                        description="Campaign, databases and figures for one experiment config.")

@@ -66,6 +66,7 @@ class NumpyNet:
             self.w[0] = self.w[0] / scale[:, None]
             self.w[-1] = self.w[-1][:, 0] * self.y_scale
             self.b[-1] = float(self.b[-1][0] * self.y_scale + self.y_shift)
+            self._buf = [np.empty(w.shape[1]) for w in self.w[:-1]]  # single-sample scratch
         else:
             self.kind = "rbf"
             self.centers = np.asarray(p["centers"], np.float64)[:, in_mask]
@@ -78,9 +79,22 @@ class NumpyNet:
     def load(cls, path) -> "NumpyNet":
         return cls(*read_npz(path))
 
+    def predict1(self, x: np.ndarray) -> float:
+        """One prediction from a float64 (n_in,) array, with no allocation (the simulator
+        frame path; MLP only)."""
+        h = x
+        for w, b, buf in zip(self.w[:-1], self.b[:-1], self._buf):
+            np.dot(h, w, out=buf)
+            np.add(buf, b, out=buf)
+            np.tanh(buf, out=buf)
+            h = buf
+        return float(np.dot(h, self.w[-1])) + self.b[-1]
+
     def __call__(self, x):
         """Peak PVV (g) for inputs x: (n_in,) or (n, n_in), physical units, database order."""
         x = np.asarray(x, np.float64)
+        if self.kind == "mlp" and x.ndim == 1:
+            return self.predict1(x)
         if self.kind == "rbf":
             z = (x - self.shift) / self.scale
             d2 = ((z[..., None, :] - self.centers) ** 2).sum(-1)

@@ -173,8 +173,7 @@ def train_nets(params, data: _train.Data, group, cfg, *, chunk_evals: int = 8, o
         else:
             st = _take(state, table)
         new, fin = _run_chunk(*_sharded(st, c, data, n_dev), cfg, chunk_evals, apply)
-        fin = np.asarray(fin)
-        new = jax.tree.map(np.asarray, new)
+        fin, new = _to_host((fin, new))
         dt = time.perf_counter() - t0
         ids, fin = table[real], fin[real]
         spent[ids] += dt / ids.size
@@ -187,6 +186,16 @@ def train_nets(params, data: _train.Data, group, cfg, *, chunk_evals: int = 8, o
             on_done(finished, jax.tree.map(np.asarray, fits), spent[finished])
         active = np.setdiff1d(active, finished)
     return jax.tree.map(np.asarray, _train.result(state, consts))
+
+
+def _to_host(tree):
+    """Host copies of (possibly sharded) arrays; across hosts (`jax.distributed`) every
+    process gathers the whole batch."""
+    if jax.process_count() > 1:
+        from jax.experimental import multihost_utils
+
+        return jax.tree.map(np.asarray, multihost_utils.process_allgather(tree, tiled=True))
+    return jax.tree.map(np.asarray, tree)
 
 
 def _scatter(full, idx, part):
@@ -281,7 +290,8 @@ def run_sweep(cfg: ExperimentConfig, dbs: dict, out: Path, *, progress=None, log
         gid = np.array([keys.index((r.database, r.test_fold)) for r in group.itertuples()])
 
         def on_done(idx, fits, seconds, group=group):
-            _finish(group.iloc[idx], fits, seconds, data, dbs, cfg, out, chash)
+            if jax.process_index() == 0:  # across hosts, one process writes
+                _finish(group.iloc[idx], fits, seconds, data, dbs, cfg, out, chash)
             if bar is not None:
                 bar.update(len(idx))
 

@@ -5,7 +5,7 @@ import pytest
 
 from pvvjax.cli import build_parser, main
 
-COMMANDS = ["validate", "build-db", "synth", "plot", "run"]
+COMMANDS = ["validate", "build-db", "synth", "plot", "sweep", "export", "run"]
 
 
 def test_every_subcommand_has_help():
@@ -37,3 +37,19 @@ def test_main_job_on_the_embedded_campaign(tmp_path, capsys, default_campaign_di
 def test_missing_campaign_folder_is_a_clear_error(tmp_path, capsys):
     assert main(["build-db", str(tmp_path / "nope"), "--out", str(tmp_path / "o")]) == 2
     assert "campaign folder not found" in capsys.readouterr().err
+
+
+def test_sweep_then_export_a_numpy_net(tmp_path, small_campaign_dir, capsys):
+    cfg = tmp_path / "s.toml"
+    cfg.write_text(f'''name = "s"\nout_dir = "{tmp_path.as_posix()}"\n[campaign]\npath = "{small_campaign_dir.as_posix()}"
+[sweep]\ndatabases = ["db1"]\nhidden = [[4]]\nseeds = 1\nfolds = 3\ntest_folds = [0]
+[train]\nmax_steps = 300\nlearning_rate = 0.01\n''')
+    assert main(["sweep", str(cfg)]) == 0
+    assert main(["export", str(tmp_path / "s" / "sweep"), "--out", str(tmp_path / "exp")]) == 0
+    code = ("import sys; sys.path.insert(0, sys.argv[1]); from npnet import NumpyNet; "
+            "net = NumpyNet.load(sys.argv[1] + '/net.npz'); "
+            "print(float(net([0.27, 16055, 255, 1.0, 2.0, 0])), 'jax' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code, str(tmp_path / "exp")], capture_output=True, text=True,
+                         cwd=tmp_path)
+    value, jax_loaded = out.stdout.split()
+    assert 0.0 < float(value) < 1.0 and jax_loaded == "False"
