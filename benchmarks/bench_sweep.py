@@ -12,7 +12,13 @@ steps), so both reach comparable validation RMS; the script prints both.
 
 from __future__ import annotations
 
-import argparse
+import os
+
+# One XLA host device per core, so that the sweep's net axis is sharded over both cores
+# (what `pvvjax sweep` does by default, `[sweep] cpu_devices`); set before JAX starts.
+os.environ.setdefault("XLA_FLAGS", f"--xla_force_host_platform_device_count={os.cpu_count()}")
+
+import argparse  # noqa: E402
 import platform
 import shutil
 import tempfile
@@ -62,6 +68,7 @@ def main():
     warnings.filterwarnings("ignore")
     dbs = build_databases(load_campaign(cached_campaign()))
     cfg = ExperimentConfig(sweep=SweepConfig(hidden=ARCHS, seeds=8, folds=5, test_folds=(0,)), train=TRAIN)
+    print(f"JAX devices: {jax.device_count()} (XLA_FLAGS={os.environ.get('XLA_FLAGS', '')!r})")
     tmp = Path(tempfile.mkdtemp())
     try:
         jax.config.update("jax_compilation_cache_dir", str(tmp / "xla"))

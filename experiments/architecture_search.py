@@ -9,14 +9,9 @@ import argparse
 import shutil
 from pathlib import Path
 
-from tqdm.auto import tqdm
-
 from pvvjax import plots
-from pvvjax.cli import enable_compilation_cache, resolve_campaign
-from pvvjax.config import load_config
-from pvvjax.databases import build_databases
+from pvvjax.cli import prepare_sweep
 from pvvjax.evaluation import search_architecture
-from pvvjax.sweep import run_sweep
 
 
 def main():
@@ -24,12 +19,8 @@ def main():
     ap.add_argument("config")
     ap.add_argument("--docs", action="store_true")
     args = ap.parse_args()
-    cfg = load_config(args.config)
-    enable_compilation_cache()
-    out = Path(cfg.out_dir) / cfg.name
-    campaign, _ = resolve_campaign(cfg)
-    dbs = build_databases(campaign, cfg.analysis)
-    res = run_sweep(cfg, dbs, out / "sweep", progress=lambda **kw: tqdm(desc="nets", **kw))
+    cfg, dbs, res, sweep_dir = prepare_sweep(args.config)
+    out = sweep_dir.parent
     res["width"] = [int(h.split("-")[0]) for h in res.hidden]
     for db, g in res.groupby("database"):
         val = g.groupby("width").val_rms_g.agg(median="median", q25=lambda v: v.quantile(0.25),

@@ -13,14 +13,9 @@ import argparse
 import shutil
 from pathlib import Path
 
-from tqdm.auto import tqdm
-
 from pvvjax import plots
-from pvvjax.cli import PAPER_TABLE1, enable_compilation_cache, resolve_campaign
-from pvvjax.config import load_config
-from pvvjax.databases import build_databases
+from pvvjax.cli import PAPER_TABLE1, prepare_sweep
 from pvvjax.evaluation import attach_measured, heldout_predictions, table1
-from pvvjax.sweep import run_sweep
 
 PAPER_T1 = {  # Table 1 of the paper: test and db1/db2/db3 predictions, g
     "T1-level-135": (0.10, 0.09, 0.10, 0.11), "T1-descent-160": (0.25, 0.24, 0.25, 0.26),
@@ -33,12 +28,8 @@ def main():
     ap.add_argument("config")
     ap.add_argument("--docs", action="store_true", help="also copy figures and tables into docs/")
     args = ap.parse_args()
-    cfg = load_config(args.config)
-    enable_compilation_cache()
-    out = Path(cfg.out_dir) / cfg.name
-    campaign, _ = resolve_campaign(cfg)
-    dbs = build_databases(campaign, cfg.analysis)
-    res = run_sweep(cfg, dbs, out / "sweep", progress=lambda **kw: tqdm(desc="nets", **kw))
+    cfg, dbs, res, sweep_dir = prepare_sweep(args.config)
+    out = sweep_dir.parent
     pred = attach_measured(heldout_predictions(res), dbs)
     figs = []
     for i, db in enumerate(("db1", "db2", "db3")):

@@ -189,23 +189,49 @@ def enable_compilation_cache():
         jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
 
 
-def cmd_sweep(args) -> int:
-    """Train the config's family of nets; resumable."""
+def use_cpu_cores(n: int = 0) -> None:
+    """Expose `n` host devices (0: one per core) to XLA on CPU, so that sharded work runs
+    on every core. Only possible before JAX starts; otherwise a no-op."""
+    import sys as _sys
+
+    if "jax" in _sys.modules or n == 1:
+        return
+    n = n or (os.cpu_count() or 1)
+    flags = os.environ.get("XLA_FLAGS", "")
+    if n > 1 and "xla_force_host_platform_device_count" not in flags:
+        os.environ["XLA_FLAGS"] = f"{flags} --xla_force_host_platform_device_count={n}".strip()
+
+
+def prepare_sweep(config_path, out=None):
+    """Load an experiment config, start JAX on every core with the compilation cache,
+    build the databases and run (or resume) its sweep.
+
+    Returns:
+        (config, databases, sweep results, sweep folder).
+    """
+    from .config import load_config
+
+    cfg = load_config(config_path)
+    use_cpu_cores(cfg.sweep.cpu_devices)  # before anything imports JAX
     from tqdm.auto import tqdm
 
-    from .config import load_config
     from .databases import build_databases
     from .io import write_config
     from .sweep import run_sweep
 
-    cfg = load_config(args.config)
     enable_compilation_cache()
-    out = Path(args.out) if args.out else Path(cfg.out_dir) / cfg.name / "sweep"
+    out = Path(out) if out else Path(cfg.out_dir) / cfg.name / "sweep"
     campaign, _ = resolve_campaign(cfg)
     dbs = build_databases(campaign, cfg.analysis)
     write_config(cfg, out / "config.toml")
-    t0 = time.perf_counter()
     res = run_sweep(cfg, dbs, out, progress=lambda **kw: tqdm(desc="nets", unit="net", **kw))
+    return cfg, dbs, res, out
+
+
+def cmd_sweep(args) -> int:
+    """Train the config's family of nets; resumable."""
+    t0 = time.perf_counter()
+    _, _, res, out = prepare_sweep(args.config, args.out)
     cols = ["val_rms_g", "test_rms_g", "test_max_abs_g", "test_p95_abs_g", "steps"]
     print(res.groupby(["database", "architecture"])[cols].median().round(4).to_string())
     print(f"{len(res)} nets in {out / 'results.parquet'} ({time.perf_counter() - t0:.1f} s)")
@@ -258,12 +284,15 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--config", help="experiment config (column mapping, window length)")
     s.set_defaults(fn=cmd_validate)
 
-    s = sub.add_parser("build-db", help="build databases 1-3 from a campaign",
-                       description="Harmonic analysis, peak PVV per condition and db1-db3 as CSV and Parquet.")
-    s.add_argument("campaign", nargs="?", default=None, help="campaign folder (default: embedded synthetic)")
-    s.add_argument("--out", required=True, help="output folder")
-    s.add_argument("--config", help="experiment config")
-    s.set_defaults(fn=cmd_build_db)
+    def campaign_command(name, fn, help, description, out_help):
+        s = sub.add_parser(name, help=help, description=description)
+        s.add_argument("campaign", nargs="?", default=None, help="campaign folder (default: embedded synthetic)")
+        s.add_argument("--out", required=True, help=out_help)
+        s.add_argument("--config", help="experiment config")
+        s.set_defaults(fn=fn)
+
+    campaign_command("build-db", cmd_build_db, "build databases 1-3 from a campaign",
+                     "Harmonic analysis, peak PVV per condition and db1-db3 as CSV and Parquet.", "output folder")
 
     s = sub.add_parser("synth", help="generate a synthetic UH-60A campaign",
                        description="Write a synthetic campaign (and its ground truth beside it).")
@@ -274,12 +303,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--plots", default=None, metavar="DIR", help="also write the check figures to DIR")
     s.set_defaults(fn=cmd_synth)
 
-    s = sub.add_parser("plot", help="figures of a campaign (PVV vs airspeed, pull-up, autorotation)",
-                       description="PVV vs airspeed in level flight and paper-style time histories.")
-    s.add_argument("campaign", nargs="?", default=None, help="campaign folder (default: embedded synthetic)")
-    s.add_argument("--out", required=True, help="output folder for PNG files")
-    s.add_argument("--config", help="experiment config")
-    s.set_defaults(fn=cmd_plot)
+    campaign_command("plot", cmd_plot, "figures of a campaign (PVV vs airspeed, pull-up, autorotation)",
+                     "PVV vs airspeed in level flight and paper-style time histories.", "output folder for PNG files")
 
     s = sub.add_parser("sweep", help="train a sweep of networks (databases x architectures x seeds x folds)",
                        description="Train every net of the config's [sweep] with its [train] settings. "
@@ -306,12 +331,16 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv=None) -> int:
     from ._strict import ConfigError
     from .campaign import CampaignError
-    from .train import TrainingError
 
     args = build_parser().parse_args(argv)
     try:
         return args.fn(args)
-    except (CampaignError, ConfigError, TrainingError) as e:
+    except (CampaignError, ConfigError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    except RuntimeError as e:  # TrainingError (imported lazily: JAX may not be started yet)
+        if type(e).__name__ != "TrainingError" or os.environ.get("PVVJAX_DEBUG"):
+            raise
         print(f"error: {e}", file=sys.stderr)
         return 2
     except (FileNotFoundError, KeyError, ValueError) as e:

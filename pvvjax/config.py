@@ -164,6 +164,9 @@ class SweepConfig:
         test_folds: outer folds to run (empty: all k, so every condition is held out once).
         split_seed: seed of the assignment of conditions to folds.
         chunk_evals: evaluations per compiled chunk; finished nets leave the batch between chunks.
+        cpu_devices: on CPU, expose this many host devices so that the net axis is sharded
+            over the cores (0: one per core; 1: off). Applied by `pvvjax sweep` before JAX
+            starts; results then depend on it (same config, seed and devices: same numbers).
     """
 
     databases: tuple[str, ...] = ("db1", "db2", "db3")
@@ -175,8 +178,11 @@ class SweepConfig:
     test_folds: tuple[int, ...] = ()
     split_seed: int = 0
     chunk_evals: int = 4
+    cpu_devices: int = 0
 
     def __post_init__(self):
+        if self.cpu_devices < 0:
+            raise ValueError(f"sweep.cpu_devices must be >= 0, got {self.cpu_devices}")
         bad = [d for d in self.databases if d not in ("db1", "db2", "db3")]
         if bad or not self.databases:
             raise ValueError(f"sweep.databases: unknown {bad}; use db1, db2, db3")
