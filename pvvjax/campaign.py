@@ -10,7 +10,6 @@ record lacks it. Rows are numbered from 1 (the first data row under the CSV head
 from __future__ import annotations
 
 import dataclasses
-import math
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -495,24 +494,14 @@ def write_campaign(folder, counters: pd.DataFrame, records: Mapping[str, pd.Data
             df.to_parquet(folder / "timeseries" / f"{name}.parquet", index=False)
         else:
             df.to_csv(folder / "timeseries" / f"{name}.csv", index=False, float_format="%.10g")
-    lines = []
+    table = {}
     if aircraft is not None:
-        lines.append("[aircraft]")
-        lines += [f"{k} = {v!r}" for k, v in aircraft._asdict().items()]
+        table["aircraft"] = dict(aircraft._asdict())
     if provenance:
-        lines.append("[provenance]")
-        for k, v in provenance.items():
-            lines.append(f"{k} = {_toml_value(v)}")
-    if lines:
-        (folder / "campaign.toml").write_text("\n".join(lines) + "\n")
+        table["provenance"] = dict(provenance)
+    if table:
+        import tomli_w
+
+        (folder / "campaign.toml").write_text(tomli_w.dumps(table))
     return folder
 
-
-def _toml_value(v) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, (int, float)) and not (isinstance(v, float) and not math.isfinite(v)):
-        return repr(v)
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
-    return '"' + str(v).replace("\\", "\\\\").replace('"', '\\"') + '"'

@@ -1,3 +1,4 @@
+import dataclasses
 import textwrap
 
 import pytest
@@ -30,8 +31,8 @@ def test_full_config_round_trip(tmp_path):
     assert cfg.name == "x" and cfg.seed == 3
     assert cfg.analysis.window_revs == 6.5 and cfg.analysis.hop == 6.5
     assert cfg.campaign.columns["V_ms"].factor() == pytest.approx(1.943844, rel=1e-6)
-    with pytest.raises(Exception):
-        cfg.seed = 4  # frozen
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        cfg.seed = 4
 
 
 @pytest.mark.parametrize("text, needle", [

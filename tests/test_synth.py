@@ -33,7 +33,7 @@ def test_default_campaign_covers_the_paper_conditions(default_campaign, default_
     assert (peaks[peaks.maneuver == "descent"].airspeed_kt > 155).any()
     assert (peaks[peaks.maneuver == "descent"].airspeed_kt < 80).any()
     # every autorotation is two counters with shaft power cut and restored
-    for cond, cs in default_campaign.conditions().items():
+    for cs in default_campaign.conditions().values():
         if default_campaign.counters.loc[cs[0], "maneuver"] == "autorotation":
             assert len(cs) == 2
             p1, p2 = (default_campaign.records[c].shaft_power_hp for c in cs)
@@ -148,7 +148,7 @@ def test_generator_config_errors(tmp_path, text, needle):
 
 
 def test_every_effect_is_documented_and_switchable():
-    for name, e in EFFECTS.items():
+    for e in EFFECTS.values():
         assert e.formula and e.physics and e.kind in ("additive", "gain", "lag")
     required = {"transition", "high_speed", "blade_loading", "dynamic_stall", "descent_bvi", "rotor_resonance",
                 "dynamic_lag", "pitch_rate", "roll_rate"}

@@ -13,9 +13,9 @@ from typing import Literal
 import numpy as np
 import pandas as pd
 
-from .._strict import from_dict, to_dict
+from .._strict import to_dict
 from ..campaign import write_campaign
-from ..config import config_hash, load_toml
+from ..config import config_hash, load_config
 from ..constants import UH60A
 from . import _flight
 from ._conditions import DEFAULT_COUNTS, NAMED, Condition, catalogue, condition_rng, pilot_plan
@@ -88,12 +88,8 @@ class SynthConfig:
 
 
 def load_synth_config(path) -> SynthConfig:
-    from .._strict import ConfigError
-
-    try:
-        return from_dict(SynthConfig, load_toml(path))
-    except ConfigError as e:
-        raise ConfigError(f"{path}: {e}") from None
+    """A generator config from TOML (strict: unknown keys and effects are errors)."""
+    return load_config(path, SynthConfig)
 
 
 def ground_truth(cfg: SynthConfig) -> dict:
