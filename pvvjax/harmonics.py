@@ -32,9 +32,25 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ._lookup import Lookup, make_lookup, search
 from .batch import RecordBatch
 
-__all__ = ["Windows", "WindowPlan", "analyze", "harmonic_windows", "plan_windows"]
+__all__ = [
+    "EDGES",
+    "Columns",
+    "WindowPlan",
+    "Windows",
+    "analyze",
+    "harmonic_from_means",
+    "harmonic_windows",
+    "plan_windows",
+    "record_bounds",
+    "record_columns",
+    "stack_columns",
+    "window_sums",
+    "with_prefix",
+    "window_sums",
+]
 
 _EPS_REVS = 1e-4  # float tolerance on window bounds, revolutions
 
@@ -67,18 +83,47 @@ class WindowPlan(NamedTuple):
         block: samples per block of the first-stage reduction.
         edge_blocks: blocks around each window edge whose samples get exact edge weights.
         interior_blocks: most blocks strictly inside one window.
+        edge_samples: samples that can lie in one edge ramp (the prefix-sum path).
     """
 
     n_windows: int
     block: int
     edge_blocks: int
     interior_blocks: int
+    edge_samples: int = 4
 
 
-def _edge(u, smooth: bool):
-    """Window edge rising from 0 at u = -1/2 to 1 at u = +1/2 (u in edge widths)."""
+EDGES = ("cell", "linear")
+
+
+def _edge(u, kind: str):
+    """Fraction of a sample's weight inside a window edge, rising from 0 to 1 as the sample
+    moves inwards; u is the sample's distance inside the edge in ramp widths h.
+
+    "cell": the part of the sample's cell (width h) inside: linear over |u| < 1/2; exact
+    rectangular windows, but d/d(edge) jumps where an edge crosses a cell boundary.
+    "linear": the part of the sample's hat function (half-width h) inside, i.e. the window
+    integrates the linear interpolant of the samples: a quadratic ramp over |u| < 1 whose
+    derivative is continuous, so gradients in the edge positions (window length, time
+    offset) have no jumps, at whole-sample positions included.
+    "taper": raised cosine over |u| < 1/2 (h is the taper width).
+    """
+    if kind == "linear":
+        v = jnp.clip(u, -1.0, 1.0)
+        return jnp.where(v < 0, 0.5 * (1.0 + v) ** 2, 1.0 - 0.5 * (1.0 - v) ** 2)
     s = jnp.clip(u + 0.5, 0.0, 1.0)
-    return 0.5 - 0.5 * jnp.cos(jnp.pi * s) if smooth else s
+    return 0.5 - 0.5 * jnp.cos(jnp.pi * s) if kind == "taper" else s
+
+
+def _edge_kind(edge: str, taper_revs: float) -> str:
+    if edge not in EDGES:
+        raise ValueError(f"edge must be one of {EDGES}, got {edge!r}")
+    return "taper" if taper_revs > 0 else edge
+
+
+def _reach(kind: str) -> float:
+    """Half-extent of an edge ramp in ramp widths."""
+    return 1.0 if kind == "linear" else 0.5
 
 
 def _sums(arrays, axis: int):
@@ -102,9 +147,180 @@ def _phasor_power(c, s, k: int):
     return rc, rs
 
 
-@partial(jax.jit, static_argnames=("harmonic", "taper_revs", "plan"))
+class Columns(NamedTuple):
+    """What windows of one record are computed from (`record_columns`); independent of the
+    window positions, so it is computed once per record and reused for any windows.
+
+    Attributes:
+        cols: columns summed under window weights: az·cos kψ, az·sin kψ, cos kψ, sin kψ,
+            az, time, then each channel minus its first value; a tuple of (T,) arrays, or
+            one (T, n) array (`stack_columns`: faster for many window sums of one record).
+        blocks: (T / block, len(cols) + 1) width-weighted block sums of cols and of 1.
+        x_ref: (C,) first value of each channel (added back to window means).
+        rev, width: (T,) as in `harmonic_windows`; width_max: the largest width.
+        prefix: optional (hi, lo) float32 pair of (T / block + 1, len(cols) + 1) prefix sums
+            of `blocks`, accurate to float64 (`with_prefix`): window sums then take two rows
+            instead of every interior block.
+        lookup: optional O(1) search table of rev (`with_prefix` adds it).
+    """
+
+    cols: tuple | jax.Array
+    blocks: jax.Array
+    x_ref: jax.Array
+    rev: jax.Array
+    width: jax.Array
+    width_max: jax.Array
+    prefix: tuple | None = None
+    lookup: Lookup | None = None
+
+
+N_HARMONIC_COLS = 6  # az·cos, az·sin, cos, sin, az, time
+
+
+def record_columns(az, cos_psi, sin_psi, rev, width, time, x, *, harmonic: int, block: int) -> Columns:
+    """Columns and block sums of one record (see `Columns`); T must be a multiple of `block`."""
+    T = az.shape[0]
+    if T % block:
+        raise ValueError(f"record length {T} is not a multiple of the block size {block} (pad with `to_batch`)")
+    ck, sk = _phasor_power(cos_psi, sin_psi, harmonic)
+    # Channels are averaged as deviations from the record's first sample (added back after):
+    # exact for constants, and no float32 loss on large values such as gross weight.
+    x_ref = x[0]
+    # Each column is reduced on its own: stacking full-length columns costs more than the analysis.
+    cols = (az * ck, az * sk, ck, sk, az, time) + tuple(x[:, c] - x_ref[c] for c in range(x.shape[1]))
+    nb = T // block
+    blocks = jnp.stack(_sums([(width * v).reshape(nb, block) for v in cols] + [width.reshape(nb, block)], axis=1),
+                       axis=-1)
+    return Columns(cols, blocks, x_ref, rev, width, jnp.max(width))
+
+
+def stack_columns(c: Columns) -> Columns:
+    """The same columns as one (T, n) array: costs one pass, then every window sum
+    gathers its edge samples in one operation instead of one per column."""
+    return c._replace(cols=jnp.stack(c.cols, axis=1)) if isinstance(c.cols, tuple) else c
+
+
+def with_prefix(c: Columns) -> Columns:
+    """`c` with float64-accurate prefix sums of its width-weighted columns (per sample, split
+    into a float32 pair) and a search table of its revolutions: a window sum then takes two
+    prefix rows and weighs the few samples of its edge ramps, whatever the window length
+    (NumPy: run once per record, outside jit; leading batch axes allowed)."""
+    cols = np.asarray(stack_columns(c).cols, np.float64)
+    w = np.asarray(c.width, np.float64)[..., None]
+    p = np.cumsum(np.concatenate([cols * w, w], axis=-1), axis=-2)
+    p = np.concatenate([np.zeros_like(p[..., :1, :]), p], axis=-2)
+    dt = np.asarray(c.blocks).dtype
+    hi = p.astype(dt)
+    lo = (p - hi.astype(np.float64)).astype(dt)
+    return stack_columns(c)._replace(prefix=(jnp.asarray(hi), jnp.asarray(lo)),
+                                     lookup=jax.tree.map(jnp.asarray, make_lookup(c.rev)))
+
+
+def _prefix_window_sums(c: Columns, a, b, reach, kind, taper_revs, plan, select, every, keep):
+    """`window_sums` through per-sample prefix sums: interior by two prefix rows, edge-ramp
+    samples (at most `plan.edge_samples` per edge) weighed exactly."""
+    rev, width = c.rev, c.width
+    T, W, K = rev.shape[0], a.shape[0], plan.edge_samples
+    i = search(c.lookup, rev, jnp.concatenate([a, b]) - reach)  # first sample of each ramp
+    i_a = i[:W]
+    i_b = jnp.maximum(i[W:], i_a + K)
+    lo_i, hi_i = jnp.minimum(i_a + K, T), jnp.minimum(i_b, T)
+    interior = (c.prefix[0][hi_i] - c.prefix[0][lo_i]) + (c.prefix[1][hi_i] - c.prefix[1][lo_i])
+    interior = interior if every else interior[:, keep]
+    idx = jnp.concatenate([i_a[:, None] + jnp.arange(K), i_b[:, None] + jnp.arange(K)], axis=1)  # (W, 2K)
+    inside = idx < T
+    idx = jnp.minimum(idx, T - 1)
+    r, wd = rev[idx], width[idx]
+    h = jnp.maximum(taper_revs, wd) if kind == "taper" else jnp.where(wd > 0, wd, 1.0)
+    w = wd * inside * _edge((r - a[:, None]) / h, kind) * _edge((b[:, None] - r) / h, kind)
+    rows = c.cols[idx]
+    edges = jnp.einsum("wn,wnv->wv", w, rows if every else rows[..., list(select)])
+    return interior + jnp.concatenate([edges, jnp.sum(w, axis=1, keepdims=True)], axis=1)
+
+
+def window_sums(c: Columns, a, b, *, kind: str, taper_revs: float, plan: WindowPlan, select=None):
+    """Weighted sums of columns over windows [a, b) (revolutions), with exact edge weights.
+
+    Each window adds its interior blocks and weighs only the samples of the blocks around
+    its two edges; gradients in `a` and `b` flow through the edge weights.
+
+    Args:
+        c: `record_columns` of the record.
+        a, b: (W,) window starts and ends, revolutions (any positions, b - a ≤ the plan's
+            longest window).
+        kind: edge kind ("cell", "linear" or "taper", see `_edge`).
+        taper_revs: ramp width for "taper".
+        plan: static sizes (`plan_windows`).
+        select: indices of the columns wanted (default all).
+
+    Returns:
+        (W, n + 1): sums of the selected columns, then the sum of the weights.
+    """
+    B, nE, nI = plan.block, plan.edge_blocks, plan.interior_blocks
+    dt = c.blocks.dtype
+    rev, width = c.rev, c.width
+    T = rev.shape[0]
+    nb = T // B
+    stacked = not isinstance(c.cols, tuple)
+    n_cols = c.cols.shape[1] if stacked else len(c.cols)
+    select = tuple(range(n_cols)) if select is None else tuple(select)
+    keep = list(select) + [n_cols]
+    every = select == tuple(range(n_cols))
+    h_max = jnp.maximum(taper_revs, c.width_max)
+    reach = _reach(kind) * h_max
+    if c.prefix is not None:
+        return _prefix_window_sums(c, a, b, reach, kind, taper_revs, plan, select, every, keep)
+    # Block of the last sample wholly before each edge ramp.
+    W = a.shape[0]
+    m = jnp.clip((jnp.searchsorted(rev, jnp.concatenate([a, b]) - reach) - 1) // B, 0, nb - 1)
+    m_a, m_b = m[:W], m[W:]
+    right = jnp.maximum(m_b, m_a + nE)
+    # Interior blocks [m_a + nE, right): every sample there has its full weight.
+    ib = m_a[:, None] + nE + jnp.arange(nI)
+    use = (ib < right[:, None]) & (ib < nb)
+    inner = c.blocks[jnp.clip(ib, 0, nb - 1)]  # gather rows first, then columns: no full-length copies
+    interior = jnp.einsum("wk,wkv->wv", use.astype(dt), inner if every else inner[..., keep])
+    # Edge samples: blocks [m_a, m_a + nE) and [right, right + nE), with exact weights. Whole
+    # blocks are gathered (XLA gathers contiguous slices much faster than single samples).
+    eb = jnp.concatenate([m_a[:, None] + jnp.arange(nE), right[:, None] + jnp.arange(nE)], axis=1)  # (W, 2 nE)
+    inside = jnp.repeat(eb < nb, B, axis=1)
+    eb = jnp.clip(eb, 0, nb - 1)
+    r, wd = rev.reshape(nb, B)[eb].reshape(W, -1), width.reshape(nb, B)[eb].reshape(W, -1)
+    h = jnp.maximum(taper_revs, wd) if kind == "taper" else jnp.where(wd > 0, wd, 1.0)
+    w = wd * inside * _edge((r - a[:, None]) / h, kind) * _edge((b[:, None] - r) / h, kind)
+    if stacked:  # one gather of all columns (cheap when the record was stacked once, `stack_columns`)
+        rows = c.cols.reshape(nb, B, n_cols)[eb].reshape(W, 2 * nE * B, n_cols)
+        edges = jnp.einsum("wn,wnv->wv", w, rows if every else rows[..., list(select)])
+        edges = jnp.concatenate([edges, jnp.sum(w, axis=1, keepdims=True)], axis=1)
+    else:
+        edges = jnp.stack(_sums([w * c.cols[i].reshape(nb, B)[eb].reshape(W, -1) for i in select] + [w], axis=1),
+                          axis=-1)
+    return interior + edges
+
+
+def _means(sums):
+    wsum = sums[..., -1]
+    return sums[..., :-1] / jnp.where(wsum > 0, wsum, 1.0)[..., None], wsum
+
+
+def harmonic_from_means(mean):
+    """(amplitude, phase, time) of windows from the means of the harmonic columns (W, ≥6)."""
+    az_bar = mean[:, 4]
+    re = mean[:, 0] - az_bar * mean[:, 2]
+    im = -(mean[:, 1] - az_bar * mean[:, 3])
+    amplitude = 2.0 * jnp.sqrt(re**2 + im**2 + jnp.finfo(mean.dtype).tiny)
+    return amplitude, jnp.arctan2(im, re), mean[:, 5]
+
+
+def record_bounds(rev, width, mask):
+    """First and last revolution covered by a record's samples."""
+    last = jnp.maximum(jnp.sum(mask) - 1, 0)
+    return rev[0] - 0.5 * width[0], rev[last] + 0.5 * width[last]
+
+
+@partial(jax.jit, static_argnames=("harmonic", "taper_revs", "plan", "edge"))
 def harmonic_windows(az, cos_psi, sin_psi, rev, width, time, x, mask, window_revs, hop_revs, start_revs=0.0, *,
-                     harmonic: int = 4, taper_revs: float = 0.0, plan: WindowPlan) -> Windows:
+                     harmonic: int = 4, taper_revs: float = 0.0, plan: WindowPlan, edge: str = "cell") -> Windows:
     """Harmonic analysis and window averages of one record.
 
     Two stages keep the cost near one pass over the samples: width-weighted products are
@@ -121,71 +337,32 @@ def harmonic_windows(az, cos_psi, sin_psi, rev, width, time, x, mask, window_rev
         hop_revs: spacing of window starts, revolutions (L for consecutive windows).
         start_revs: shift of the first window from the record start, revolutions.
         harmonic: harmonic order k (static).
-        taper_revs: raised-cosine edge width, revolutions (static; 0: rectangular).
+        taper_revs: raised-cosine edge width, revolutions (static; 0: rectangular window).
         plan: static sizes (`plan_windows`).
+        edge: rectangular edge kind, "cell" (exact DFT for whole windows) or "linear"
+            (integral of the linear interpolant: gradients continuous in L and start).
 
     Returns:
         `Windows` with shapes (W,) and (W, C).
     """
-    W, B, nE, nI = plan
+    kind = _edge_kind(edge, taper_revs)
+    W = plan.n_windows
     dt = az.dtype
     T = az.shape[0]
-    if T % B:
-        raise ValueError(f"record length {T} is not a multiple of the block size {B} (pad with `to_batch`)")
-    nb = T // B
-    last = jnp.maximum(jnp.sum(mask) - 1, 0)
-    rec_start = rev[0] - 0.5 * width[0]
-    rec_end = rev[last] + 0.5 * width[last]
-    smooth = taper_revs > 0
+    cols = record_columns(az, cos_psi, sin_psi, rev, width, time, x, harmonic=harmonic, block=plan.block)
+    rec_start, rec_end = record_bounds(rev, width, mask)
     a = rec_start + 0.5 * taper_revs + start_revs + hop_revs * jnp.arange(W, dtype=dt)
     b = a + window_revs
-    h_max = jnp.maximum(taper_revs, jnp.max(width))
-
-    ck, sk = _phasor_power(cos_psi, sin_psi, harmonic)
-    # Channels are averaged as deviations from the record's first sample (added back after):
-    # exact for constants, and no float32 loss on large values such as gross weight.
-    x_ref = x[0]
-    # Columns summed under the window weights: az·cos, az·sin, cos, sin, az, time, channels, 1.
-    # Each is reduced on its own: stacking full-length columns costs more than the analysis.
-    cols = [az * ck, az * sk, ck, sk, az, time] + [x[:, c] - x_ref[c] for c in range(x.shape[1])]
-    dw = width  # 0 in padding: the weight of a sample in full
-    blocks = jnp.stack(_sums([(dw * v).reshape(nb, B) for v in cols] + [dw.reshape(nb, B)], axis=1), axis=-1)
-
-    # Block of the last sample wholly before each edge ramp.
-    m_a = jnp.clip((jnp.searchsorted(rev, a - 0.5 * h_max) - 1) // B, 0, nb - 1)
-    m_b = jnp.clip((jnp.searchsorted(rev, b - 0.5 * h_max) - 1) // B, 0, nb - 1)
-    right = jnp.maximum(m_b, m_a + nE)
-    # Interior blocks [m_a + nE, right): every sample there has its full weight.
-    ib = m_a[:, None] + nE + jnp.arange(nI)
-    use = (ib < right[:, None]) & (ib < nb)
-    interior = jnp.einsum("wk,wkv->wv", use.astype(dt), blocks[jnp.clip(ib, 0, nb - 1)])
-    # Edge samples: blocks [m_a, m_a + nE) and [right, right + nE), with exact weights.
-    span = jnp.arange(nE * B)
-    idx = jnp.concatenate([m_a[:, None] * B + span, right[:, None] * B + span], axis=1)  # (W, 2 nE B)
-    inside = idx < nb * B
-    idx = jnp.clip(idx, 0, nb * B - 1)
-    r, wd = rev[idx], width[idx]
-    h = jnp.maximum(taper_revs, wd) if smooth else jnp.where(wd > 0, wd, 1.0)
-    w = dw[idx] * inside * _edge((r - a[:, None]) / h, smooth) * _edge((b[:, None] - r) / h, smooth)
-    edges = jnp.stack(_sums([w * v[idx] for v in cols] + [w], axis=1), axis=-1)
-    sums = interior + edges
-    wsum = sums[:, -1]
-    mean = sums / jnp.where(wsum > 0, wsum, 1.0)[:, None]
-
-    az_bar = mean[:, 4]
-    re = mean[:, 0] - az_bar * mean[:, 2]
-    im = -(mean[:, 1] - az_bar * mean[:, 3])
-    amplitude = 2.0 * jnp.sqrt(re**2 + im**2 + jnp.finfo(dt).tiny)
-    phase = jnp.arctan2(im, re)
-    t_mid = mean[:, 5]
+    mean, wsum = _means(window_sums(cols, a, b, kind=kind, taper_revs=taper_revs, plan=plan))
+    amplitude, phase, t_mid = harmonic_from_means(mean)
     center = jax.vmap(lambda col: jnp.interp(t_mid, time[:T], col), in_axes=1, out_axes=1)(x[:T])
     inside_record = (a - 0.5 * taper_revs >= rec_start - _EPS_REVS) & (b + 0.5 * taper_revs <= rec_end + _EPS_REVS)
     valid = inside_record & (wsum > 0)
-    return Windows(amplitude, phase, t_mid, mean[:, 6:-1] + x_ref, center, valid)
+    return Windows(amplitude, phase, t_mid, mean[:, N_HARMONIC_COLS:] + cols.x_ref, center, valid)
 
 
 def plan_windows(batch: RecordBatch, max_window_revs: float, min_hop_revs: float, taper_revs: float = 0.0,
-                 start_revs: float = 0.0, block: int = 16) -> WindowPlan:
+                 start_revs: float = 0.0, block: int = 16, edge: str = "cell") -> WindowPlan:
     """Static sizes that cover every window of every record for window lengths up to
     `max_window_revs` and hops down to `min_hop_revs` (needs a concrete batch)."""
     rev = np.asarray(batch.rev, np.float64)
@@ -197,13 +374,15 @@ def plan_windows(batch: RecordBatch, max_window_revs: float, min_hop_revs: float
     n_windows = max(1, int(math.floor((span - start_revs - taper_revs - min(max_window_revs, span)) / min_hop_revs
                                       + _EPS_REVS)) + 1)
     h_max = max(taper_revs, dmax)
-    edge = int(math.ceil((h_max + 3.0 * dmax) / (block * dmin))) + 1
+    ramp = 2.0 * _reach(_edge_kind(edge, taper_revs)) * h_max
+    n_edge = int(math.ceil((ramp + 3.0 * dmax) / (block * dmin))) + 1
     interior = int(math.ceil((max_window_revs + h_max) / (block * dmin))) + 2
-    return WindowPlan(n_windows, block, edge, interior)
+    return WindowPlan(n_windows, block, n_edge, interior, int(math.ceil(ramp / dmin)) + 2)
 
 
 def analyze(batch: RecordBatch, window_revs: float = 8.0, hop_revs: float | None = None, *, harmonic: int = 4,
-            taper_revs: float = 0.0, start_revs: float = 0.0, plan: WindowPlan | None = None) -> Windows:
+            taper_revs: float = 0.0, start_revs: float = 0.0, plan: WindowPlan | None = None,
+            edge: str = "cell") -> Windows:
     """Harmonic analysis of every record of a batch (vmapped over counters).
 
     Args:
@@ -214,15 +393,16 @@ def analyze(batch: RecordBatch, window_revs: float = 8.0, hop_revs: float | None
         taper_revs: raised-cosine edge width (0: rectangular window).
         start_revs: shift of the first window from each record's start.
         plan: static sizes; computed from the batch when omitted.
+        edge: "cell" or "linear" (see `harmonic_windows`).
 
     Returns:
         `Windows` with shapes (B, W) and (B, W, C).
     """
     hop = window_revs if hop_revs is None else hop_revs
     if plan is None:
-        plan = plan_windows(batch, float(window_revs), float(hop), float(taper_revs), float(start_revs))
+        plan = plan_windows(batch, float(window_revs), float(hop), float(taper_revs), float(start_revs), edge=edge)
     fn = jax.vmap(
-        partial(harmonic_windows, harmonic=harmonic, taper_revs=float(taper_revs), plan=plan),
+        partial(harmonic_windows, harmonic=harmonic, taper_revs=float(taper_revs), plan=plan, edge=edge),
         in_axes=(0, 0, 0, 0, 0, 0, 0, 0, None, None, None),
     )
     return fn(batch.az, batch.cos_psi, batch.sin_psi, batch.rev, batch.width, batch.time, batch.x, batch.mask,

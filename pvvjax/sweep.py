@@ -26,6 +26,7 @@ import time
 from pathlib import Path
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 import pandas as pd
 
@@ -36,7 +37,17 @@ from .databases import DB_INPUTS, OUTPUT
 from .npnet import read_npz
 from .networks import architecture_name, mlp_apply, mlp_init, n_weights, rbf_apply, rbf_fit, scaling
 
-__all__ = ["N_INPUTS", "collect", "load_params", "net_table", "run_sweep", "save_params", "stack_data", "train_nets"]
+__all__ = [
+    "N_INPUTS",
+    "collect",
+    "heldout_models",
+    "load_params",
+    "net_table",
+    "run_sweep",
+    "save_params",
+    "stack_data",
+    "train_nets",
+]
 
 N_INPUTS = max(len(v) for v in DB_INPUTS.values())  # every database padded to this many inputs
 
@@ -360,3 +371,47 @@ def _run_rbf(group, data, dbs, cfg, out, chash, bar):
         _atomic_parquet(pd.DataFrame([row]), out / "parts" / f"{r.net_id}-1.parquet")
         if bar is not None:
             bar.update(1)
+
+
+def heldout_models(out: Path, database: str, conditions, architecture: str | None = None) -> dict:
+    """For each condition, the nets of a sweep that held it out (its test fold), stacked
+    over seeds: the models a replay of that condition's counters should use.
+
+    Args:
+        out: sweep folder (`run_sweep`).
+        database: "db1", "db2" or "db3".
+        conditions: (N,) condition of each counter to replay.
+        architecture: e.g. "6-10-5-1" (needed only if the sweep trained several).
+
+    Returns:
+        dict(params=(N, seeds, ...) stacked parameters, idx=(N, inputs) input indices
+        (`replay.input_index`)), a per-counter model batch for `calibration`.
+    """
+    from .replay import input_index
+
+    res = collect(out)
+    if res.empty:
+        raise FileNotFoundError(f"{out}: no finished nets (run the sweep first)")
+    sel = res[res.database == database]
+    if architecture is not None:
+        sel = sel[sel.architecture == architecture]
+    if sel.empty:
+        raise ValueError(f"{out}: no nets for database {database!r}"
+                         + (f" and architecture {architecture!r}" if architecture else ""))
+    archs = sorted(set(sel.architecture))
+    if len(archs) > 1:
+        raise ValueError(f"{out}: {database} has several architectures {archs}; choose one")
+    fold_of = {}
+    for r in sel.itertuples():
+        for c, s in zip(json.loads(r.conditions), json.loads(r.split)):
+            if s == "test":
+                fold_of[c] = int(r.test_fold)
+    missing = sorted({c for c in conditions if c not in fold_of})
+    if missing:
+        raise ValueError(f"{out}: conditions {missing[:5]} are not held out by any {database} net of the sweep")
+    by_fold = {}
+    for fold, g in sel.sort_values("seed").groupby("test_fold"):
+        by_fold[int(fold)] = _stack([load_params(Path(out) / "params" / f"{nid}.npz")[0] for nid in g.net_id])
+    params = _stack([by_fold[fold_of[c]] for c in conditions])
+    idx = np.broadcast_to(input_index(database, N_INPUTS), (len(conditions), N_INPUTS))
+    return dict(params=jax.tree.map(jnp.asarray, params), idx=jnp.asarray(idx))

@@ -1,0 +1,190 @@
+"""Calibration of the input-to-vibration offset, the window length and the stick lag by
+gradient, and brute-force cost grids to check it.
+
+A calibration fits θ = (offset_s, window_revs, stick_offset_s), or any subset of it, to a
+group of counters: the cost of a group is the mean `replay_cost` of its counters. Groups
+are independent (one θ for the whole campaign, one per maneuver kind, one per counter), so
+the solve is vmapped over groups; it vmaps over databases as well (stack their models).
+
+The cost is not convex in the offset (a peak can match the wrong bump), so a solve starts
+from the best point of a coarse grid and then refines it with Levenberg-Marquardt
+(optimistix) on the cost's residuals. Parameters are clipped to their bounds.
+"""
+
+from __future__ import annotations
+
+from functools import partial
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optimistix as optx
+
+from .networks import mlp_apply
+from .replay import CostWeights, ReplayRecord, Settings, cost_terms, replay, residuals
+
+__all__ = ["PARAMS", "Bounds", "Calibration", "calibrate", "cost_grid", "counter_costs", "group_members"]
+
+PARAMS = ("offset_s", "window_revs", "stick_offset_s")
+
+
+class Bounds(NamedTuple):
+    """(lo, hi) of each calibrated parameter (s, revolutions, s)."""
+
+    offset_s: tuple[float, float] = (-1.0, 3.0)
+    window_revs: tuple[float, float] = (4.0, 12.0)
+    stick_offset_s: tuple[float, float] = (-2.0, 2.0)
+
+
+class Calibration(NamedTuple):
+    """Result per group (leading axis G).
+
+    Attributes:
+        theta: (G, 3) calibrated (offset_s, window_revs, stick_offset_s).
+        start: (G, 3) the coarse-grid starting point.
+        cost: (G,) group cost at theta. start_cost: (G,) at the start.
+        steps: (G,) Levenberg-Marquardt steps. ok: (G,) solver converged.
+    """
+
+    theta: jax.Array
+    start: jax.Array
+    cost: jax.Array
+    start_cost: jax.Array
+    steps: jax.Array
+    ok: jax.Array
+
+
+def group_members(groups, n_groups: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Counter indices of each group, padded: (members (G, M), mask (G, M)).
+
+    Args:
+        groups: (N,) group id of each counter, in [0, G).
+    """
+    groups = np.asarray(groups)
+    n_groups = int(groups.max()) + 1 if n_groups is None else n_groups
+    lists = [np.flatnonzero(groups == g) for g in range(n_groups)]
+    if any(len(m) == 0 for m in lists):
+        raise ValueError(f"empty group(s): {[g for g, m in enumerate(lists) if len(m) == 0]}")
+    M = max(len(m) for m in lists)
+    members = np.stack([np.pad(m, (0, M - len(m)), constant_values=m[0]) for m in lists])
+    mask = np.stack([np.arange(M) < len(m) for m in lists])
+    return members.astype(np.int32), mask
+
+
+def _take(tree, idx):
+    return jax.tree.map(lambda a: a[idx], tree)
+
+
+def _clip(theta, bounds: Bounds):
+    lo = jnp.array([b[0] for b in bounds], theta.dtype)
+    hi = jnp.array([b[1] for b in bounds], theta.dtype)
+    return jnp.clip(theta, lo, hi)
+
+
+def _replay_counter(model, rec, theta, settings, apply):
+    return replay(model, rec, theta[0], theta[1], theta[2], settings=settings, apply=apply)
+
+
+def _group_residuals(theta, models, recs, mask, settings, weights, apply):
+    """Residuals of a group's members, scaled so that their squares sum to the mean cost."""
+    res = jax.vmap(lambda m, r: residuals(_replay_counter(m, r, theta, settings, apply), weights))(models, recs)
+    n = jnp.maximum(jnp.sum(mask), 1)
+    return (res * (mask[:, None] / jnp.sqrt(n))).reshape(-1)
+
+
+def _group_cost(theta, models, recs, mask, settings, weights, apply):
+    return jnp.sum(_group_residuals(theta, models, recs, mask, settings, weights, apply) ** 2)
+
+
+@partial(jax.jit, static_argnames=("settings", "weights", "apply"))
+def counter_costs(models, recs: ReplayRecord, theta, *, settings: Settings, weights: CostWeights = CostWeights(),
+                  apply=mlp_apply) -> dict:
+    """Cost terms of every counter at its own θ.
+
+    Args:
+        models: per-counter models (leading axis N; see `replay`).
+        recs: `ReplayRecord`s (leading axis N).
+        theta: (N, 3) or (3,) (offset_s, window_revs, stick_offset_s).
+
+    Returns:
+        dict of (N,) arrays: cost, peak_error_g, phase_error_s, rms_g.
+    """
+    theta = jnp.broadcast_to(jnp.asarray(theta, recs.time.dtype), (recs.time.shape[0], 3))
+
+    def one(m, r, th):
+        rep = _replay_counter(m, r, th, settings, apply)
+        return dict(cost=jnp.sum(residuals(rep, weights) ** 2), **cost_terms(rep, weights))
+
+    return jax.vmap(one)(models, recs, theta)
+
+
+@partial(jax.jit, static_argnames=("settings", "weights", "apply"))
+def cost_grid(models, recs: ReplayRecord, members, mask, offsets, lengths, base=(0.0, 8.0, 0.0), *,
+              settings: Settings, weights: CostWeights = CostWeights(), apply=mlp_apply):
+    """Brute-force group cost on a grid of offsets × window lengths.
+
+    Args:
+        models, recs: per-counter models and records (leading axis N).
+        members, mask: `group_members`.
+        offsets: (K,) s. lengths: (J,) revolutions.
+        base: θ for the parameters not on the grid (the stick offset).
+
+    Returns:
+        (G, J, K) mean cost of each group.
+    """
+    base = jnp.asarray(base, recs.time.dtype)
+
+    def group(mem, msk):
+        m, r = _take(models, mem), _take(recs, mem)
+        cost = lambda L, tau: _group_cost(base.at[0].set(tau).at[1].set(L), m, r, msk, settings, weights, apply)  # noqa: E731
+        return jax.vmap(lambda L: jax.vmap(lambda tau: cost(L, tau))(offsets))(lengths)
+
+    return jax.lax.map(lambda a: group(*a), (members, mask))
+
+
+@partial(jax.jit, static_argnames=("free", "bounds", "settings", "weights", "apply", "max_steps", "rtol", "atol"))
+def calibrate(models, recs: ReplayRecord, members, mask, init, coarse, *, free: tuple[str, ...] = ("offset_s",),
+              bounds: Bounds = Bounds(), settings: Settings, weights: CostWeights = CostWeights(), apply=mlp_apply,
+              max_steps: int = 64, rtol: float = 1e-5, atol: float = 1e-6) -> Calibration:
+    """Fit θ per group: coarse grid, then Levenberg-Marquardt on the residuals.
+
+    Args:
+        models, recs: per-counter models and records (leading axis N).
+        members, mask: `group_members` (G groups).
+        init: (3,) or (G, 3) θ; the parameters not in `free` stay at it.
+        coarse: (K, len(free)) candidate values of the free parameters; the best one
+            (lowest group cost) starts the solve.
+        free: names of the fitted parameters (in `PARAMS`).
+        bounds: parameter bounds (θ is clipped to them).
+        settings, weights, apply: see `replay` and `CostWeights`.
+
+    Returns:
+        `Calibration` with leading axis G.
+    """
+    unknown = [f for f in free if f not in PARAMS]
+    if unknown or not free:
+        raise ValueError(f"free parameters must be a non-empty subset of {PARAMS}, got {free}")
+    fi = jnp.array([PARAMS.index(f) for f in free])
+    dt = recs.time.dtype
+    init = jnp.broadcast_to(jnp.asarray(init, dt), (members.shape[0], 3))
+    coarse = jnp.asarray(coarse, dt)
+
+    def group(mem, msk, th0):
+        m, r = _take(models, mem), _take(recs, mem)
+        full = lambda y: _clip(th0.at[fi].set(y), bounds)  # noqa: E731
+        fn = lambda y, _: _group_residuals(full(y), m, r, msk, settings, weights, apply)  # noqa: E731
+        costs = jax.lax.map(lambda y: jnp.sum(fn(y, None) ** 2), coarse)
+        y0 = coarse[jnp.argmin(costs)]
+        sol = optx.least_squares(fn, optx.LevenbergMarquardt(rtol=rtol, atol=atol), y0, max_steps=max_steps,
+                                 throw=False)
+        y = sol.value
+        c = jnp.sum(fn(y, None) ** 2)
+        c0 = jnp.min(costs)
+        # Keep the start if the solve made it worse (it cannot, unless it failed).
+        better = c <= c0
+        return (jnp.where(better, full(y), full(y0)), full(y0), jnp.minimum(c, c0), c0, sol.stats["num_steps"],
+                sol.result == optx.RESULTS.successful)
+
+    out = jax.vmap(group)(members, mask, init)
+    return Calibration(*out)

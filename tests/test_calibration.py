@@ -1,0 +1,109 @@
+"""Calibration by gradient against a known lag and against brute-force grids; groups and
+databases vmapped equal separate solves."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from pvvjax import replay as R
+from pvvjax.batch import to_batch
+from pvvjax.calibration import calibrate, cost_grid, counter_costs, group_members
+from pvvjax.databases import STATE_CHANNELS
+from test_replay import _one, lagged_campaign, linear_apply, linear_model
+
+
+def _per_counter(model, n):
+    return jax.tree.map(lambda a: jnp.broadcast_to(a, (n, *jnp.shape(a))), model)
+
+
+@pytest.fixture(scope="module")
+def lagged():
+    taus = np.array([0.3, 0.3, 1.1, 1.1])
+    camp = lagged_campaign(taus, n=4, seed=2)
+    batch = to_batch(camp, STATE_CHANNELS)
+    return taus, R.prepare(batch), R.make_settings(batch, hop_revs=1.0), _per_counter(linear_model(), 4)
+
+
+def test_calibration_recovers_known_lags_per_group(lagged):
+    taus, recs, settings, models = lagged
+    coarse = np.arange(-1.0, 3.01, 0.5)[:, None]
+    # Two groups with different true lags, solved together (vmapped over groups)...
+    members, mask = group_members([0, 0, 1, 1])
+    cal = calibrate(models, recs, members, mask, jnp.array([0.0, 8.0, 0.0]), coarse, settings=settings,
+                    apply=linear_apply)
+    np.testing.assert_allclose(np.asarray(cal.theta[:, 0]), [0.3, 1.1], atol=0.03)
+    assert np.all(np.asarray(cal.cost) < 0.05 * np.asarray(cal.start_cost))
+    # ... equal each group solved alone.
+    for g, idx in enumerate(([0, 1], [2, 3])):
+        sub = jax.tree.map(lambda a: a[np.array(idx)], (models, recs))
+        m1, k1 = group_members([0, 0])
+        alone = calibrate(*sub, m1, k1, jnp.array([0.0, 8.0, 0.0]), coarse, settings=settings, apply=linear_apply)
+        np.testing.assert_allclose(float(alone.theta[0, 0]), float(cal.theta[g, 0]), atol=1e-4)
+
+
+def test_per_counter_costs_are_lowest_at_the_true_lag(lagged):
+    taus, recs, settings, models = lagged
+    at_truth = counter_costs(models, recs, jnp.stack([jnp.asarray(taus), jnp.full(4, 8.0), jnp.zeros(4)], 1),
+                             settings=settings, apply=linear_apply)
+    off = counter_costs(models, recs, jnp.array([0.7, 8.0, 0.0]), settings=settings, apply=linear_apply)
+    assert np.all(np.asarray(at_truth["cost"]) < np.asarray(off["cost"]))
+    assert np.abs(np.asarray(at_truth["phase_error_s"])).max() < 0.1
+
+
+@pytest.fixture(scope="module")
+def small_cal(small_campaign_dir, small_dbs):
+    from pvvjax.campaign import load_campaign
+    from pvvjax.networks import rbf_fit
+    from pvvjax.sweep import stack_data
+
+    camp = load_campaign(small_campaign_dir)
+    ctr = camp.counters[camp.counters.maneuver.isin(["pullup", "pushover", "roll", "flare", "autorotation"])]
+    batch = to_batch(camp, STATE_CHANNELS, list(ctr.index))
+    data = stack_data(small_dbs, ["db1", "db2"], 5, 0)
+    models = []
+    for db in ("db1", "db2"):
+        x, y, in_mask, _ = data[db]
+        p = rbf_fit(jax.random.key(1), x, y, 24, in_mask=in_mask)
+        models.append(_per_counter(dict(params=p, idx=jnp.asarray(R.input_index(db))), len(ctr)))
+    return R.prepare(batch), R.make_settings(batch, hop_revs=1.0, min_window_revs=6.0), models
+
+
+def test_gradient_optimum_agrees_with_a_brute_force_grid(small_cal):
+    from pvvjax.networks import rbf_apply
+
+    recs, settings, models = small_cal
+    members, mask = group_members(np.zeros(recs.time.shape[0], int))
+    offsets, lengths = np.arange(-0.5, 2.51, 0.1), np.arange(6.0, 12.01, 0.5)
+    coarse = np.stack(np.meshgrid(np.arange(-0.5, 2.51, 0.5), [6.0, 9.0, 12.0], indexing="ij"), -1).reshape(-1, 2)
+    for model in models:
+        cal = calibrate(model, recs, members, mask, jnp.array([0.0, 8.0, 0.0]), coarse,
+                        free=("offset_s", "window_revs"), settings=settings, apply=rbf_apply)
+        grid = np.asarray(cost_grid(model, recs, members, mask, offsets, lengths, settings=settings, apply=rbf_apply))[0]
+        j, k = np.unravel_index(grid.argmin(), grid.shape)
+        tau, L = np.asarray(cal.theta[0, :2])
+        assert abs(tau - offsets[k]) <= 0.1 + 1e-6 and abs(L - lengths[j]) <= 0.5 + 1e-6, (tau, L, offsets[k], lengths[j])
+        assert float(cal.cost[0]) <= grid.min() * (1 + 1e-4)
+
+
+def test_calibration_vmaps_over_databases(lagged):
+    _, recs, settings, model = lagged
+    other = {**model, "params": {**model["params"], "w": model["params"]["w"] * 1.3}}
+    members, mask = group_members([0, 0, 1, 1])
+    coarse = np.arange(-1.0, 3.01, 0.5)[:, None]
+    run = lambda m: calibrate(m, recs, members, mask, jnp.array([0.0, 8.0, 0.0]), coarse,  # noqa: E731
+                              settings=settings, apply=linear_apply)
+    both = jax.vmap(run)(jax.tree.map(lambda *a: jnp.stack(a), model, other))
+    for d, m in enumerate((model, other)):
+        # Vmapped, a converged solve idles until the others finish: equal to solver tolerance.
+        np.testing.assert_allclose(np.asarray(both.theta[d]), np.asarray(run(m).theta), atol=2e-3)
+
+
+def test_bad_groups_and_parameters_are_errors(lagged):
+    _, recs, settings, models = lagged
+    with pytest.raises(ValueError, match="empty group"):
+        group_members([0, 2])
+    members, mask = group_members([0, 0, 0, 0])
+    with pytest.raises(ValueError, match="free parameters"):
+        calibrate(models, recs, members, mask, jnp.zeros(3), np.zeros((1, 1)), free=("delay",), settings=settings,
+                  apply=linear_apply)
