@@ -1,7 +1,7 @@
 """pvvjax: neural-network modelling of helicopter pilot-floor 4/rev vibration (PVV) in JAX.
 
 The pipeline: campaign → windowed harmonic analysis → peak PVV → databases 1-3 → networks
-→ quasi-static replay. The numerical core is pure `jax.numpy`; files, CLI and plots sit
+→ quasi-static replay → calibration of the offset and window length. The numerical core is pure `jax.numpy`; files, CLI and plots sit
 at the edges.
 
 Names are imported lazily, so `pvvjax.npnet` (the NumPy evaluator for a simulator host)
@@ -12,17 +12,20 @@ import importlib
 
 _EXPORTS = {
     "batch": ["RecordBatch", "to_batch"],
+    "calibration": ["calibrate", "cost_grid", "counter_costs", "group_members"],
     "campaign": ["MANEUVERS", "REQUIRED_CHANNELS", "Campaign", "CampaignError", "Problem", "campaign_from_frames",
                  "load_campaign", "validate_campaign", "write_campaign"],
-    "config": ["AnalysisConfig", "CampaignConfig", "ColumnMap", "ConfigError", "ExperimentConfig", "SweepConfig",
-               "TrainConfig", "load_config"],
+    "config": ["AnalysisConfig", "CalibrationConfig", "CampaignConfig", "ColumnMap", "ConfigError", "ExperimentConfig",
+               "ReplayConfig", "SweepConfig", "TrainConfig", "load_config"],
     "constants": ["UH60A", "Aircraft"],
     "databases": ["DB_INPUTS", "OUTPUT", "build_databases", "condition_peaks", "peak_table"],
     "features": ["advance_ratio", "blade_loading", "derive_features", "maneuver_load_factor", "thrust_coefficient"],
     "harmonics": ["Windows", "analyze", "harmonic_windows", "plan_windows"],
     "networks": ["mlp_apply", "mlp_init", "rbf_apply", "rbf_fit"],
     "npnet": ["NumpyNet"],
-    "sweep": ["run_sweep", "load_params"],
+    "replay": ["CostWeights", "Replay", "make_settings", "prepare", "replay_cost"],  # the function: pvvjax.replay.replay
+    "replay_tables": ["load_replay_set", "peak_summary", "replay_windows"],
+    "sweep": ["heldout_models", "load_params", "run_sweep"],
     "train": ["fit", "make_data", "condition_folds"],
 }
 _WHERE = {name: mod for mod, names in _EXPORTS.items() for name in names}

@@ -21,7 +21,6 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
-from .networks import mlp_apply
 from .replay import CostWeights, ReplayRecord, Settings, cost_terms, replay, residuals
 
 __all__ = ["PARAMS", "Bounds", "Calibration", "calibrate", "cost_grid", "counter_costs", "group_members"]
@@ -33,7 +32,7 @@ class Bounds(NamedTuple):
     """(lo, hi) of each calibrated parameter (s, revolutions, s)."""
 
     offset_s: tuple[float, float] = (-1.0, 3.0)
-    window_revs: tuple[float, float] = (4.0, 12.0)
+    window_revs: tuple[float, float] = (4.0, 16.0)
     stick_offset_s: tuple[float, float] = (-2.0, 2.0)
 
 
@@ -99,7 +98,7 @@ def _group_cost(theta, models, recs, mask, settings, weights, apply):
 
 @partial(jax.jit, static_argnames=("settings", "weights", "apply"))
 def counter_costs(models, recs: ReplayRecord, theta, *, settings: Settings, weights: CostWeights = CostWeights(),
-                  apply=mlp_apply) -> dict:
+                  apply=None) -> dict:
     """Cost terms of every counter at its own θ.
 
     Args:
@@ -121,7 +120,7 @@ def counter_costs(models, recs: ReplayRecord, theta, *, settings: Settings, weig
 
 @partial(jax.jit, static_argnames=("settings", "weights", "apply"))
 def cost_grid(models, recs: ReplayRecord, members, mask, offsets, lengths, base=(0.0, 8.0, 0.0), *,
-              settings: Settings, weights: CostWeights = CostWeights(), apply=mlp_apply):
+              settings: Settings, weights: CostWeights = CostWeights(), apply=None):
     """Brute-force group cost on a grid of offsets × window lengths.
 
     Args:
@@ -135,17 +134,21 @@ def cost_grid(models, recs: ReplayRecord, members, mask, offsets, lengths, base=
     """
     base = jnp.asarray(base, recs.time.dtype)
 
+    offsets, lengths = jnp.asarray(offsets, base.dtype), jnp.asarray(lengths, base.dtype)
+    points = jnp.stack(jnp.meshgrid(lengths, offsets, indexing="ij"), -1).reshape(-1, 2)
+
     def group(mem, msk):
         m, r = _take(models, mem), _take(recs, mem)
-        cost = lambda L, tau: _group_cost(base.at[0].set(tau).at[1].set(L), m, r, msk, settings, weights, apply)  # noqa: E731
-        return jax.vmap(lambda L: jax.vmap(lambda tau: cost(L, tau))(offsets))(lengths)
+        cost = lambda p: _group_cost(base.at[0].set(p[1]).at[1].set(p[0]), m, r, msk, settings, weights, apply)  # noqa: E731
+        # Points in batches: vmapping the whole grid would hold every replay in memory at once.
+        return jax.lax.map(cost, points, batch_size=8).reshape(lengths.shape[0], offsets.shape[0])
 
     return jax.lax.map(lambda a: group(*a), (members, mask))
 
 
 @partial(jax.jit, static_argnames=("free", "bounds", "settings", "weights", "apply", "max_steps", "rtol", "atol"))
 def calibrate(models, recs: ReplayRecord, members, mask, init, coarse, *, free: tuple[str, ...] = ("offset_s",),
-              bounds: Bounds = Bounds(), settings: Settings, weights: CostWeights = CostWeights(), apply=mlp_apply,
+              bounds: Bounds = Bounds(), settings: Settings, weights: CostWeights = CostWeights(), apply=None,
               max_steps: int = 64, rtol: float = 1e-5, atol: float = 1e-6) -> Calibration:
     """Fit θ per group: coarse grid, then Levenberg-Marquardt on the residuals.
 

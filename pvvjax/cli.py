@@ -274,6 +274,110 @@ def cmd_export(args) -> int:
     return 0
 
 
+def _replay_inputs(args, cfg):
+    """Campaign, counters, held-out models of the config's replay (training the sweep first
+    if the config names none)."""
+    from .replay_tables import load_replay_set, select_counters
+
+    enable_compilation_cache()
+    if cfg.replay.sweep:
+        sweep = Path(cfg.replay.sweep)
+        if not (sweep / "parts").is_dir():
+            raise FileNotFoundError(f"{args.config}: replay.sweep = {cfg.replay.sweep!r} is not a sweep folder")
+    else:
+        _, _, _, sweep = prepare_sweep(args.config)
+    campaign, _ = resolve_campaign(cfg)
+    counters = list(args.counters) if getattr(args, "counters", None) else select_counters(campaign, cfg.replay)
+    info, batch, recs, models = load_replay_set(campaign, counters, sweep, cfg.replay.databases,
+                                                cfg.replay.architecture)
+    print(f"replaying {len(counters)} counters through the held-out nets of {sweep} ({', '.join(models)})")
+    return info, batch, recs, models
+
+
+def cmd_replay(args) -> int:
+    """Quasi-static replay of recorded counters at a given offset and window length."""
+    from . import plots
+    from .config import load_config
+    from .io import write_config, write_table
+    from .replay import make_settings
+    from .replay_tables import peak_summary, replay_windows
+
+    cfg = load_config(args.config)
+    rc = cfg.replay
+    tau = rc.offset_s if args.offset is None else args.offset
+    L = rc.window_revs if args.window is None else args.window
+    out = Path(args.out) if args.out else Path(cfg.out_dir) / cfg.name / "replay"
+    info, batch, recs, models = _replay_inputs(args, cfg)
+    total = tau + rc.stick_offset_s
+    settings = make_settings(batch, max_window_revs=L, min_window_revs=L, hop_revs=rc.hop_revs,
+                             offset_bounds=(min(0.0, tau, total), max(0.0, tau, total)),
+                             stick_lag=rc.stick_offset_s != 0)
+    windows = replay_windows(info, recs, models, (tau, L, rc.stick_offset_s), settings)
+    summary = peak_summary(windows)
+    write_table(windows, out / "windows", cfg)
+    write_table(summary, out / "summary", cfg)
+    write_config(cfg, out / "config.toml")
+    cols = ["peak_error_g", "phase_error_s", "rms_g"]
+    print(f"offset {tau:g} s, window {L:g} revs, stick offset {rc.stick_offset_s:g} s; median over counters:")
+    print(summary.groupby("database")[cols].median().round(3).to_string())
+    for counter in list(info.index)[: args.plots]:
+        series = {db: windows[(windows.database == db) & (windows.counter == counter)] for db in models}
+        fig = plots.replay(series, f"counter {counter} ({info.loc[counter, 'maneuver']}): offset {tau:g} s, "
+                                   f"{L:g}-rev windows")
+        print(f"figure: {plots.save(fig, out / f'replay_{counter}.png')}")
+    print(f"tables: {out / 'windows.parquet'}, {out / 'summary.csv'}")
+    return 0
+
+
+def cmd_calibrate(args) -> int:
+    """Fit offset / window length / stick lag by gradient; check against a brute-force grid."""
+    import dataclasses
+
+    import numpy as np
+
+    from . import plots
+    from .config import load_config
+    from .io import write_config, write_table
+    from .replay_tables import calibration_table, grid_table
+
+    cfg = load_config(args.config)
+    cc = cfg.calibration
+    if args.groups or args.free:
+        cc = dataclasses.replace(cc, groups=args.groups or cc.groups, free=tuple(args.free or cc.free))
+        cfg = cfg.with_(calibration=cc)
+    out = Path(args.out) if args.out else Path(cfg.out_dir) / cfg.name / "calibration"
+    info, batch, recs, models = _replay_inputs(args, cfg)
+    init = (cfg.replay.offset_s, cfg.replay.window_revs, cfg.replay.stick_offset_s)
+    table = calibration_table(info, batch, recs, models, cc, init)
+    if cc.grid_offset_step_s > 0 and cc.grid_window_step_revs > 0 and "stick_offset_s" not in cc.free \
+            and cc.groups != "counter":
+        grid = grid_table(info, recs, models, cc, batch, init)
+        write_table(grid, out / "grid", cfg)
+        best = grid.loc[grid.groupby(["database", "group"]).cost.idxmin()].set_index(["database", "group"])
+        table["grid_offset_s"] = [best.loc[(r.database, r.group), "offset_s"] for r in table.itertuples()]
+        table["grid_window_revs"] = [best.loc[(r.database, r.group), "window_revs"] for r in table.itertuples()]
+        table["grid_cost"] = [best.loc[(r.database, r.group), "cost"] for r in table.itertuples()]
+        table["cost_minus_grid"] = table.cost - table.grid_cost  # < 0: better than every grid point
+        table["within_one_grid_step"] = (
+            (np.abs(table.offset_s - table.grid_offset_s) <= cc.grid_offset_step_s + 1e-6)
+            | ~np.isin("offset_s", list(cc.free)))
+        if "window_revs" in cc.free:
+            table["within_one_grid_step"] &= np.abs(table.window_revs - table.grid_window_revs) <= \
+                cc.grid_window_step_revs + 1e-6
+        for r in table[table.group == table.group.iloc[0]].itertuples():
+            g = grid[(grid.database == r.database) & (grid.group == r.group)]
+            fig = plots.cost_map(g, (r.offset_s, r.window_revs), f"{r.database}, group {r.group}: replay cost")
+            print(f"figure: {plots.save(fig, out / f'cost_map_{r.database}_{r.group}.png')}")
+    write_table(table, out / "calibration", cfg)
+    write_config(cfg, out / "config.toml")
+    show = ["database", "group", "n_counters", *cc.free, "cost", "start_cost", "steps"]
+    show += [c for c in ("grid_offset_s", "grid_window_revs", "grid_cost", "within_one_grid_step", "cost_minus_grid")
+             if c in table]
+    print(table[show].round(3).to_string(index=False))
+    print(f"table: {out / 'calibration.csv'}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="pvvjax", description="Helicopter pilot-floor 4/rev vibration (PVV) toolkit.")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -320,6 +424,29 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--net", default=None, help="net id (default: the best held-out net of --database)")
     s.add_argument("--database", default="db1", choices=["db1", "db2", "db3"])
     s.set_defaults(fn=cmd_export)
+
+    s = sub.add_parser("replay", help="quasi-static replay of recorded maneuvers through the trained nets",
+                       description="Replay counters through the nets that held them out ([replay] of the config; "
+                                   "trains the config's sweep first when [replay] sweep is empty).")
+    s.add_argument("config", help="experiment config (TOML), e.g. experiments/configs/replay.toml")
+    s.add_argument("--offset", type=float, default=None, help="input-to-vibration offset, s (overrides the config)")
+    s.add_argument("--window", type=float, default=None, help="window length, revolutions (overrides the config)")
+    s.add_argument("--counters", nargs="+", default=None, help="counters to replay (overrides the config)")
+    s.add_argument("--plots", type=int, default=4, help="figures for the first N counters (default 4)")
+    s.add_argument("--out", default=None, help="output folder (default: OUT_DIR/NAME/replay)")
+    s.set_defaults(fn=cmd_replay)
+
+    s = sub.add_parser("calibrate", help="fit the offset, window length and stick lag by gradient",
+                       description="Levenberg-Marquardt from the best point of a coarse grid, per database and "
+                                   "group ([calibration] of the config), checked against a brute-force grid.")
+    s.add_argument("config", help="experiment config (TOML), e.g. experiments/configs/replay.toml")
+    s.add_argument("--groups", choices=["all", "maneuver", "counter"], default=None,
+                   help="one fit for all counters, per maneuver kind, or per counter (overrides the config)")
+    s.add_argument("--free", nargs="+", choices=["offset_s", "window_revs", "stick_offset_s"], default=None,
+                   help="parameters to fit (overrides the config)")
+    s.add_argument("--counters", nargs="+", default=None, help="counters to calibrate on (overrides the config)")
+    s.add_argument("--out", default=None, help="output folder (default: OUT_DIR/NAME/calibration)")
+    s.set_defaults(fn=cmd_calibrate)
 
     s = sub.add_parser("run", help="run an experiment config end to end (the main job)",
                        description="Campaign, databases and figures for one experiment config.")

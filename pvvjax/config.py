@@ -25,10 +25,12 @@ else:  # pragma: no cover
 
 __all__ = [
     "AnalysisConfig",
+    "CalibrationConfig",
     "CampaignConfig",
     "ColumnMap",
     "ConfigError",
     "ExperimentConfig",
+    "ReplayConfig",
     "SweepConfig",
     "TrainConfig",
     "config_hash",
@@ -198,6 +200,116 @@ class SweepConfig:
         return self.test_folds or tuple(range(self.folds))
 
 
+TRANSIENT_MANEUVERS = ("pullup", "pushover", "roll", "autorotation", "flare")
+
+
+def _bounds(name: str, b: tuple[float, float]):
+    if len(b) != 2 or not b[0] < b[1]:
+        raise ValueError(f"{name} must be [lo, hi] with lo < hi, got {list(b)}")
+
+
+@dataclass(frozen=True)
+class ReplayConfig:
+    """Quasi-static replay of recorded counters through trained nets.
+
+    Attributes:
+        sweep: folder of the sweep whose nets are replayed ("": this config's own sweep,
+            `<out_dir>/<name>/sweep`). Each counter is replayed by the nets that held its
+            condition out, median over seeds.
+        architecture: which architecture of the sweep ("": its only one).
+        databases: which of db1, db2, db3.
+        counters: counters to replay (empty: every counter of the `maneuvers` kinds).
+        maneuvers: maneuver kinds replayed when `counters` is empty.
+        offset_s: input-to-vibration offset τ, s (inputs precede the vibration when > 0).
+        window_revs: window length L, revolutions (the paper: 8).
+        stick_offset_s: extra offset of the three stick inputs, s.
+        hop_revs: window spacing, revolutions (0: consecutive windows, as the paper).
+    """
+
+    sweep: str = ""
+    architecture: str = ""
+    databases: tuple[str, ...] = ("db1", "db2", "db3")
+    counters: tuple[str, ...] = ()
+    maneuvers: tuple[str, ...] = TRANSIENT_MANEUVERS
+    offset_s: float = 0.0
+    window_revs: float = 8.0
+    stick_offset_s: float = 0.0
+    hop_revs: float = 0.0
+
+    def __post_init__(self):
+        bad = [d for d in self.databases if d not in ("db1", "db2", "db3")]
+        if bad or not self.databases:
+            raise ValueError(f"replay.databases: unknown {bad}; use db1, db2, db3")
+        if not 1.0 <= self.window_revs <= 64.0:
+            raise ValueError(f"replay.window_revs must be in [1, 64], got {self.window_revs}")
+        if self.hop_revs < 0:
+            raise ValueError(f"replay.hop_revs must be >= 0, got {self.hop_revs}")
+
+
+@dataclass(frozen=True)
+class CalibrationConfig:
+    """Gradient calibration of offset, window length and stick lag (see `pvvjax.calibration`).
+
+    Attributes:
+        free: parameters fitted: any of offset_s, window_revs, stick_offset_s.
+        groups: one θ for "all" counters, one per "maneuver" kind, or one per "counter".
+        offset_bounds, window_bounds, stick_offset_bounds: [lo, hi] of each parameter
+            (s, revolutions, s).
+        hop_revs: window spacing of the calibration replays (finer than L resolves the
+            peak time better than the paper's consecutive windows).
+        reference_revs: length of the measured PVV windows (0: the fitted window length,
+            shared by inputs and vibration as in the paper; > 0: fixed reference windows,
+            and the window length is that of the input averaging only).
+        coarse_offset_step_s, coarse_window_step_revs, coarse_stick_step_s: the coarse
+            grid whose best point starts each solve.
+        grid_offset_step_s, grid_window_step_revs: the brute-force grid reported beside
+            the gradient optimum (0: no grid).
+        peak_weight, phase_weight, rms_weight, peak_scale_g, phase_scale_s, temperature_g,
+            phase_cap_s: the cost (`replay.CostWeights`).
+        max_steps: Levenberg-Marquardt steps at most.
+    """
+
+    free: tuple[str, ...] = ("offset_s", "window_revs")
+    groups: Literal["all", "maneuver", "counter"] = "all"
+    offset_bounds: tuple[float, float] = (-1.0, 3.0)
+    window_bounds: tuple[float, float] = (4.0, 16.0)
+    stick_offset_bounds: tuple[float, float] = (-2.0, 2.0)
+    hop_revs: float = 1.0
+    reference_revs: float = 0.0
+    coarse_offset_step_s: float = 0.25
+    coarse_window_step_revs: float = 2.0
+    coarse_stick_step_s: float = 0.5
+    grid_offset_step_s: float = 0.1
+    grid_window_step_revs: float = 0.5
+    peak_weight: float = 1.0
+    phase_weight: float = 1.0
+    rms_weight: float = 1.0
+    peak_scale_g: float = 0.02
+    phase_scale_s: float = 1.0
+    temperature_g: float = 0.005
+    phase_cap_s: float = 3.0
+    max_steps: int = 64
+
+    def __post_init__(self):
+        params = ("offset_s", "window_revs", "stick_offset_s")
+        bad = [f for f in self.free if f not in params]
+        if bad or not self.free or len(set(self.free)) != len(self.free):
+            raise ValueError(f"calibration.free: unknown or repeated {bad or list(self.free)}; use {list(params)}")
+        _bounds("calibration.offset_bounds", self.offset_bounds)
+        _bounds("calibration.window_bounds", self.window_bounds)
+        _bounds("calibration.stick_offset_bounds", self.stick_offset_bounds)
+        if self.window_bounds[0] < 1.0:
+            raise ValueError(f"calibration.window_bounds must start at >= 1 revolution, got {self.window_bounds[0]}")
+        for name in ("hop_revs", "coarse_offset_step_s", "coarse_window_step_revs", "coarse_stick_step_s",
+                     "peak_scale_g", "phase_scale_s", "temperature_g", "max_steps"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"calibration.{name} must be > 0, got {getattr(self, name)}")
+        for name in ("grid_offset_step_s", "grid_window_step_revs", "peak_weight", "phase_weight", "rms_weight",
+                     "phase_cap_s", "reference_revs"):
+            if getattr(self, name) < 0:
+                raise ValueError(f"calibration.{name} must be >= 0, got {getattr(self, name)}")
+
+
 @dataclass(frozen=True)
 class ExperimentConfig:
     """One experiment: a campaign and the pipeline settings applied to it."""
@@ -209,6 +321,8 @@ class ExperimentConfig:
     analysis: AnalysisConfig = field(default_factory=AnalysisConfig)
     train: TrainConfig = field(default_factory=TrainConfig)
     sweep: SweepConfig = field(default_factory=SweepConfig)
+    replay: ReplayConfig = field(default_factory=ReplayConfig)
+    calibration: CalibrationConfig = field(default_factory=CalibrationConfig)
 
     def with_(self, **changes) -> "ExperimentConfig":
         return dataclasses.replace(self, **changes)

@@ -21,6 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 
 __all__ = [
+    "apply_for",
     "architecture_name",
     "mlp_apply",
     "mlp_init",
@@ -179,3 +180,13 @@ def rbf_apply(params: dict, x):
     """Evaluate an RBF network. x: (..., d) physical units -> (...,) peak PVV, g."""
     out = _rbf_features(params, x) @ params["w"] + params["b"]
     return out * params["y_scale"] + params["y_shift"]
+
+
+def apply_for(params: dict):
+    """The evaluation function of a parameter dict: `mlp_apply` or `rbf_apply` (by its keys,
+    so it works on stacked parameters and under jit)."""
+    if "layers" in params:
+        return mlp_apply
+    if "centers" in params:
+        return rbf_apply
+    raise ValueError(f"not network parameters (keys {sorted(params)})")

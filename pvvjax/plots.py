@@ -13,7 +13,7 @@ import pandas as pd  # noqa: E402
 
 from .campaign import Campaign  # noqa: E402
 
-__all__ = ["pvv_vs_airspeed", "save", "time_histories"]
+__all__ = ["correlation", "cost_map", "pvv_vs_airspeed", "replay", "save", "size_search", "time_histories"]
 
 
 def save(fig, path) -> Path:
@@ -122,3 +122,55 @@ def size_search(val: pd.DataFrame, chosen: dict, title: str):
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
     return fig
+
+
+def replay(series: dict[str, pd.DataFrame], title: str, ax=None, measured_label="flight test (4P PVV)"):
+    """Quasi-static replay of one counter (paper Figs 13-14): measured PVV per window and one
+    predicted series per label (window tables of `replay_tables.replay_windows`)."""
+    fig = None
+    if ax is None:
+        fig, ax = plt.subplots(figsize=(7.0, 3.6))
+    first = next(iter(series.values()))
+    full = first[first.weight >= 0.999]
+    ax.plot(full.time_s, full.measured_g, "ko-", ms=3.5, lw=1.2, label=measured_label)
+    for k, (label, w) in enumerate(series.items()):
+        w = w[w.weight >= 0.999]
+        ax.plot(w.time_s, w.predicted_g, "s--" if k % 2 else "^-", ms=3.5, lw=1.0, color=f"C{k}", label=label)
+    ax.set_xlabel("time, s")
+    ax.set_ylabel("PVV (4P), g")
+    ax.set_title(title, fontsize=9)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    return fig if fig is not None else ax
+
+
+def cost_map(grid: pd.DataFrame, optimum: tuple[float, float] | None, title: str, ax=None):
+    """Replay cost over offset × window length (one database and group of `grid_table`),
+    with the gradient optimum marked; a line against the offset when the grid has one length."""
+    fig = None
+    if ax is None:
+        fig, ax = plt.subplots(figsize=(5.6, 4.0))
+    piv = grid.pivot(index="window_revs", columns="offset_s", values="cost")
+    if piv.shape[0] == 1:  # one window length: the cost against the offset
+        fig = fig or ax.figure
+        ax.plot(piv.columns, piv.values[0], "-", label=f"grid ({piv.index[0]:g} revs)")
+        ax.plot(piv.columns[np.nanargmin(piv.values[0])], np.nanmin(piv.values[0]), "k+", ms=12, mew=2,
+                label="grid minimum")
+        if optimum is not None:
+            ax.axvline(optimum[0], color="r", ls="--", label="gradient optimum")
+        ax.set_xlabel("input-to-vibration offset, s")
+        ax.set_ylabel("mean cost")
+        ax.set_title(title, fontsize=9)
+        ax.legend(fontsize=7)
+        return fig
+    im = ax.pcolormesh(piv.columns, piv.index, piv.values, shading="nearest", cmap="viridis")
+    (fig or ax.figure).colorbar(im, ax=ax, label="mean cost")
+    j, k = np.unravel_index(np.nanargmin(piv.values), piv.shape)
+    ax.plot(piv.columns[k], piv.index[j], "w+", ms=12, mew=2, label="grid minimum")
+    if optimum is not None:
+        ax.plot(*optimum, "rx", ms=10, mew=2, label="gradient optimum")
+    ax.set_xlabel("input-to-vibration offset, s")
+    ax.set_ylabel("window length, revolutions")
+    ax.set_title(title, fontsize=9)
+    ax.legend(fontsize=7, loc="upper right")
+    return fig if fig is not None else ax

@@ -37,7 +37,7 @@ from .features import derive_features
 from .harmonics import (N_HARMONIC_COLS, Columns, WindowPlan, harmonic_from_means, plan_windows, record_bounds,
                         record_columns, stack_columns, window_sums,
                         with_prefix)
-from .networks import mlp_apply
+from .networks import apply_for
 
 __all__ = [
     "FEATURES",
@@ -101,6 +101,10 @@ class Settings(NamedTuple):
             offset in this range (windows that would leave it are weighted out).
         fade_s: width of the smooth weight fade at the record ends, s.
         stick_lag: replay the sticks with their own extra offset.
+        reference_revs: length of the measured (reference) windows, revolutions; 0: the
+            window length L of the replay, so that inputs and vibration share windows (the
+            paper). > 0 decouples them: L is then the length of the input averaging only,
+            centred on each reference window.
         aircraft: rotor constants for the derived features.
     """
 
@@ -109,15 +113,17 @@ class Settings(NamedTuple):
     offset_bounds: tuple[float, float] = (-1.0, 3.0)
     fade_s: float = 0.25
     stick_lag: bool = False
+    reference_revs: float = 0.0
     aircraft: Aircraft = UH60A
 
 
 def make_settings(batch: RecordBatch, *, max_window_revs: float = 12.0, min_window_revs: float = 4.0,
-                  hop_revs: float = 0.0, **kw) -> Settings:
-    """Settings whose plan covers windows of `min_window_revs`..`max_window_revs` on `batch`."""
-    hop = hop_revs if hop_revs > 0 else min_window_revs
-    plan = plan_windows(batch, max_window_revs, hop, edge="linear")
-    return Settings(plan=plan, hop_revs=float(hop_revs), **kw)
+                  hop_revs: float = 0.0, reference_revs: float = 0.0, **kw) -> Settings:
+    """Settings whose plan covers windows of `min_window_revs`..`max_window_revs` on `batch`
+    (and the reference windows, if any)."""
+    hop = hop_revs if hop_revs > 0 else (reference_revs if reference_revs > 0 else min_window_revs)
+    plan = plan_windows(batch, max(max_window_revs, reference_revs), hop, edge="linear")
+    return Settings(plan=plan, hop_revs=float(hop_revs), reference_revs=float(reference_revs), **kw)
 
 
 def _prepare_one(az, cos_psi, sin_psi, rev, width, time, x, mask, harmonic, block):
@@ -173,6 +179,7 @@ def _smoothstep(u):
 
 def _ensemble(params, x, apply):
     """Median over the leading (seed) axis of stacked nets, or the single net."""
+    apply = apply or apply_for(params)
     if jnp.ndim(params["y_shift"]) == 0:
         return apply(params, x)
     pred = jnp.sort(jax.vmap(apply, in_axes=(0, None))(params, x), axis=0)  # jnp.median is far slower
@@ -181,7 +188,7 @@ def _ensemble(params, x, apply):
 
 
 def replay(model: dict, rec: ReplayRecord, offset_s, window_revs, stick_offset_s=0.0, *, settings: Settings,
-           apply=mlp_apply) -> Replay:
+           apply=None) -> Replay:
     """Quasi-static replay of one record.
 
     Args:
@@ -192,7 +199,8 @@ def replay(model: dict, rec: ReplayRecord, offset_s, window_revs, stick_offset_s
         window_revs: window length L, revolutions (within the settings' plan).
         stick_offset_s: extra offset of the stick inputs, s (used if `settings.stick_lag`).
         settings: static `Settings`.
-        apply: network function (params, x (..., n_in)) -> (...,).
+        apply: network function (params, x (..., n_in)) -> (...,); default: the MLP or RBF
+            evaluator that matches the parameters (`networks.apply_for`).
 
     Returns:
         `Replay`, windows aligned with the measured PVV windows.
@@ -201,14 +209,17 @@ def replay(model: dict, rec: ReplayRecord, offset_s, window_revs, stick_offset_s
     dt = c.blocks.dtype
     W = settings.plan.n_windows
     L = jnp.asarray(window_revs, dt)
-    hop = L if settings.hop_revs <= 0 else jnp.asarray(settings.hop_revs, dt)
+    L_ref = L if settings.reference_revs <= 0 else jnp.asarray(settings.reference_revs, dt)
+    hop = L_ref if settings.hop_revs <= 0 else jnp.asarray(settings.hop_revs, dt)
     a = rec.rev_start + hop * jnp.arange(W, dtype=dt)
-    b = a + L
-    # Input windows end τ seconds before the measured ones: edge revolution -> time -> back.
-    t_ab = _interp(jnp.concatenate([a, b]), c.rev, rec.time, c.lookup)
-    t_a, t_b = t_ab[:W], t_ab[W:]
+    b = a + L_ref
+    # Input windows: length L, centred on the measured window, then τ seconds earlier
+    # (edge revolution -> time -> shifted time -> revolution).
+    mid = a + 0.5 * L_ref
+    t_edges = _interp(jnp.concatenate([a, b, mid - 0.5 * L, mid + 0.5 * L]), c.rev, rec.time, c.lookup)
+    t_a, t_b, t_in = t_edges[:W], t_edges[W:2 * W], t_edges[2 * W:]
     taus = [offset_s] + ([offset_s + stick_offset_s] if settings.stick_lag else [])
-    r_in = _interp(jnp.concatenate([t_ab - tau for tau in taus]), rec.time, c.rev, rec.time_lookup)
+    r_in = _interp(jnp.concatenate([t_in - tau for tau in taus]), rec.time, c.rev, rec.time_lookup)
     # One window sum for the measured windows and the input windows together.
     n_sets = 1 + len(taus)
     starts = jnp.concatenate([a] + [r_in[2 * W * k: 2 * W * k + W] for k in range(len(taus))])
@@ -227,8 +238,9 @@ def replay(model: dict, rec: ReplayRecord, offset_s, window_revs, stick_offset_s
 
     lo, hi = settings.offset_bounds
     f = settings.fade_s
+    ti_a, ti_b = t_in[:W], t_in[W:]
     weight = (_smoothstep((t_a - rec.time_start) / f + 1.0) * _smoothstep((rec.time_end - t_b) / f + 1.0)
-              * _smoothstep((t_a - hi - rec.time_start) / f + 1.0) * _smoothstep((rec.time_end - t_b + lo) / f + 1.0))
+              * _smoothstep((ti_a - hi - rec.time_start) / f + 1.0) * _smoothstep((rec.time_end - ti_b + lo) / f + 1.0))
     return Replay(t_mid, measured, predicted, weight, feats)
 
 
@@ -249,13 +261,18 @@ def _means(sums):
 class CostWeights(NamedTuple):
     """Weights and scales of the replay cost (a NamedTuple of floats: static and hashable).
 
-    cost = peak·(Δpeak / peak_scale_g)² + phase·(Δt / phase_scale_s)² + rms·(RMS / peak_scale_g)²
+    cost = peak·(Δpeak / peak_scale_g)² + phase·(c·tanh(Δt / c) / phase_scale_s)² + rms·(RMS / peak_scale_g)²
+
+    with c = `phase_cap_s`: a peak-time error well below c counts in full; one far beyond it
+    (the prediction peaks at another bump of the record, which no offset mends) counts as c,
+    so that such counters do not steer the fit.
 
     Attributes:
         peak, phase, rms: weights of the three terms.
         peak_scale_g: error in g that costs 1 (the paper's 0.02 g replay tolerance).
         phase_scale_s: peak-time error in s that costs 1.
         temperature_g: soft-max temperature of the peak (smaller: closer to the hard max).
+        phase_cap_s: soft cap of the peak-time error, s (0: none).
     """
 
     peak: float = 1.0
@@ -264,6 +281,7 @@ class CostWeights(NamedTuple):
     peak_scale_g: float = 0.02
     phase_scale_s: float = 1.0
     temperature_g: float = 0.005
+    phase_cap_s: float = 3.0
 
 
 def soft_peak(values, time, weight, temperature):
@@ -294,11 +312,14 @@ def residuals(rep: Replay, weights: CostWeights = CostWeights()):
     on = rep.weight > 0
     sqrt_w = jnp.where(on, jnp.sqrt(jnp.where(on, rep.weight, 1.0)), 0.0)  # d√w/dw is infinite at 0
     per_window = jnp.sqrt(weights.rms / wsum) * sqrt_w * (rep.predicted - rep.measured) / weights.peak_scale_g
+    dt = t["phase_error_s"]
+    if weights.phase_cap_s > 0:
+        dt = weights.phase_cap_s * jnp.tanh(dt / weights.phase_cap_s)
     head = jnp.stack([jnp.sqrt(weights.peak) * t["peak_error_g"] / weights.peak_scale_g,
-                      jnp.sqrt(weights.phase) * t["phase_error_s"] / weights.phase_scale_s])
+                      jnp.sqrt(weights.phase) * dt / weights.phase_scale_s])
     return jnp.concatenate([head, per_window])
 
 
 def replay_cost(rep: Replay, weights: CostWeights = CostWeights()):
-    """peak·(Δpeak/s_g)² + phase·(Δt/s_t)² + rms·(RMS/s_g)² of one replay (scalar)."""
+    """The cost of one replay (scalar, see `CostWeights`)."""
     return jnp.sum(residuals(rep, weights) ** 2)

@@ -8,9 +8,9 @@ import pytest
 
 from pvvjax import replay as R
 from pvvjax.batch import to_batch
-from pvvjax.calibration import calibrate, cost_grid, counter_costs, group_members
+from pvvjax.calibration import Bounds, calibrate, cost_grid, counter_costs, group_members
 from pvvjax.databases import STATE_CHANNELS
-from test_replay import _one, lagged_campaign, linear_apply, linear_model
+from test_replay import lagged_campaign, linear_apply, linear_model
 
 
 def _per_counter(model, n):
@@ -78,12 +78,17 @@ def test_gradient_optimum_agrees_with_a_brute_force_grid(small_cal):
     coarse = np.stack(np.meshgrid(np.arange(-0.5, 2.51, 0.5), [6.0, 9.0, 12.0], indexing="ij"), -1).reshape(-1, 2)
     for model in models:
         cal = calibrate(model, recs, members, mask, jnp.array([0.0, 8.0, 0.0]), coarse,
-                        free=("offset_s", "window_revs"), settings=settings, apply=rbf_apply)
-        grid = np.asarray(cost_grid(model, recs, members, mask, offsets, lengths, settings=settings, apply=rbf_apply))[0]
-        j, k = np.unravel_index(grid.argmin(), grid.shape)
+                        free=("offset_s", "window_revs"), bounds=Bounds(offset_s=(-0.5, 2.5), window_revs=(6.0, 12.0)),
+                        settings=settings, apply=rbf_apply)
+        grid = np.asarray(cost_grid(model, recs, members, mask, offsets, lengths, settings=settings,
+                                    apply=rbf_apply))[0]
         tau, L = np.asarray(cal.theta[0, :2])
-        assert abs(tau - offsets[k]) <= 0.1 + 1e-6 and abs(L - lengths[j]) <= 0.5 + 1e-6, (tau, L, offsets[k], lengths[j])
-        assert float(cal.cost[0]) <= grid.min() * (1 + 1e-4)
+        # Within one grid step of the grid minimum, or of a grid point that ties with it
+        # (the cost valley can be flat to 1e-4 over a few grid steps), and no worse.
+        jj, kk = np.nonzero(grid <= grid.min() * (1 + 2e-4))
+        near = (np.abs(tau - offsets[kk]) <= 0.1 + 1e-6) & (np.abs(L - lengths[jj]) <= 0.5 + 1e-6)
+        assert near.any(), (tau, L, offsets[kk], lengths[jj])
+        assert float(cal.cost[0]) <= grid.min() * (1 + 2e-4)
 
 
 def test_calibration_vmaps_over_databases(lagged):

@@ -5,7 +5,7 @@ import pytest
 
 from pvvjax.cli import build_parser, main
 
-COMMANDS = ["validate", "build-db", "synth", "plot", "sweep", "export", "run"]
+COMMANDS = ["validate", "build-db", "synth", "plot", "sweep", "export", "replay", "calibrate", "run"]
 
 
 def test_every_subcommand_has_help():
@@ -53,3 +53,34 @@ def test_sweep_then_export_a_numpy_net(tmp_path, small_campaign_dir, capsys):
                          cwd=tmp_path)
     value, jax_loaded = out.stdout.split()
     assert 0.0 < float(value) < 1.0 and jax_loaded == "False"
+
+
+def test_replay_and_calibrate_commands(tmp_path, small_campaign_dir, capsys):
+    import pandas as pd
+
+    cfg = tmp_path / "r.toml"
+    cfg.write_text(f'''name = "r"\nout_dir = "{tmp_path.as_posix()}"\n[campaign]\npath = "{small_campaign_dir.as_posix()}"
+[sweep]\ndatabases = ["db1"]\nfamily = "rbf"\ncenters = [12]\nseeds = 1\nfolds = 3
+[replay]\ndatabases = ["db1"]\nmaneuvers = ["pullup", "pushover"]
+[calibration]\nfree = ["offset_s"]\nwindow_bounds = [6.0, 10.0]\ngrid_offset_step_s = 0.25\ngrid_window_step_revs = 2.0\n''')
+    assert main(["replay", str(cfg), "--offset", "0.5", "--plots", "1"]) == 0  # trains the config's sweep first
+    out = tmp_path / "r"
+    summary = pd.read_csv(out / "replay" / "summary.csv")
+    assert set(summary.maneuver) == {"pullup", "pushover"} and (summary.offset_s == 0.5).all()
+    assert len(list((out / "replay").glob("replay_*.png"))) == 1
+    assert main(["calibrate", str(cfg)]) == 0
+    cal = pd.read_csv(out / "calibration" / "calibration.csv")
+    assert len(cal) == 1 and -1.0 <= cal.offset_s[0] <= 3.0 and bool(cal.within_one_grid_step[0])
+    assert (out / "calibration" / "cost_map_db1_all.png").exists()
+    assert main(["calibrate", str(cfg), "--groups", "maneuver"]) == 0
+    assert set(pd.read_csv(out / "calibration" / "calibration.csv").group) == {"pullup", "pushover"}
+
+
+def test_replay_config_mistakes_are_clear_errors(tmp_path, capsys):
+    cfg = tmp_path / "bad.toml"
+    cfg.write_text('[calibration]\nfree = ["offset"]\n')
+    assert main(["calibrate", str(cfg)]) == 2
+    assert "calibration.free" in capsys.readouterr().err
+    cfg.write_text('[replay]\nsweep = "/nonexistent"\n')
+    assert main(["replay", str(cfg)]) == 2
+    assert "not a sweep folder" in capsys.readouterr().err

@@ -1,0 +1,230 @@
+"""From a config, a campaign and a sweep to replay and calibration tables: the imperative
+shell around `replay` and `calibration` (file reading, model loading, pandas).
+
+Tables report hard peaks (the largest fully-weighted window) so that they read like the
+paper's figures; the calibration itself minimises the smooth cost of `replay`.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pandas as pd
+
+from .batch import to_batch
+from .calibration import PARAMS, Bounds, calibrate, cost_grid, counter_costs, group_members
+from .campaign import Campaign
+from .config import CalibrationConfig, ReplayConfig
+from .databases import STATE_CHANNELS
+from .replay import CostWeights, ReplayRecord, Settings, make_settings, prepare, replay
+from .sweep import heldout_models
+
+__all__ = [
+    "calibration_settings",
+    "calibration_table",
+    "cost_weights",
+    "counter_cost_table",
+    "grid_table",
+    "load_replay_set",
+    "peak_summary",
+    "replay_windows",
+    "select_counters",
+]
+
+
+def select_counters(campaign: Campaign, cfg: ReplayConfig) -> list[str]:
+    """The counters a replay config names (or every counter of its maneuver kinds)."""
+    known = campaign.counters
+    if cfg.counters:
+        missing = [c for c in cfg.counters if c not in known.index]
+        if missing:
+            raise ValueError(f"replay.counters: {missing} not in the campaign")
+        return list(cfg.counters)
+    sel = known[known.maneuver.isin(cfg.maneuvers)]
+    if sel.empty:
+        raise ValueError(f"replay.maneuvers {list(cfg.maneuvers)}: no counters of these kinds in the campaign "
+                         f"(it has {sorted(set(known.maneuver))})")
+    return list(sel.index)
+
+
+def load_replay_set(campaign: Campaign, counters, sweep_dir, databases, architecture: str = "") -> tuple:
+    """Prepare `counters` and load, for each database, the nets that held each counter's
+    condition out.
+
+    Returns:
+        (info DataFrame, batch, recs, models by database).
+    """
+    info = campaign.counters.loc[list(counters), ["maneuver", "condition"]]
+    batch = to_batch(campaign, STATE_CHANNELS, list(counters))
+    recs = prepare(batch)
+    models = {db: heldout_models(Path(sweep_dir), db, list(info.condition), architecture or None) for db in databases}
+    return info, batch, recs, models
+
+
+def cost_weights(cfg: CalibrationConfig) -> CostWeights:
+    return CostWeights(cfg.peak_weight, cfg.phase_weight, cfg.rms_weight, cfg.peak_scale_g, cfg.phase_scale_s,
+                       cfg.temperature_g, cfg.phase_cap_s)
+
+
+def _bounds(cfg: CalibrationConfig) -> Bounds:
+    return Bounds(tuple(cfg.offset_bounds), tuple(cfg.window_bounds), tuple(cfg.stick_offset_bounds))
+
+
+_replay_all = jax.jit(jax.vmap(lambda m, r, th, settings: replay(m, r, th[0], th[1], th[2], settings=settings),
+                               in_axes=(0, 0, 0, None)), static_argnums=3)
+
+
+def replay_windows(info: pd.DataFrame, recs: ReplayRecord, models: dict, theta, settings: Settings) -> pd.DataFrame:
+    """Window-level table of replays of every counter and database.
+
+    Args:
+        theta: (3,) θ for all, or a dict database -> (N, 3) per counter.
+
+    Returns:
+        database, counter, condition, maneuver, window, time_s, measured_g, predicted_g,
+        weight, offset_s, window_revs, stick_offset_s.
+    """
+    parts = []
+    n = len(info)
+    for db, model in models.items():
+        th = theta[db] if isinstance(theta, dict) else theta
+        th = np.broadcast_to(np.asarray(th, np.float32), (n, 3))
+        rep = _replay_all(model, recs, jnp.asarray(th), settings)
+        W = rep.time.shape[1]
+        parts.append(pd.DataFrame({
+            "database": db,
+            "counter": np.repeat(info.index.to_numpy(), W),
+            "condition": np.repeat(info.condition.to_numpy(), W),
+            "maneuver": np.repeat(info.maneuver.to_numpy(), W),
+            "window": np.tile(np.arange(W), n),
+            "time_s": np.asarray(rep.time).ravel(),
+            "measured_g": np.asarray(rep.measured).ravel(),
+            "predicted_g": np.asarray(rep.predicted).ravel(),
+            "weight": np.asarray(rep.weight).ravel(),
+            "offset_s": np.repeat(th[:, 0], W),
+            "window_revs": np.repeat(th[:, 1], W),
+            "stick_offset_s": np.repeat(th[:, 2], W),
+        }))
+    out = pd.concat(parts, ignore_index=True)
+    return out[out.weight > 0].reset_index(drop=True)
+
+
+def peak_summary(windows: pd.DataFrame) -> pd.DataFrame:
+    """Per database and counter: measured and predicted peak (largest fully weighted
+    window), peak error (g), phase error (s, predicted − measured peak time) and RMS (g)."""
+    full = windows[windows.weight >= 0.999]
+    rows = []
+    for (db, counter), g in full.groupby(["database", "counter"], sort=False):
+        im, ip = g.measured_g.idxmax(), g.predicted_g.idxmax()
+        rows.append(dict(database=db, counter=counter, condition=g.condition.iloc[0], maneuver=g.maneuver.iloc[0],
+                         offset_s=g.offset_s.iloc[0], window_revs=g.window_revs.iloc[0],
+                         stick_offset_s=g.stick_offset_s.iloc[0],
+                         measured_peak_g=g.measured_g[im], predicted_peak_g=g.predicted_g[ip],
+                         peak_error_g=g.predicted_g[ip] - g.measured_g[im],
+                         measured_peak_time_s=g.time_s[im], predicted_peak_time_s=g.time_s[ip],
+                         phase_error_s=g.time_s[ip] - g.time_s[im],
+                         rms_g=float(np.sqrt(np.mean((g.predicted_g - g.measured_g) ** 2)))))
+    return pd.DataFrame(rows)
+
+
+def _groups(info: pd.DataFrame, how: str) -> tuple[np.ndarray, list[str]]:
+    if how == "all":
+        return np.zeros(len(info), int), ["all"]
+    keys = info.maneuver if how == "maneuver" else pd.Series(info.index, index=info.index)
+    names = list(dict.fromkeys(keys))
+    return np.array([names.index(k) for k in keys]), names
+
+
+def _coarse(cfg: CalibrationConfig, free) -> np.ndarray:
+    axes = {"offset_s": np.arange(cfg.offset_bounds[0], cfg.offset_bounds[1] + 1e-9, cfg.coarse_offset_step_s),
+            "window_revs": np.arange(cfg.window_bounds[0], cfg.window_bounds[1] + 1e-9, cfg.coarse_window_step_revs),
+            "stick_offset_s": np.arange(cfg.stick_offset_bounds[0], cfg.stick_offset_bounds[1] + 1e-9,
+                                        cfg.coarse_stick_step_s)}
+    mesh = np.meshgrid(*[axes[f] for f in free], indexing="ij")
+    return np.stack([m.ravel() for m in mesh], -1)
+
+
+def calibration_settings(batch, cfg: CalibrationConfig, stick_lag: bool) -> Settings:
+    lo, hi = cfg.offset_bounds
+    if stick_lag:  # the sticks' total offset must stay inside the record too
+        lo, hi = lo + min(cfg.stick_offset_bounds[0], 0.0), hi + max(cfg.stick_offset_bounds[1], 0.0)
+    return make_settings(batch, max_window_revs=float(cfg.window_bounds[1]),
+                         min_window_revs=float(cfg.window_bounds[0]), hop_revs=cfg.hop_revs,
+                         reference_revs=cfg.reference_revs, offset_bounds=(float(lo), float(hi)),
+                         stick_lag=stick_lag)
+
+
+def calibration_table(info: pd.DataFrame, batch, recs: ReplayRecord, models: dict, cfg: CalibrationConfig,
+                      init=(0.0, 8.0, 0.0), *, groups: str | None = None, free=None, log=print) -> pd.DataFrame:
+    """Calibrate θ per database and group; one row each with θ, cost, the coarse start,
+    solver steps, wall time, and (if the config asks) the brute-force grid optimum.
+
+    The databases are solved together (vmapped) when they share one model shape.
+    """
+    free = tuple(free or cfg.free)
+    how = groups or cfg.groups
+    gid, names = _groups(info, how)
+    members, mask = group_members(gid, len(names))
+    settings = calibration_settings(batch, cfg, "stick_offset_s" in free)
+    weights = cost_weights(cfg)
+    coarse = _coarse(cfg, free)
+    dbs = list(models)
+    stacked = jax.tree.map(lambda *a: jnp.stack(a), *[models[d] for d in dbs])
+    run = lambda m: calibrate(m, recs, members, mask, jnp.asarray(init, jnp.float32), coarse, free=free,  # noqa: E731
+                              bounds=_bounds(cfg), settings=settings, weights=weights, max_steps=cfg.max_steps)
+    t0 = time.perf_counter()
+    cal = jax.block_until_ready(jax.vmap(run)(stacked))
+    seconds = time.perf_counter() - t0
+    log(f"calibrated {', '.join(free)} for {len(dbs)} database(s) x {len(names)} group(s) of {len(info)} counters "
+        f"in {seconds:.1f} s")
+    rows = []
+    for d, db in enumerate(dbs):
+        for g, name in enumerate(names):
+            row = dict(database=db, group=name, groups=how, free=",".join(free), n_counters=int(mask[g].sum()),
+                       cost=float(cal.cost[d, g]), start_cost=float(cal.start_cost[d, g]),
+                       steps=int(cal.steps[d, g]), converged=bool(cal.ok[d, g]), wall_s=seconds)
+            for i, p in enumerate(PARAMS):
+                row[p] = float(cal.theta[d, g, i])
+                row[f"start_{p}"] = float(cal.start[d, g, i])
+            rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def grid_table(info: pd.DataFrame, recs: ReplayRecord, models: dict, cfg: CalibrationConfig, batch,
+               base=(0.0, 8.0, 0.0), *, groups: str | None = None) -> pd.DataFrame:
+    """Brute-force cost over offset × window length (those of them the config fits) per
+    database and group (long table: database, group, offset_s, window_revs, cost)."""
+    how = groups or cfg.groups
+    gid, names = _groups(info, how)
+    members, mask = group_members(gid, len(names))
+    settings = calibration_settings(batch, cfg, False)
+    # Only the fitted parameters span the grid; the others stay at `base`, as in the fit.
+    offsets = (np.arange(cfg.offset_bounds[0], cfg.offset_bounds[1] + 1e-9, cfg.grid_offset_step_s)
+               if "offset_s" in cfg.free else np.array([base[0]]))
+    lengths = (np.arange(cfg.window_bounds[0], cfg.window_bounds[1] + 1e-9, cfg.grid_window_step_revs)
+               if "window_revs" in cfg.free else np.array([base[1]]))
+    parts = []
+    for db, model in models.items():
+        g = np.asarray(cost_grid(model, recs, members, mask, offsets, lengths, jnp.asarray(base, jnp.float32),
+                                 settings=settings, weights=cost_weights(cfg)))
+        G, J, K = g.shape
+        parts.append(pd.DataFrame({
+            "database": db, "group": np.repeat(names, J * K),
+            "window_revs": np.tile(np.repeat(lengths, K), G), "offset_s": np.tile(offsets, G * J),
+            "cost": g.ravel()}))
+    return pd.concat(parts, ignore_index=True)
+
+
+def counter_cost_table(info, recs, models, theta, settings, weights) -> pd.DataFrame:
+    """Smooth cost terms per database and counter at θ (dict database -> (N, 3) or (3,))."""
+    parts = []
+    for db, model in models.items():
+        th = theta[db] if isinstance(theta, dict) else theta
+        out = counter_costs(model, recs, jnp.asarray(th, jnp.float32), settings=settings, weights=weights)
+        parts.append(pd.DataFrame({"database": db, "counter": info.index, "maneuver": info.maneuver.to_numpy(),
+                                   **{k: np.asarray(v) for k, v in out.items()}}))
+    return pd.concat(parts, ignore_index=True)
