@@ -238,6 +238,43 @@ def cmd_sweep(args) -> int:
     return 0
 
 
+def _export_element(args, res, sweep: Path) -> int:
+    """Every net of one database (all seeds and folds: their median) with the replay
+    settings and the training envelope, as a NumPy real-time element."""
+    import json
+    import shutil
+
+    from . import npnet, rtelement
+    from .config import load_config
+    from .databases import DB_INPUTS, build_databases
+
+    sel = res[res.database == args.database]
+    if sel.empty:
+        raise KeyError(f"{sweep / 'results.parquet'}: no net for database {args.database!r}")
+    archs = sorted(set(sel.architecture))
+    if len(archs) > 1:
+        raise ValueError(f"{sweep}: {args.database} has several architectures {archs}; export one with --net")
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    names = []
+    for r in sel.sort_values(["test_fold", "seed"]).itertuples():
+        names.append(f"net_{r.net_id}.npz")
+        shutil.copy(sweep / "params" / f"{r.net_id}.npz", out / names[-1])
+    cfg = load_config(sweep / "config.toml")
+    campaign, _ = resolve_campaign(cfg)
+    db = build_databases(campaign, cfg.analysis)[args.database][list(DB_INPUTS[args.database])]
+    spec = dict(nets=names, inputs=list(DB_INPUTS[args.database]), window_revs=args.window, hop_revs=args.hop,
+                offset_s=args.offset, stick_offset_s=args.stick_offset, phase_rad=0.0,
+                envelope=dict(lo=db.min().tolist(), hi=db.max().tolist()),
+                aircraft=dict(rotor_radius_ft=campaign.aircraft.rotor_radius_ft, g_ft_s2=campaign.aircraft.g_ft_s2))
+    (out / "element.json").write_text(json.dumps(spec, indent=2))
+    shutil.copy(npnet.__file__, out / "npnet.py")
+    shutil.copy(rtelement.__file__, out / "rtelement.py")
+    print(f"exported a real-time element: {len(names)} {archs[0]} nets ({args.database}), window {args.window:g} revs, "
+          f"hop {args.hop:g} revs, offset {args.offset:g} s, to {out}")
+    return 0
+
+
 def cmd_export(args) -> int:
     """Copy a trained net and the NumPy evaluator into a folder a simulator host can use."""
     import shutil
@@ -249,6 +286,8 @@ def cmd_export(args) -> int:
 
     sweep = Path(args.sweep)
     res = pd.read_parquet(sweep / "results.parquet")
+    if args.element:
+        return _export_element(args, res, sweep)
     if args.net:
         sel = res[res.net_id == args.net]
         if sel.empty:
@@ -378,6 +417,51 @@ def cmd_calibrate(args) -> int:
     return 0
 
 
+def cmd_realtime(args) -> int:
+    """Feed a recorded counter to an exported element frame by frame (an example host loop)."""
+    import numpy as np
+    import pandas as pd
+
+    from .config import ExperimentConfig
+    from .rtelement import CHANNELS, VibrationElement
+
+    el = VibrationElement.load(args.model)
+    cfg = ExperimentConfig()
+    campaign, _ = resolve_campaign(cfg, args.campaign)
+    if args.record not in campaign.records:
+        raise KeyError(f"record {args.record!r} is not in the campaign")
+    rec = campaign.records[args.record]
+    t0 = rec.time_s.to_numpy(float)
+    rev = np.unwrap(rec.azimuth_deg.to_numpy(float), period=360.0)
+    x0 = rec[list(CHANNELS)].to_numpy(float)
+    rate = args.rate or 1.0 / float(np.median(np.diff(t0)))
+    rng = np.random.default_rng(0)
+    t = np.arange(t0[0], t0[-1], 1.0 / rate)
+    if args.jitter:  # frame times jitter by up to ±jitter of a frame
+        t = np.sort(np.clip(t + rng.uniform(-args.jitter, args.jitter, t.size) / rate, t0[0], t0[-1]))
+    az = np.mod(np.interp(t, t0, rev), 360.0)
+    x = np.stack([np.interp(t, t0, x0[:, c]) for c in range(x0.shape[1])], 1)
+    out = np.zeros((t.size, 4))
+    lat = np.empty(t.size)
+    clock = time.perf_counter_ns
+    for i in range(t.size):
+        s0 = clock()
+        o = el.step(t[i], az[i], x[i])
+        lat[i] = (clock() - s0) / 1e3
+        out[i] = (o.pvv_g, o.shake_g, o.amplitude_g, o.out_of_envelope)
+    p50, p99, pmax = np.percentile(lat, [50, 99, 100])
+    print(f"{t.size} frames at {rate:g} Hz from record {args.record} ({t[-1] - t[0]:.1f} s): latency per frame "
+          f"median {p50:.1f} µs, 99th percentile {p99:.1f} µs, max {pmax:.0f} µs; "
+          f"{(t[-1] - t[0]) / (lat.sum() / 1e6):.0f}x faster than real time")
+    if args.out:
+        df = pd.DataFrame({"time_s": t, "azimuth_deg": az, "pvv_g": out[:, 0], "shake_g": out[:, 1],
+                           "amplitude_g": out[:, 2], "out_of_envelope": out[:, 3].astype(bool), "latency_us": lat})
+        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+        df.to_csv(args.out, index=False)
+        print(f"signal: {args.out}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="pvvjax", description="Helicopter pilot-floor 4/rev vibration (PVV) toolkit.")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -423,7 +507,24 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", required=True, help="output folder")
     s.add_argument("--net", default=None, help="net id (default: the best held-out net of --database)")
     s.add_argument("--database", default="db1", choices=["db1", "db2", "db3"])
+    s.add_argument("--element", action="store_true",
+                   help="export a real-time vibration element (all nets of --database, their median)")
+    s.add_argument("--offset", type=float, default=0.0, help="element: input-to-vibration offset, s")
+    s.add_argument("--stick-offset", type=float, default=0.0, help="element: extra offset of the sticks, s")
+    s.add_argument("--window", type=float, default=8.0, help="element: window length, revolutions")
+    s.add_argument("--hop", type=float, default=1.0, help="element: window spacing (update interval), revolutions")
     s.set_defaults(fn=cmd_export)
+
+    s = sub.add_parser("realtime", help="feed a recorded counter to a real-time element frame by frame",
+                       description="An example simulator host: resample a record to a frame rate, step the "
+                                   "exported NumPy element once per frame, report latency percentiles.")
+    s.add_argument("--model", required=True, help="element folder (pvvjax export --element)")
+    s.add_argument("--record", required=True, help="counter to play, e.g. 11022")
+    s.add_argument("--campaign", default=None, help="campaign folder (default: embedded synthetic)")
+    s.add_argument("--rate", type=float, default=None, help="frame rate, Hz (default: the record's)")
+    s.add_argument("--jitter", type=float, default=0.0, help="random frame-time jitter, fraction of a frame")
+    s.add_argument("--out", default=None, help="CSV of the output signal")
+    s.set_defaults(fn=cmd_realtime)
 
     s = sub.add_parser("replay", help="quasi-static replay of recorded maneuvers through the trained nets",
                        description="Replay counters through the nets that held them out ([replay] of the config; "

@@ -120,6 +120,12 @@ class AnalysisConfig:
         return self.hop_revs or self.window_revs
 
 
+def _check_databases(section: str, databases):
+    bad = [d for d in databases if d not in ("db1", "db2", "db3")]
+    if bad or not databases:
+        raise ValueError(f"{section}.databases: unknown {bad}; use db1, db2, db3")
+
+
 @dataclass(frozen=True)
 class TrainConfig:
     """Full-batch training of one net.
@@ -185,9 +191,7 @@ class SweepConfig:
     def __post_init__(self):
         if self.cpu_devices < 0:
             raise ValueError(f"sweep.cpu_devices must be >= 0, got {self.cpu_devices}")
-        bad = [d for d in self.databases if d not in ("db1", "db2", "db3")]
-        if bad or not self.databases:
-            raise ValueError(f"sweep.databases: unknown {bad}; use db1, db2, db3")
+        _check_databases("sweep", self.databases)
         if any(not h or min(h) < 1 for h in self.hidden):
             raise ValueError(f"sweep.hidden: every architecture needs widths >= 1, got {self.hidden}")
         if self.seeds < 1 or self.folds < 3 or self.chunk_evals < 1:
@@ -237,9 +241,7 @@ class ReplayConfig:
     hop_revs: float = 0.0
 
     def __post_init__(self):
-        bad = [d for d in self.databases if d not in ("db1", "db2", "db3")]
-        if bad or not self.databases:
-            raise ValueError(f"replay.databases: unknown {bad}; use db1, db2, db3")
+        _check_databases("replay", self.databases)
         if not 1.0 <= self.window_revs <= 64.0:
             raise ValueError(f"replay.window_revs must be in [1, 64], got {self.window_revs}")
         if self.hop_revs < 0:

@@ -3,9 +3,10 @@ import sys
 
 import pytest
 
+from pvvjax.campaign import load_campaign
 from pvvjax.cli import build_parser, main
 
-COMMANDS = ["validate", "build-db", "synth", "plot", "sweep", "export", "replay", "calibrate", "run"]
+COMMANDS = ["validate", "build-db", "synth", "plot", "sweep", "export", "replay", "calibrate", "realtime", "run"]
 
 
 def test_every_subcommand_has_help():
@@ -53,6 +54,17 @@ def test_sweep_then_export_a_numpy_net(tmp_path, small_campaign_dir, capsys):
                          cwd=tmp_path)
     value, jax_loaded = out.stdout.split()
     assert 0.0 < float(value) < 1.0 and jax_loaded == "False"
+    # The same sweep as a real-time element, played by the example host.
+    assert main(["export", str(tmp_path / "s" / "sweep"), "--element", "--offset", "0.5", "--out",
+                 str(tmp_path / "el")]) == 0
+    counter = next(c for c in load_campaign(small_campaign_dir).counters.index if c == "11022")
+    assert main(["realtime", "--model", str(tmp_path / "el"), "--record", counter, "--campaign",
+                 str(small_campaign_dir), "--rate", "200", "--jitter", "0.3", "--out", str(tmp_path / "s.csv")]) == 0
+    assert "latency per frame median" in capsys.readouterr().out
+    import pandas as pd
+
+    sig = pd.read_csv(tmp_path / "s.csv")
+    assert sig.pvv_g.notna().all() and sig.pvv_g.max() > 0.05 and sig.shake_g.abs().max() > 0.0
 
 
 def test_replay_and_calibrate_commands(tmp_path, small_campaign_dir, capsys):

@@ -1,0 +1,274 @@
+"""The real-time vibration element for a simulator host, in NumPy (imports no JAX).
+
+A host calls `step` once per frame with the simulator's state; the element returns the
+current peak 4/rev pilot-floor vibration (PVV, g) and a seat-shake sample, the 4/rev
+acceleration at that amplitude and the rotor's azimuth.
+
+It computes exactly what the offline replay (`pvvjax.replay.replay`, windows every
+`hop_revs` revolutions) computes, frame by frame: window j spans revolutions
+[a_j, a_j + L) counted from the first frame, its inputs are the state integrated over the
+same window moved `offset_s` seconds earlier (sticks `stick_offset_s` more), and its PVV
+is the network's prediction from those window averages. Window j's value is ready at the
+first frame past the window's end (its time t(b_j) is then known); `pvv_g` holds the latest
+ready window, and the seat-shake amplitude ramps from the previous value to it over one
+hop, so that the shaker never steps.
+
+Frames are stored as they come (time need not be uniform: jitter, frame-rate changes and
+missed frames only change the samples the windows integrate), old frames are dropped once
+no future window needs them, and a rotor-speed change is followed through the azimuth.
+Inputs outside the training envelope are clipped to it and flagged; a frame with a
+non-finite value or a time that does not advance is rejected (flagged, state unchanged).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+
+__all__ = ["CHANNELS", "ElementOutput", "VibrationElement"]
+
+# Frame channels, canonical units (data contract): what db1-db3 and their features need.
+CHANNELS = ("airspeed_kt", "gross_weight_lb", "rotor_rpm", "density_ratio", "pitch_rate_dps", "roll_angle_deg",
+            "climb_rate_fpm", "collective_pct", "lateral_pct", "longitudinal_pct")
+_STICKS = ("collective_pct", "lateral_pct", "longitudinal_pct")
+_KT_TO_FT_S = 6076.12 / 3600.0
+
+
+class ElementOutput(NamedTuple):
+    """One frame's outputs.
+
+    Attributes:
+        pvv_g: PVV of the latest ready window, g (0 before the first window is ready).
+        shake_g: seat-shake sample: amplitude × cos(4ψ + phase) (+ optional harmonics), g.
+        amplitude_g: the ramped amplitude of the shake.
+        ready: a window has been predicted since the last reset.
+        window_time_s: centre time of the window `pvv_g` belongs to (NaN before).
+        out_of_envelope: some input of the latest window was clipped to the envelope.
+        rejected: this frame was not used (non-finite value or time not advancing).
+    """
+
+    pvv_g: float
+    shake_g: float
+    amplitude_g: float
+    ready: bool
+    window_time_s: float
+    out_of_envelope: bool
+    rejected: bool
+
+
+def _edge(u):
+    """Part of a sample's hat function inside a window edge (u in hat half-widths); the
+    same quadratic ramp as the offline replay's "linear" windows."""
+    v = np.clip(u, -1.0, 1.0)
+    return np.where(v < 0, 0.5 * (1.0 + v) ** 2, 1.0 - 0.5 * (1.0 - v) ** 2)
+
+
+def _interp(x, xp, fp):
+    """Linear interpolation on increasing xp, extrapolating with the end segments (as the
+    offline replay does)."""
+    i = min(max(int(np.searchsorted(xp, x)), 1), len(xp) - 1)
+    x0, x1, f0, f1 = xp[i - 1], xp[i], fp[i - 1], fp[i]
+    return f0 + (x - x0) * ((f1 - f0) / (x1 - x0))
+
+
+class VibrationElement:
+    """Streaming PVV and seat shake from one frame of simulator state at a time.
+
+    Args:
+        nets: callables x (n, d) -> (n,) PVV, g (e.g. `npnet.NumpyNet`); the median is used.
+        inputs: the database's input names in the nets' order (features or channels).
+        window_revs, hop_revs: window length and spacing, revolutions.
+        offset_s, stick_offset_s: input-to-vibration offset and the sticks' extra offset, s.
+        phase_rad: phase of the 4/rev seat shake relative to the blade azimuth.
+        envelope: (lo, hi) arrays over `inputs`, or None (no clipping).
+        harmonics: extra shake content {k: (ratio to the 4/rev amplitude, phase)}.
+        aircraft: dict of rotor_radius_ft, g_ft_s2 (UH-60A defaults).
+        clip: clip inputs to the envelope (always flagged).
+    """
+
+    def __init__(self, nets, inputs, *, window_revs=8.0, hop_revs=1.0, offset_s=0.0, stick_offset_s=0.0,
+                 phase_rad=0.0, envelope=None, harmonics=None, aircraft=None, clip=True):
+        self.nets = list(nets)
+        self.inputs = tuple(inputs)
+        self.L, self.hop = float(window_revs), float(hop_revs)
+        self.tau, self.tau_stick = float(offset_s), float(stick_offset_s)
+        self.phase = float(phase_rad)
+        self.harmonics = dict(harmonics or {})
+        ac = {"rotor_radius_ft": 26.83, "g_ft_s2": 32.174, **(aircraft or {})}
+        self.radius, self.g = float(ac["rotor_radius_ft"]), float(ac["g_ft_s2"])
+        self.envelope = None if envelope is None else (np.asarray(envelope[0], float), np.asarray(envelope[1], float))
+        self.clip = clip
+        self._stick_cols = [CHANNELS.index(s) for s in _STICKS]
+        self.reset()
+
+    @classmethod
+    def load(cls, folder, **overrides) -> "VibrationElement":
+        """An element exported by `pvvjax export --element` (element.json and the nets'
+        .npz parameter files, read without pickle); keyword arguments override the file."""
+        try:
+            from .npnet import NumpyNet
+        except ImportError:  # copied next to npnet.py by `pvvjax export --element`
+            from npnet import NumpyNet
+
+        folder = Path(folder)
+        spec = json.loads((folder / "element.json").read_text())
+        nets = [NumpyNet.load(folder / name) for name in spec.pop("nets")]
+        env = spec.pop("envelope", None)
+        spec = {**spec, **overrides}
+        return cls(nets, spec.pop("inputs"), envelope=None if env is None else (env["lo"], env["hi"]), **spec)
+
+    # ------------------------------------------------------------------ state
+
+    def reset(self):
+        """Forget every frame (a new record or a simulator reset)."""
+        cap = 4096
+        self._t = np.empty(cap)
+        self._r = np.empty(cap)
+        self._x = np.empty((cap, len(CHANNELS)))
+        self._n = 0
+        self._az = None
+        self._j = 0  # next window to predict
+        self._start = None  # revolution where window 0 starts
+        self._pvv = 0.0
+        self._prev = 0.0
+        self._ramp_rev = 0.0  # revolution where the latest value arrived
+        self._wtime = math.nan
+        self._flag = False
+        self._ready = False
+        self._dropped = False  # the first stored frame is no longer the record's first
+        self._rpm_last = 0.0
+
+    def _push(self, t, r, x):
+        if self._n == len(self._t):  # grow (rarely: old frames are dropped as windows complete)
+            self._t = np.concatenate([self._t, np.empty_like(self._t)])
+            self._r = np.concatenate([self._r, np.empty_like(self._r)])
+            self._x = np.concatenate([self._x, np.empty_like(self._x)])
+        self._t[self._n], self._r[self._n], self._x[self._n] = t, r, x
+        self._n += 1
+
+    def _drop(self, keep_from: int):
+        """Drop frames before index keep_from (never the first two: they define window 0)."""
+        if keep_from <= 2:
+            return
+        k = keep_from - 1  # keep one more on the left: its hat reaches into the window
+        n = self._n - k
+        self._t[:n], self._r[:n], self._x[:n] = self._t[k:self._n], self._r[k:self._n], self._x[k:self._n]
+        self._n = n
+        self._dropped = True
+
+    # ------------------------------------------------------------------ one frame
+
+    def step(self, time_s: float, azimuth_deg: float | None, channels, rotor_rpm: float | None = None) -> ElementOutput:
+        """Advance by one frame.
+
+        Args:
+            time_s: frame time, s (must increase).
+            azimuth_deg: reference-blade azimuth, deg (None: integrate `rotor_rpm` instead).
+            channels: the `CHANNELS` values of this frame (sequence or dict), canonical units.
+            rotor_rpm: rotor speed, used only when no azimuth is given.
+        """
+        x = np.array([channels[c] for c in CHANNELS] if isinstance(channels, dict) else channels, float)
+        bad = (x.shape != (len(CHANNELS),) or not np.all(np.isfinite(x)) or not math.isfinite(time_s)
+               or (self._n and time_s <= self._t[self._n - 1]))
+        if azimuth_deg is None:
+            rpm = x[CHANNELS.index("rotor_rpm")] if rotor_rpm is None else rotor_rpm
+            bad = bad or not math.isfinite(rpm)
+        else:
+            bad = bad or not math.isfinite(azimuth_deg)
+        if bad:
+            return self._output(rejected=True)
+        if self._n == 0:
+            r = (azimuth_deg / 360.0) if azimuth_deg is not None else 0.0
+        elif azimuth_deg is not None:
+            d = azimuth_deg - self._az
+            r = self._r[self._n - 1] + (d - 360.0 * round(d / 360.0)) / 360.0  # unwrapped (as numpy.unwrap)
+        else:
+            rpm0 = self._rpm_last
+            r = self._r[self._n - 1] + 0.5 * (rpm0 + rpm) / 60.0 * (time_s - self._t[self._n - 1])
+        self._az = azimuth_deg
+        self._rpm_last = x[CHANNELS.index("rotor_rpm")] if rotor_rpm is None else rotor_rpm
+        self._push(float(time_s), r, x)
+        if self._n == 2 and self._start is None:
+            self._start = self._r[0] - 0.5 * (self._r[1] - self._r[0])
+        if self._start is not None:
+            while self._try_window():
+                pass
+        return self._output(rejected=False)
+
+    def _output(self, rejected: bool) -> ElementOutput:
+        if self._n == 0:
+            return ElementOutput(0.0, 0.0, 0.0, False, math.nan, False, rejected)
+        r = self._r[self._n - 1]
+        frac = min(max((r - self._ramp_rev) / self.hop, 0.0), 1.0)
+        amp = self._prev + (self._pvv - self._prev) * frac
+        psi = 2.0 * math.pi * r
+        shake = amp * math.cos(4.0 * psi + self.phase)
+        for k, (ratio, ph) in self.harmonics.items():
+            shake += ratio * amp * math.cos(k * psi + ph)
+        return ElementOutput(self._pvv, shake, amp, self._ready, self._wtime, self._flag, rejected)
+
+    # ------------------------------------------------------------------ windows
+
+    def _try_window(self) -> bool:
+        n = self._n
+        t, r = self._t[:n], self._r[:n]
+        a = self._start + self.hop * self._j
+        b = a + self.L
+        if r[-1] <= b:
+            return False
+        t_a, t_b = _interp(a, r, t), _interp(b, r, t)
+        taus = [self.tau] + ([self.tau + self.tau_stick] if self.tau_stick != 0.0 else [])
+        edges = [(_interp(t_a - tau, t, r), _interp(t_b - tau, t, r)) for tau in taus]
+        # Every hat touching the input windows must be complete: two samples past the last edge.
+        dr = np.diff(r)
+        need = max(e[1] for e in edges) + 2.0 * dr.max()
+        if r[-1] <= need or n < 3:
+            return False
+        # Half-way to each neighbour, as the offline analysis (`batch.sample_widths`).
+        width = 0.5 * (np.r_[dr[:1], dr] + np.r_[dr, dr[-1:]])
+        if self._dropped:
+            width[0] = np.nan  # its left neighbour is gone; it lies left of every future window
+        means = []
+        for lo, hi in edges:
+            h = width
+            w = h * _edge((r - lo) / h) * _edge((hi - r) / h)
+            w = np.where(np.isfinite(w), w, 0.0)
+            means.append(w @ self._x[:n] / w.sum())
+        x = means[0]
+        if len(means) > 1:
+            x = x.copy()
+            x[self._stick_cols] = means[1][self._stick_cols]
+        z, flag = self._net_inputs(x)
+        pred = float(np.median([float(np.ravel(net(z[None]))[0]) for net in self.nets]))
+        self._prev = self._output(False).amplitude_g if self._ready else pred
+        self._pvv, self._flag, self._ready = pred, flag, True
+        self._ramp_rev = r[-1]
+        self._wtime = 0.5 * (t_a + t_b)
+        self._j += 1
+        # Frames left of every future input window are no longer needed.
+        a_next = self._start + self.hop * self._j
+        t_next = _interp(a_next, r, t) - max(taus + [0.0])
+        self._drop(int(np.searchsorted(t, t_next)) - 2)
+        return True
+
+    def _net_inputs(self, x):
+        ch = dict(zip(CHANNELS, x))
+        v = ch["airspeed_kt"] * _KT_TO_FT_S
+        feats = {
+            **ch,
+            "advance_ratio": v / (ch["rotor_rpm"] * 2.0 * math.pi / 60.0 * self.radius),
+            "mlf": ((1.0 + math.radians(ch["pitch_rate_dps"]) * v / self.g)
+                    / math.cos(math.radians(ch["roll_angle_deg"]))),
+        }
+        z = np.array([feats[k] for k in self.inputs], float)
+        flag = False
+        if self.envelope is not None:
+            lo, hi = self.envelope
+            flag = bool(np.any(z < lo) or np.any(z > hi))
+            if self.clip:
+                z = np.clip(z, lo, hi)
+        return z, flag
