@@ -25,6 +25,7 @@ _EXPORTS = {
     "npnet": ["NumpyNet"],
     "replay": ["CostWeights", "Replay", "make_settings", "prepare", "replay_cost"],  # the function: pvvjax.replay.replay
     "replay_tables": ["load_replay_set", "peak_summary", "replay_windows"],
+    "rtelement": ["VibrationElement"],
     "sweep": ["heldout_models", "load_params", "run_sweep"],
     "train": ["fit", "make_data", "condition_folds"],
 }

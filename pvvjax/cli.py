@@ -246,7 +246,7 @@ def _export_element(args, res, sweep: Path) -> int:
 
     from . import npnet, rtelement
     from .config import load_config
-    from .databases import DB_INPUTS, build_databases
+    from .databases import DB_INPUTS
 
     sel = res[res.database == args.database]
     if sel.empty:
@@ -260,11 +260,18 @@ def _export_element(args, res, sweep: Path) -> int:
     for r in sel.sort_values(["test_fold", "seed"]).itertuples():
         names.append(f"net_{r.net_id}.npz")
         shutil.copy(sweep / "params" / f"{r.net_id}.npz", out / names[-1])
+    import numpy as np
+
+    from .databases import peak_table
+
     cfg = load_config(sweep / "config.toml")
     campaign, _ = resolve_campaign(cfg)
-    db = build_databases(campaign, cfg.analysis)[args.database][list(DB_INPUTS[args.database])]
+    peaks, windows = peak_table(campaign, cfg.analysis)
+    db = peaks[list(DB_INPUTS[args.database])]
+    # The seat shake's 4/rev phase: the flight test's, amplitude-weighted over every window.
+    phase = float(np.angle(np.sum(windows.pvv_g * np.exp(1j * windows.phase_rad))))
     spec = dict(nets=names, inputs=list(DB_INPUTS[args.database]), window_revs=args.window, hop_revs=args.hop,
-                offset_s=args.offset, stick_offset_s=args.stick_offset, phase_rad=0.0,
+                offset_s=args.offset, stick_offset_s=args.stick_offset, phase_rad=phase,
                 envelope=dict(lo=db.min().tolist(), hi=db.max().tolist()),
                 aircraft=dict(rotor_radius_ft=campaign.aircraft.rotor_radius_ft, g_ft_s2=campaign.aircraft.g_ft_s2))
     (out / "element.json").write_text(json.dumps(spec, indent=2))

@@ -268,7 +268,8 @@ class VibrationElement:
         flag = False
         if self.envelope is not None:
             lo, hi = self.envelope
-            flag = bool(np.any(z < lo) or np.any(z > hi))
+            tol = 1e-9 * (1.0 + np.maximum(np.abs(lo), np.abs(hi)))  # not rounding noise on a constant channel
+            flag = bool(np.any(z < lo - tol) or np.any(z > hi + tol))
             if self.clip:
                 z = np.clip(z, lo, hi)
         return z, flag

@@ -78,3 +78,18 @@ def small_dbs(small_campaign_dir):
     from pvvjax.databases import build_databases
 
     return build_databases(load_campaign(small_campaign_dir))
+
+
+def rbf_nets(dbs, database: str, n: int = 3, centers: int = 16):
+    """`n` RBF nets (seeds 0..n-1, NumPy parameters) fitted to all rows of a database, and
+    its input envelope (min, max): quick stand-ins for trained nets in element tests."""
+    import jax
+
+    from pvvjax.databases import DB_INPUTS
+    from pvvjax.networks import rbf_fit
+    from pvvjax.sweep import stack_data
+
+    x, y, in_mask, _ = stack_data(dbs, [database], 5, 0)[database]
+    params = [jax.tree.map(np.asarray, rbf_fit(jax.random.key(s), x, y, centers, in_mask=in_mask)) for s in range(n)]
+    db = dbs[database][list(DB_INPUTS[database])]
+    return params, (db.min().to_numpy(), db.max().to_numpy())

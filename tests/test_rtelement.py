@@ -9,6 +9,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from conftest import rbf_nets
 
 from pvvjax import replay as R
 from pvvjax.batch import to_batch
@@ -22,14 +23,8 @@ KINDS = ["pullup", "pushover", "roll", "autorotation", "flare", "level", "turn",
 
 @pytest.fixture(scope="module")
 def setup(small_campaign_dir, small_dbs):
-    from pvvjax.networks import rbf_fit
-    from pvvjax.sweep import stack_data
-
+    params, envelope = rbf_nets(small_dbs, "db1")
     camp = load_campaign(small_campaign_dir)
-    x, y, in_mask, _ = stack_data(small_dbs, ["db1"], 5, 0)["db1"]
-    params = [jax.tree.map(np.asarray, rbf_fit(jax.random.key(s), x, y, 16, in_mask=in_mask)) for s in range(3)]
-    db = small_dbs["db1"][list(DB_INPUTS["db1"])]
-    envelope = (db.min().to_numpy(), db.max().to_numpy())
     return camp, params, envelope
 
 
