@@ -76,6 +76,18 @@ def test_missed_frames_and_bad_values(setup):
     common = sorted(set(full) & set(half))
     assert len(common) > 10
     assert max(abs(full[k] - half[k]) for k in common) < 2e-3
+    # The frame rate halving mid-record, with jitter of the frame times: still the same windows.
+    rng = np.random.default_rng(0)
+    idx = np.r_[np.arange(0, len(T) // 2), np.arange(len(T) // 2, len(T), 2)]
+    tj = T[idx] + rng.uniform(-0.3, 0.3, idx.size) * np.median(np.diff(T))
+    keep = np.r_[True, np.diff(tj) > 0]
+    el = make()
+    mixed = {}
+    for i in np.flatnonzero(keep):
+        if el.step(tj[i], AZ[idx[i]], X[idx[i]]).ready:
+            mixed.setdefault(el._j - 1, el._pvv)
+    common = sorted(set(full) & set(mixed))
+    assert len(common) > 10 and max(abs(full[k] - mixed[k]) for k in common) < 5e-3
     # A NaN value and a time that does not advance are rejected without changing the state.
     el, ref = make(), make()
     for i in range(600):
