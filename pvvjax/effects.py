@@ -1,0 +1,107 @@
+"""Candidate effects: the operators of data-contract §3 that turn a record's channels into
+candidate features for the discovery workflow.
+
+Each operator is a pure function of sample-level arrays (one record, or vmapped), smooth in
+its parameters so that a time constant or a knee can be fitted by gradient:
+
+- `input`: a channel as is;
+- `rate`, `abs_rate`: its time derivative (central differences on the actual sample times)
+  and the derivative's magnitude (smoothed at zero);
+- `lag`: a first-order lag with time constant τ, exact for piecewise-constant input between
+  samples, computed as a linear recurrence by `lax.associative_scan` (log-depth, not a
+  sample-by-sample loop);
+- `threshold`: a hinge above (or below) a knee, softened over `softness`;
+- `product`: of two channels;
+- `resonance`: a Gaussian band of a channel (rotor speed) around a centre;
+- `window`: an analysis-window artefact: the spread of a channel inside each window
+  (computed from window means of x and x², see `window_spread`).
+
+Window averages of a candidate come from the same window sums as the replay
+(`harmonics.window_sums`), so a candidate enters a model exactly like a state channel.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+__all__ = [
+    "OPERATORS",
+    "abs_rate",
+    "lag",
+    "product",
+    "rate",
+    "resonance",
+    "threshold",
+    "window_spread",
+]
+
+OPERATORS = ("input", "rate", "abs_rate", "lag", "threshold", "product", "resonance", "window")
+
+
+def rate(x, time):
+    """dx/dt by central differences on the sample times (one-sided at the ends).
+
+    Args:
+        x, time: (T,) samples and their times, s (increasing).
+
+    Returns:
+        (T,) derivative per second.
+    """
+    xp = jnp.concatenate([x[:1], x, x[-1:]])
+    tp = jnp.concatenate([time[:1], time, time[-1:]])
+    lo, hi = jnp.arange(x.shape[0]), jnp.arange(x.shape[0]) + 2
+    return (xp[hi] - xp[lo]) / (tp[hi] - tp[lo])
+
+
+def abs_rate(x, time, smooth=1e-6):
+    """|dx/dt|, smoothed at zero (√(r² + s²) − s) so that it is differentiable there."""
+    r = rate(x, time)
+    return jnp.sqrt(r * r + smooth * smooth) - smooth
+
+
+def lag(x, time, tau_s):
+    """First-order lag y' = (x − y)/τ, started at rest on the first sample.
+
+    Exact for an input held between samples: y_n = a_n y_{n−1} + (1 − a_n) x_n with
+    a_n = exp(−Δt_n / τ). The recurrence is solved by an associative scan over the pairs
+    (a_n, (1 − a_n) x_n), so its cost is log-depth and it differentiates in τ.
+
+    Args:
+        x, time: (T,) samples and their times, s. tau_s: time constant, s (> 0).
+
+    Returns:
+        (T,) lagged signal.
+    """
+    dt = jnp.diff(time, prepend=time[:1])
+    a = jnp.exp(-dt / tau_s)
+    b = (1.0 - a) * x
+    b = b.at[0].set(x[0])  # at rest: y_0 = x_0
+
+    def combine(left, right):  # (a1, b1) then (a2, b2): y -> a2 (a1 y + b1) + b2
+        a1, b1 = left
+        a2, b2 = right
+        return a1 * a2, a2 * b1 + b2
+
+    return jax.lax.associative_scan(combine, (a, b))[1]
+
+
+def threshold(x, knee, above: bool = True, softness=1e-3):
+    """Hinge max(0, x − knee) (or max(0, knee − x)), softened as softness·softplus(·/softness)."""
+    u = (x - knee) if above else (knee - x)
+    return softness * jax.nn.softplus(u / softness)
+
+
+def product(x1, x2):
+    """The product of two channels."""
+    return x1 * x2
+
+
+def resonance(x, center, width):
+    """A Gaussian band exp(−½((x − center)/width)²), e.g. of rotor speed near a resonance."""
+    return jnp.exp(-0.5 * ((x - center) / width) ** 2)
+
+
+def window_spread(mean_x, mean_x2):
+    """Standard deviation of a channel inside each window, from its window means of x and x²."""
+    return jnp.sqrt(jnp.maximum(mean_x2 - mean_x * mean_x, 0.0))
