@@ -268,10 +268,23 @@ def _export_element(args, res, sweep: Path) -> int:
     campaign, _ = resolve_campaign(cfg)
     peaks, windows = peak_table(campaign, cfg.analysis)
     db = peaks[list(DB_INPUTS[args.database])]
-    # The seat shake's 4/rev phase: the flight test's, amplitude-weighted over every window.
+    # The seat shake's 4/rev phase: the flight test's, amplitude-weighted over every window;
+    # and its 1P, 2P and 8P content: median ratio to the 4/rev amplitude, weighted phase.
     phase = float(np.angle(np.sum(windows.pvv_g * np.exp(1j * windows.phase_rad))))
+    from .batch import to_batch
+    from .harmonics import analyze
+
+    batch = to_batch(campaign, [])
+    w4 = analyze(batch, cfg.analysis.window_revs, harmonic=4)
+    valid = np.asarray(w4.valid)
+    a4 = np.asarray(w4.amplitude)[valid]
+    harmonics = {}
+    for k in (1, 2, 8):
+        wk = analyze(batch, cfg.analysis.window_revs, harmonic=k)
+        ak, pk = np.asarray(wk.amplitude)[valid], np.asarray(wk.phase)[valid]
+        harmonics[k] = [float(np.median(ak / a4)), float(np.angle(np.sum(ak * np.exp(1j * pk))))]
     spec = dict(nets=names, inputs=list(DB_INPUTS[args.database]), window_revs=args.window, hop_revs=args.hop,
-                offset_s=args.offset, stick_offset_s=args.stick_offset, phase_rad=phase,
+                offset_s=args.offset, stick_offset_s=args.stick_offset, phase_rad=phase, harmonics=harmonics,
                 envelope=dict(lo=db.min().tolist(), hi=db.max().tolist()),
                 aircraft=dict(rotor_radius_ft=campaign.aircraft.rotor_radius_ft, g_ft_s2=campaign.aircraft.g_ft_s2))
     (out / "element.json").write_text(json.dumps(spec, indent=2))

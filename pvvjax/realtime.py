@@ -36,6 +36,8 @@ class ElementSpec(NamedTuple):
         window_revs, hop_revs, offset_s, stick_offset_s, phase_rad: as `rtelement.VibrationElement`.
         lo, hi: (d,) input envelope (±inf: none). clip: 1.0 to clip to it, 0.0 to only flag.
         rotor_radius_ft, g_ft_s2: rotor constants of the features.
+        harm_k, harm_ratio, harm_phase: extra seat-shake harmonics (order, ratio to the
+            4/rev amplitude, phase), as `rtelement.VibrationElement(harmonics=...)`.
     """
 
     params: dict
@@ -50,6 +52,9 @@ class ElementSpec(NamedTuple):
     clip: float
     rotor_radius_ft: float
     g_ft_s2: float
+    harm_k: jax.Array
+    harm_ratio: jax.Array
+    harm_phase: jax.Array
 
 
 # Inputs a database can use: the channels, then the derived features.
@@ -57,7 +62,7 @@ FEATURES = CHANNELS + ("advance_ratio", "mlf")
 
 
 def make_spec(params, inputs, *, window_revs=8.0, hop_revs=1.0, offset_s=0.0, stick_offset_s=0.0, phase_rad=0.0,
-              envelope=None, clip=True, rotor_radius_ft=26.83, g_ft_s2=32.174) -> ElementSpec:
+              envelope=None, clip=True, rotor_radius_ft=26.83, g_ft_s2=32.174, harmonics=None) -> ElementSpec:
     """An `ElementSpec` from stacked net parameters and the database's input names."""
     # Nets from a sweep take every database padded to the same inputs (masked): pad to match.
     n_in = int(np.shape(params["x_shift"])[-1])
@@ -67,8 +72,10 @@ def make_spec(params, inputs, *, window_revs=8.0, hop_revs=1.0, offset_s=0.0, st
     lo = np.concatenate([np.asarray(lo, float), np.full(n_in - d, -np.inf)])
     hi = np.concatenate([np.asarray(hi, float), np.full(n_in - d, np.inf)])
     f = lambda v: jnp.asarray(v, jnp.result_type(float))  # noqa: E731
+    harm = {int(k): v for k, v in dict(harmonics or {}).items()}
     return ElementSpec(params, idx, f(window_revs), f(hop_revs), f(offset_s), f(stick_offset_s), f(phase_rad),
-                       f(lo), f(hi), f(1.0 if clip else 0.0), f(rotor_radius_ft), f(g_ft_s2))
+                       f(lo), f(hi), f(1.0 if clip else 0.0), f(rotor_radius_ft), f(g_ft_s2),
+                       f(list(harm)), f([v[0] for v in harm.values()]), f([v[1] for v in harm.values()]))
 
 
 class ElementState(NamedTuple):
@@ -261,7 +268,9 @@ def step(spec: ElementSpec, s: ElementState, time_s, azimuth_deg, channels) -> t
     s = full(small)
     amp = jnp.where(s.n > 0, _amplitude(s, spec), 0.0)
     psi = 2.0 * jnp.pi * s.r[(s.n - 1) % M]
-    out = StepOutput(s.pvv, amp * jnp.cos(4.0 * psi + spec.phase_rad), amp, s.ready, s.wtime, s.flag, bad)
+    shake = amp * (jnp.cos(4.0 * psi + spec.phase_rad)
+                   + jnp.sum(spec.harm_ratio * jnp.cos(spec.harm_k * psi + spec.harm_phase)))
+    out = StepOutput(s.pvv, shake, amp, s.ready, s.wtime, s.flag, bad)
     return s, out
 
 

@@ -97,7 +97,7 @@ class VibrationElement:
         self.L, self.hop = float(window_revs), float(hop_revs)
         self.tau, self.tau_stick = float(offset_s), float(stick_offset_s)
         self.phase = float(phase_rad)
-        self.harmonics = dict(harmonics or {})
+        self.harmonics = {int(k): (float(v[0]), float(v[1])) for k, v in dict(harmonics or {}).items()}
         ac = {"rotor_radius_ft": 26.83, "g_ft_s2": 32.174, **(aircraft or {})}
         self.radius, self.g = float(ac["rotor_radius_ft"]), float(ac["g_ft_s2"])
         self.envelope = None if envelope is None else (np.asarray(envelope[0], float), np.asarray(envelope[1], float))

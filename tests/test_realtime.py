@@ -35,7 +35,8 @@ def test_jax_stream_equals_the_numpy_element(setup, kind):
     camp, params, envelope = setup
     counter = camp.counters.index[camp.counters.maneuver == kind][0]
     T, AZ, X, n = _padded(camp, counter)
-    kw = dict(window_revs=8.0, hop_revs=1.0, offset_s=0.7, stick_offset_s=-0.4)
+    kw = dict(window_revs=8.0, hop_revs=1.0, offset_s=0.7, stick_offset_s=-0.4, phase_rad=0.3,
+              harmonics={1: (0.2, 0.5), 8: (0.1, -1.0)})
     el = VibrationElement([NumpyNet(p) for p in params], DB_INPUTS["db2"], envelope=envelope, **kw)
     ref = np.array([tuple(el.step(T[i], AZ[i], X[i]))[:6] for i in range(n)], float)
     with jax.enable_x64(True):
