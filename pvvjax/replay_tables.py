@@ -20,7 +20,7 @@ from .calibration import PARAMS, Bounds, calibrate, cost_grid, counter_costs, gr
 from .campaign import Campaign
 from .config import CalibrationConfig, ReplayConfig
 from .databases import STATE_CHANNELS
-from .replay import CostWeights, ReplayRecord, Settings, make_settings, prepare, replay
+from .replay import FEATURES, CostWeights, ReplayRecord, Settings, make_settings, prepare, replay
 from .sweep import heldout_models
 
 __all__ = [
@@ -86,7 +86,8 @@ def replay_windows(info: pd.DataFrame, recs: ReplayRecord, models: dict, theta, 
 
     Returns:
         database, counter, condition, maneuver, window, time_s, measured_g, predicted_g,
-        weight, offset_s, window_revs, stick_offset_s.
+        weight, offset_s, window_revs, stick_offset_s, and the window's network features
+        (`replay.FEATURES`: advance_ratio, mlf, ...) for locating residuals by regime.
     """
     parts = []
     n = len(info)
@@ -108,6 +109,7 @@ def replay_windows(info: pd.DataFrame, recs: ReplayRecord, models: dict, theta, 
             "offset_s": np.repeat(th[:, 0], W),
             "window_revs": np.repeat(th[:, 1], W),
             "stick_offset_s": np.repeat(th[:, 2], W),
+            **{f: np.asarray(rep.features[..., k]).ravel() for k, f in enumerate(FEATURES)},
         }))
     out = pd.concat(parts, ignore_index=True)
     return out[out.weight > 0].reset_index(drop=True)
