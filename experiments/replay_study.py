@@ -24,9 +24,18 @@ from pvvjax import plots
 from pvvjax.cli import enable_compilation_cache, resolve_campaign
 from pvvjax.config import load_config
 from pvvjax.io import write_table
-from pvvjax.replay import make_settings
-from pvvjax.replay_tables import (calibration_settings, calibration_table, cost_weights, counter_cost_table,
-                                  grid_table, load_replay_set, peak_summary, replay_windows, select_counters)
+from pvvjax.replay_tables import (
+    calibration_settings,
+    calibration_table,
+    cost_weights,
+    counter_cost_table,
+    grid_table,
+    load_replay_set,
+    peak_summary,
+    replay_windows,
+    select_counters,
+    settings_at,
+)
 
 PULLUP = "11022"
 PAPER = {  # the paper's replay of 11022 (Figs 13-14)
@@ -84,7 +93,7 @@ def main():
     rows, windows = [], {}
     for name, taus in variants.items():
         hi = max(taus.values())
-        settings = make_settings(batch, max_window_revs=8.0, min_window_revs=8.0, offset_bounds=(0.0, max(hi, 0.0)))
+        settings = settings_at(batch, (max(hi, 0.0), 8.0, 0.0))  # one plan for the databases' offsets
         w = replay_windows(one, rec1, models1, {db: (t, 8.0, 0.0) for db, t in taus.items()}, settings)
         windows[name] = w
         s = peak_summary(w)
@@ -197,10 +206,7 @@ def main():
             b, s = base[base.database == db].iloc[0], cal_st[cal_st.database == db].iloc[0]
             for name, th in (("offset only", (b.offset_s, 8.0, 0.0)),
                              ("offset + stick lag", (s.offset_s, 8.0, s.stick_offset_s))):
-                tot = th[0] + th[2]
-                stg = make_settings(batch, max_window_revs=8.0, min_window_revs=8.0,
-                                    offset_bounds=(min(0.0, th[0], tot), max(0.0, th[0], tot)), stick_lag=True)
-                w = replay_windows(one, rec1, {db: models1[db]}, th, stg)
+                w = replay_windows(one, rec1, {db: models1[db]}, th, settings_at(batch, th))
                 sm = peak_summary(w)
                 sm.insert(0, "model", name)
                 pu.append(sm)

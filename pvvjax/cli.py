@@ -266,11 +266,9 @@ def _export_element(args, res, sweep: Path) -> int:
 
     cfg = load_config(sweep / "config.toml")
     campaign, _ = resolve_campaign(cfg)
-    peaks, windows = peak_table(campaign, cfg.analysis)
-    db = peaks[list(DB_INPUTS[args.database])]
+    db = peak_table(campaign, cfg.analysis)[0][list(DB_INPUTS[args.database])]
     # The seat shake's 4/rev phase: the flight test's, amplitude-weighted over every window;
     # and its 1P, 2P and 8P content: median ratio to the 4/rev amplitude, weighted phase.
-    phase = float(np.angle(np.sum(windows.pvv_g * np.exp(1j * windows.phase_rad))))
     from .batch import to_batch
     from .harmonics import analyze
 
@@ -278,6 +276,7 @@ def _export_element(args, res, sweep: Path) -> int:
     w4 = analyze(batch, cfg.analysis.window_revs, harmonic=4)
     valid = np.asarray(w4.valid)
     a4 = np.asarray(w4.amplitude)[valid]
+    phase = float(np.angle(np.sum(a4 * np.exp(1j * np.asarray(w4.phase)[valid]))))
     harmonics = {}
     for k in (1, 2, 8):
         wk = analyze(batch, cfg.analysis.window_revs, harmonic=k)
@@ -358,8 +357,7 @@ def cmd_replay(args) -> int:
     from . import plots
     from .config import load_config
     from .io import write_config, write_table
-    from .replay import make_settings
-    from .replay_tables import peak_summary, replay_windows
+    from .replay_tables import peak_summary, replay_windows, settings_at
 
     cfg = load_config(args.config)
     rc = cfg.replay
@@ -367,11 +365,8 @@ def cmd_replay(args) -> int:
     L = rc.window_revs if args.window is None else args.window
     out = Path(args.out) if args.out else Path(cfg.out_dir) / cfg.name / "replay"
     info, batch, recs, models = _replay_inputs(args, cfg)
-    total = tau + rc.stick_offset_s
-    settings = make_settings(batch, max_window_revs=L, min_window_revs=L, hop_revs=rc.hop_revs,
-                             offset_bounds=(min(0.0, tau, total), max(0.0, tau, total)),
-                             stick_lag=rc.stick_offset_s != 0)
-    windows = replay_windows(info, recs, models, (tau, L, rc.stick_offset_s), settings)
+    theta = (tau, L, rc.stick_offset_s)
+    windows = replay_windows(info, recs, models, theta, settings_at(batch, theta, rc.hop_revs))
     summary = peak_summary(windows)
     write_table(windows, out / "windows", cfg)
     write_table(summary, out / "summary", cfg)

@@ -18,7 +18,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .constants import KT_TO_FT_S, RPM_TO_RAD_S
+from .constants import UH60A
+from .features import advance_ratio, maneuver_load_factor
+from .harmonics import _edge
 from .networks import apply_for
 from .rtelement import CHANNELS
 
@@ -126,11 +128,6 @@ def init(capacity: int, dtype=None) -> ElementState:
                         jnp.full((), jnp.nan, dt), jnp.zeros((), bool), jnp.zeros((), bool))
 
 
-def _edge(u):
-    v = jnp.clip(u, -1.0, 1.0)
-    return jnp.where(v < 0, 0.5 * (1.0 + v) ** 2, 1.0 - 0.5 * (1.0 - v) ** 2)
-
-
 def _ordered(s: ElementState):
     """The ring in time order; slots never filled get times and revolutions far below the
     first frame (so the arrays stay increasing), and `first` is the oldest real slot."""
@@ -140,7 +137,7 @@ def _ordered(s: ElementState):
     real = (s.n - M + k) >= 0
     t, r, x = s.t[pos], s.r[pos], s.x[pos]
     first = jnp.maximum(M - s.n, 0)
-    t = jnp.where(real, t, t[M - 1] * 0 - 1e12 + k)
+    t = jnp.where(real, t, -1e12 + k)
     r = jnp.where(real, r, -1e12 + k)
     return t, r, x, first, real
 
@@ -170,10 +167,10 @@ def _is_ready(spec, s):
 
 
 def _features(spec, x):
-    v = x[CHANNELS.index("airspeed_kt")] * KT_TO_FT_S
-    mu = v / (x[CHANNELS.index("rotor_rpm")] * RPM_TO_RAD_S * spec.rotor_radius_ft)
-    mlf = ((1.0 + jnp.deg2rad(x[CHANNELS.index("pitch_rate_dps")]) * v / spec.g_ft_s2)
-           / jnp.cos(jnp.deg2rad(x[CHANNELS.index("roll_angle_deg")])))
+    ch = dict(zip(CHANNELS, x))
+    ac = UH60A._replace(rotor_radius_ft=spec.rotor_radius_ft, g_ft_s2=spec.g_ft_s2)
+    mu = advance_ratio(ch["airspeed_kt"], ch["rotor_rpm"], ac)
+    mlf = maneuver_load_factor(ch["roll_angle_deg"], ch["pitch_rate_dps"], ch["airspeed_kt"], ac)
     return jnp.concatenate([x, jnp.stack([mu, mlf])])
 
 
@@ -195,7 +192,7 @@ def _window(spec, s: ElementState) -> ElementState:
     h = jnp.where(ok, width, 1.0)
 
     def mean(lo, hi):
-        w = jnp.where(ok, h * _edge((r - lo) / h) * _edge((hi - r) / h), 0.0)
+        w = jnp.where(ok, h * _edge((r - lo) / h, "linear") * _edge((hi - r) / h, "linear"), 0.0)
         return w @ x / jnp.sum(w)
 
     m_state, m_stick = mean(a_in[0], b_in[0]), mean(a_in[1], b_in[1])

@@ -34,9 +34,19 @@ from .batch import RecordBatch
 from .constants import UH60A, Aircraft
 from .databases import DB_INPUTS, STATE_CHANNELS
 from .features import derive_features
-from .harmonics import (N_HARMONIC_COLS, Columns, WindowPlan, harmonic_from_means, plan_windows, record_bounds,
-                        record_columns, stack_columns, window_sums,
-                        with_prefix)
+from .harmonics import (
+    N_HARMONIC_COLS,
+    Columns,
+    WindowPlan,
+    _means,
+    harmonic_from_means,
+    plan_windows,
+    record_bounds,
+    record_columns,
+    stack_columns,
+    window_sums,
+    with_prefix,
+)
 from .networks import apply_for
 
 __all__ = [
@@ -251,11 +261,6 @@ def _interp(x, xp, fp, lookup=None):
     x0, x1 = xp[i - 1], xp[i]
     f0, f1 = fp[i - 1], fp[i]
     return f0 + (x - x0) * ((f1 - f0) / (x1 - x0))
-
-
-def _means(sums):
-    wsum = sums[..., -1]
-    return sums[..., :-1] / jnp.where(wsum > 0, wsum, 1.0)[..., None], wsum
 
 
 class CostWeights(NamedTuple):

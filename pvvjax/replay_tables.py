@@ -33,6 +33,7 @@ __all__ = [
     "peak_summary",
     "replay_windows",
     "select_counters",
+    "settings_at",
 ]
 
 
@@ -148,6 +149,16 @@ def _coarse(cfg: CalibrationConfig, free) -> np.ndarray:
                                         cfg.coarse_stick_step_s)}
     mesh = np.meshgrid(*[axes[f] for f in free], indexing="ij")
     return np.stack([m.ravel() for m in mesh], -1)
+
+
+def settings_at(batch, theta, hop_revs: float = 0.0) -> Settings:
+    """Settings for replays at one θ = (offset_s, window_revs, stick_offset_s): the plan
+    covers that window length, and a window counts when its input windows (the sticks'
+    too) lie in the record at that offset."""
+    tau, L, tau_stick = (float(v) for v in theta)
+    total = tau + tau_stick
+    return make_settings(batch, max_window_revs=L, min_window_revs=L, hop_revs=hop_revs,
+                         offset_bounds=(min(0.0, tau, total), max(0.0, tau, total)), stick_lag=tau_stick != 0)
 
 
 def calibration_settings(batch, cfg: CalibrationConfig, stick_lag: bool) -> Settings:
