@@ -12,7 +12,8 @@ candidate is recomputed, so that picking the best of K is part of the null; the 
 the share of permutations that do as well. A residual the model already explains
 therefore yields no effect.
 
-Plain NumPy: a few small least-squares problems per candidate; not in any hot loop.
+Plain NumPy: every candidate is scored at once per fold (`_scores`), so a permutation
+costs a few (windows × candidates) products.
 """
 
 from __future__ import annotations
@@ -72,26 +73,50 @@ def _block_permutation(groups, rng):
     return idx
 
 
-def _best_gain(y, X, C, perm, chosen, usable, fid, current) -> float:
-    """The best gain of any remaining candidate once the candidates' condition blocks are
-    permuted: the null distribution of the *selected* gain (the best of K, not of one)."""
-    Cp = C[perm]
-    best = -np.inf
-    for k in np.flatnonzero(usable):
-        if any(s.index == k for s in chosen):
-            continue
-        best = max(best, 1.0 - cv_sse(y, np.column_stack([X, Cp[:, k]]), fid) / current)
-    return best
+def _scores(y, X, C, fid) -> np.ndarray:
+    """Held-out SSE of y ~ 1 + X + c_k for every column c_k of C at once, k-fold by `fid`.
+
+    By Frisch–Waugh–Lovell the coefficient of c_k is that of its part orthogonal to
+    [1, X] on the training rows, so each fold costs a few (n × K) products instead of K
+    least-squares solves.
+    """
+    n = y.shape[0]
+    A = np.column_stack([np.ones(n), X])
+    sse = np.zeros(C.shape[1])
+    for f in np.unique(fid):
+        te = fid == f
+        U, sv, _ = np.linalg.svd(A[~te], full_matrices=False)
+        Q = U[:, sv > sv[0] * 1e-9]  # an orthonormal basis of the covariates, rank-deficient or not
+        coef_y, *_ = np.linalg.lstsq(A[~te], y[~te], rcond=None)
+        coef_c, *_ = np.linalg.lstsq(A[~te], C[~te], rcond=None)
+        y_tr = y[~te] - Q @ (Q.T @ y[~te])
+        c_tr = C[~te] - Q @ (Q.T @ C[~te])
+        cc = np.einsum("ij,ij->j", c_tr, c_tr)
+        beta = np.where(cc > 1e-12 * n, (c_tr.T @ y_tr) / np.maximum(cc, 1e-300), 0.0)
+        e0 = y[te] - A[te] @ coef_y
+        D = C[te] - A[te] @ coef_c
+        sse += e0 @ e0 - 2.0 * beta * (D.T @ e0) + beta**2 * np.einsum("ij,ij->j", D, D)
+    return sse
 
 
-def forward_select(residual, candidates, groups, *, folds: int = 5, max_effects: int = 3, min_gain: float = 0.02,
-                   alpha: float = 0.01, permutations: int = 199, seed: int = 0) -> list[Selected]:
+def _remaining(C, chosen, usable):
+    free = usable.copy()
+    free[[s.index for s in chosen]] = False
+    return free
+
+
+def forward_select(residual, candidates, groups, *, base=None, folds: int = 5, max_effects: int = 3,
+                   min_gain: float = 0.02, alpha: float = 0.01, permutations: int = 199,
+                   seed: int = 0) -> list[Selected]:
     """Candidates that explain the residual, most explanatory first (possibly none).
 
     Args:
         residual: (n,) measured − predicted, per window.
         candidates: (n, K) candidate features per window (any scale: standardised here).
         groups: (n,) condition of each window (folds and permutations are by condition).
+        base: (n, B) covariates always in the model and never permuted (e.g. a basis of the
+            model's own inputs, so that a candidate must explain more than a better fit of
+            those inputs could); gains are relative to the error with them.
         folds: k of the k-fold split by condition.
         max_effects: most candidates selected.
         min_gain: smallest relative drop of the held-out error worth a candidate.
@@ -116,27 +141,35 @@ def forward_select(residual, candidates, groups, *, folds: int = 5, max_effects:
     usable = sd > 0
     fid = _folds(groups, folds, seed)
     rng = np.random.default_rng(seed + 1)
-    base = cv_sse(y, np.empty((len(y), 0)), fid)
+    B = np.empty((len(y), 0)) if base is None else np.asarray(base, float).reshape(len(y), -1)
+    if B.size:
+        bsd = B.std(axis=0)
+        B = ((B - B.mean(axis=0)) / np.where(bsd > 0, bsd, 1.0))[:, bsd > 0]
+    start = cv_sse(y, B, fid)
     chosen: list[Selected] = []
-    current = base
+    current = start
     for _ in range(max_effects):
-        X = C[:, [s.index for s in chosen]]
-        scores = np.full(C.shape[1], np.inf)
-        for k in np.flatnonzero(usable):
-            if any(s.index == k for s in chosen):
-                continue
-            scores[k] = cv_sse(y, np.column_stack([X, C[:, k]]), fid)
-        k = int(np.argmin(scores))
-        if not np.isfinite(scores[k]):
+        X = np.column_stack([B, C[:, [s.index for s in chosen]]])
+        free = _remaining(C, chosen, usable)
+        if not free.any():
             break
+        scores = np.full(C.shape[1], np.inf)
+        scores[free] = _scores(y, X, C[:, free], fid)
+        k = int(np.argmin(scores))
         gain = 1.0 - scores[k] / current
         if gain < min_gain:
             break
-        null = np.array([_best_gain(y, X, C, _block_permutation(groups, rng), chosen, usable, fid, current)
-                         for _ in range(permutations)])
-        p = (1 + int(np.sum(null >= gain))) / (1 + permutations)
+        # Null: the best gain of *any* remaining candidate once the candidates' condition
+        # blocks are permuted (the selected gain is a best of K, not of one).
+        null = []
+        for _ in range(permutations):
+            perm = _block_permutation(groups, rng)
+            null.append(1.0 - np.min(_scores(y, X, C[perm][:, free], fid)) / current)
+            if 1 + np.sum(np.array(null) >= gain) > alpha * (1 + permutations):
+                break  # p > alpha whatever the remaining permutations give
+        p = (1 + int(np.sum(np.array(null) >= gain))) / (1 + permutations)
         if p > alpha:
             break
         current = scores[k]
-        chosen.append(Selected(k, float(gain), float(1.0 - current / base), float(p)))
+        chosen.append(Selected(k, float(gain), float(1.0 - current / start), float(p)))
     return chosen

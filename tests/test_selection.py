@@ -55,3 +55,25 @@ def test_cv_sse_and_errors():
         forward_select(np.r_[np.nan, y[1:]], x, np.arange(200) % 50)
     with pytest.raises(ValueError, match="fewer than"):
         forward_select(y, x, np.zeros(200))
+
+
+def test_vectorised_scores_equal_one_least_squares_per_candidate():
+    from pvvjax.selection import _folds, _scores
+
+    C, groups, noise = _data(n_cond=30, per=10, K=12, seed=5)
+    y = 0.02 * C[:, 2] + noise
+    X = C[:, [4, 5]]
+    fid = _folds(groups, 5, 0)
+    ref = [cv_sse(y, np.column_stack([X, C[:, k]]), fid) for k in range(C.shape[1])]
+    np.testing.assert_allclose(_scores(y, X, C, fid), ref, rtol=1e-9)
+    # Duplicate covariates (rank deficiency) change nothing.
+    np.testing.assert_allclose(_scores(y, np.column_stack([X, X[:, :1]]), C, fid), ref, rtol=1e-7)
+
+
+def test_base_covariates_absorb_what_they_explain():
+    C, groups, noise = _data(seed=6)
+    floor = C[:, 0] ** 2  # a misfit of the model's own inputs...
+    y = 0.05 * (floor - floor.mean()) + noise
+    cands = np.column_stack([C[:, 1:], floor + 0.3 * C[:, 1]])  # ...that a candidate partly re-expresses
+    assert forward_select(y, cands, groups, permutations=49, alpha=0.02)  # found without the floor covariates
+    assert forward_select(y, cands, groups, base=floor[:, None], permutations=49, alpha=0.02) == []

@@ -1,0 +1,284 @@
+"""The candidate library of the discovery workflow: every numeric channel and derived
+feature of a campaign, through the operators of data-contract §3, averaged over the same
+windows as the replay.
+
+Two stages keep it cheap and exact:
+
+1. `window_table`: per window, the window means of the sample-level series that need the
+   samples: each channel and derived feature (`x:`), its magnitude (`abs:`), its time
+   derivative (`rate:`), the derivative's magnitude (`abs_rate:`) and its spread inside
+   the window (`spread:`, the `window` operator). Means integrate the linear interpolant of
+   the samples between the window's edges (`interval_means`), as the replay does.
+2. `values`: a `Candidate` (operator, channels, parameters) evaluated from those columns.
+   Operators with a parameter act on window means, where the parameter is cheap to fit:
+   `threshold` (knee), `product`, `resonance` (centre, width). The `lag` operator needs the
+   model's own predictions and lives in `discovery`.
+
+`library` lays the parametric operators on grids (knees at quantiles, resonance centres
+across the rotor-speed range), so that the permutation test of `selection` sees every
+parameter value a fit could have picked; `discovery` refines the chosen one by least squares.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from .campaign import Campaign
+from .features import derive_features
+
+__all__ = [
+    "Candidate",
+    "EXCLUDED_CHANNELS",
+    "describe",
+    "interval_means",
+    "library",
+    "sample_series",
+    "values",
+    "window_table",
+]
+
+# Not flight state: the clock, the vibration itself and the blade azimuth.
+EXCLUDED_CHANNELS = ("time_s", "az_g", "azimuth_deg")
+
+_WORDS = {
+    "airspeed_kt": "airspeed", "rotor_rpm": "rotor speed", "pitch_rate_dps": "pitch rate", "roll_rate_dps": "roll rate",
+    "yaw_rate_dps": "yaw rate", "roll_angle_deg": "roll angle", "pitch_angle_deg": "pitch attitude",
+    "climb_rate_fpm": "climb rate", "collective_pct": "collective", "lateral_pct": "lateral stick",
+    "longitudinal_pct": "longitudinal stick", "pedal_pct": "pedal", "sideslip_deg": "sideslip",
+    "nz_g": "load factor", "altitude_ft": "altitude", "shaft_power_hp": "shaft power",
+    "gross_weight_lb": "gross weight", "density_ratio": "air density", "advance_ratio": "advance ratio",
+    "mlf": "maneuver load factor", "thrust_coefficient": "thrust coefficient", "blade_loading": "blade loading",
+}
+_RATE_WORDS = {"pitch_rate_dps": "pitch acceleration", "roll_rate_dps": "roll acceleration",
+               "yaw_rate_dps": "yaw acceleration", "roll_angle_deg": "roll rate", "pitch_angle_deg": "pitch rate",
+               "airspeed_kt": "acceleration", "altitude_ft": "climb rate"}
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One candidate effect.
+
+    Attributes:
+        operator: one of `effects.OPERATORS`.
+        channels: canonical channels or derived features it is built from.
+        parameters: its parameters (knee, centre, width, time constant, transform).
+    """
+
+    operator: str
+    channels: tuple[str, ...]
+    parameters: dict = field(default_factory=dict, hash=False, compare=False)
+
+    @property
+    def key(self) -> str:
+        """A unique, readable key (operator:channels:parameters)."""
+        par = ",".join(f"{k}={_fmt(v)}" for k, v in sorted(self.parameters.items()))
+        return f"{self.operator}:{'*'.join(self.channels)}" + (f":{par}" if par else "")
+
+    @property
+    def name(self) -> str:
+        return describe(self)
+
+
+def _fmt(v):
+    return f"{v:.4g}" if isinstance(v, float) else str(v)
+
+
+def describe(c: Candidate) -> str:
+    """A plain-words name of a candidate."""
+    w = [_WORDS.get(ch, ch.replace("_", " ")) for ch in c.channels]
+    p = c.parameters
+    if c.operator == "input":
+        return f"{w[0]} magnitude" if p.get("transform") == "abs" else w[0]
+    if c.operator in ("rate", "abs_rate"):
+        words = _RATE_WORDS.get(c.channels[0], f"rate of {w[0]}")
+        return f"{words} magnitude" if c.operator == "abs_rate" else words
+    if c.operator == "threshold":
+        side = "above" if p.get("above", True) else "below"
+        return f"{w[0]} knee ({side} {_fmt(float(p['knee']))})"
+    if c.operator == "product":
+        return f"{w[0]} × {w[1]}"
+    if c.operator == "resonance":
+        return f"{w[0]} resonance (near {_fmt(float(p['center']))})"
+    if c.operator == "window":
+        return f"{w[0]} spread inside the analysis window"
+    if c.operator == "lag":
+        return "input-to-vibration lag"
+    raise ValueError(f"unknown operator {c.operator!r}")
+
+
+def sample_series(record: pd.DataFrame, aircraft, exclude=()) -> dict[str, np.ndarray]:
+    """Every numeric channel of a record (float64) and the derived features."""
+    skip = set(EXCLUDED_CHANNELS) | set(exclude)
+    ch = {c: record[c].to_numpy(np.float64) for c in record.columns
+          if c not in skip and pd.api.types.is_numeric_dtype(record[c])}
+    needed = ("airspeed_kt", "rotor_rpm", "roll_angle_deg", "pitch_rate_dps", "gross_weight_lb", "density_ratio")
+    if all(k in ch for k in needed):
+        # Padded to a bucket length: every record length would otherwise compile its own ops.
+        n = len(record)
+        pad = -(-n // 4096) * 4096 - n
+        padded = {k: np.pad(ch[k], (0, pad), mode="edge") for k in needed}
+        ch.update({k: np.asarray(v, np.float64)[:n] for k, v in derive_features(padded, aircraft).items()})
+    return ch
+
+
+def _rate(x, t):
+    """Central differences on the sample times (one-sided at the ends), as `effects.rate`."""
+    return np.gradient(x, t, edge_order=1) if len(t) > 1 else np.zeros_like(x)
+
+
+def _cumulative(s, t):
+    """Cumulative trapezoid integral of the columns of s (T, M) over t (T,), from t[0]."""
+    inc = 0.5 * (s[1:] + s[:-1]) * np.diff(t)[:, None]
+    return np.concatenate([np.zeros((1, s.shape[1])), np.cumsum(inc, axis=0)])
+
+
+def interval_means(s, t, t0, t1, cum=None):
+    """Means of the linear interpolant of samples s(t) over the intervals [t0, t1].
+
+    Args:
+        s: (T,) or (T, M) samples. t: (T,) increasing times, s. t0, t1: (W,) interval edges
+            (clipped to the record). cum: `_cumulative(s, t)` if already computed.
+
+    Returns:
+        (W,) or (W, M) means.
+    """
+    s, t = np.asarray(s, np.float64), np.asarray(t, np.float64)
+    vec = s.ndim == 1
+    s = s[:, None] if vec else s
+    cum = _cumulative(s, t) if cum is None else cum
+    a, b = np.clip(t0, t[0], t[-1]), np.clip(t1, t[0], t[-1])
+
+    def integral_to(tq):  # ∫ from t[0] to tq of the linear interpolant
+        i = np.clip(np.searchsorted(t, tq, side="right") - 1, 0, len(t) - 2)
+        d = (tq - t[i])[:, None]
+        slope = (s[i + 1] - s[i]) / (t[i + 1] - t[i])[:, None]
+        return cum[i] + s[i] * d + 0.5 * slope * d * d
+
+    out = (integral_to(b) - integral_to(a)) / np.maximum(b - a, 1e-12)[:, None]
+    return out[:, 0] if vec else out
+
+
+def _signed(x) -> bool:
+    """Both signs in a real share of the samples (so that the magnitude is another candidate)."""
+    return bool(np.mean(x > 0) > 0.05 and np.mean(x < 0) > 0.05)
+
+
+def window_table(campaign: Campaign, intervals: pd.DataFrame, exclude=(), channels=None) -> pd.DataFrame:
+    """Window means of every channel-level column (see module docstring).
+
+    Args:
+        campaign: the campaign.
+        intervals: one row per window with `counter`, `t0`, `t1` (s, record time).
+        exclude: channels left out.
+        channels: only these channels and derived features (default: all).
+
+    Returns:
+        DataFrame aligned with `intervals`, columns `x:<ch>`, `abs:<ch>`, `rate:<ch>`,
+        `abs_rate:<ch>`, `spread:<ch>`; `attrs["signed"]` lists the channels that take both
+        signs (whose magnitude is a candidate of its own).
+    """
+    parts, names, signed = [], None, {}
+    for counter, g in intervals.groupby("counter", sort=False):
+        rec = campaign.records[counter]
+        ser = sample_series(rec, campaign.aircraft, exclude)
+        if channels is not None:
+            ser = {k: v for k, v in ser.items() if k in channels}
+        if names is None:
+            names = list(ser)
+        elif list(ser) != names:
+            raise ValueError(f"counter {counter}: channels {list(ser)} differ from the other counters' {names}")
+        t = rec["time_s"].to_numpy(np.float64)
+        cols, centre = [], []
+        for k, x in ser.items():
+            r = _rate(x, t)
+            centre.append(np.mean(x))  # centred before squaring: the spread of a large constant stays 0
+            cols += [x, np.abs(x), r, np.abs(r), (x - centre[-1]) ** 2]
+            signed[k] = signed.get(k, False) or _signed(x)
+        m = interval_means(np.stack(cols, axis=1), t, g.t0.to_numpy(), g.t1.to_numpy()).reshape(len(g), len(names), 5)
+        out = {}
+        for j, k in enumerate(names):
+            out[f"x:{k}"], out[f"abs:{k}"], out[f"rate:{k}"], out[f"abs_rate:{k}"] = (m[:, j, 0], m[:, j, 1],
+                                                                                     m[:, j, 2], m[:, j, 3])
+            out[f"spread:{k}"] = np.sqrt(np.maximum(m[:, j, 4] - (m[:, j, 0] - centre[j]) ** 2, 0.0))
+        parts.append(pd.DataFrame(out, index=g.index))
+    table = pd.concat(parts).loc[intervals.index]
+    table.attrs["signed"] = sorted(k for k, v in signed.items() if v)
+    return table
+
+
+def _hinge(u, softness):
+    return softness * np.logaddexp(0.0, u / softness)
+
+
+def values(c: Candidate, table: pd.DataFrame) -> np.ndarray:
+    """A candidate's value per window, from a `window_table`."""
+    p = c.parameters
+    x = lambda k: table[f"x:{k}"].to_numpy()  # noqa: E731
+    if c.operator == "input":
+        return table[("abs:" if p.get("transform") == "abs" else "x:") + c.channels[0]].to_numpy()
+    if c.operator == "rate":
+        return table[f"rate:{c.channels[0]}"].to_numpy()
+    if c.operator == "abs_rate":
+        return table[f"abs_rate:{c.channels[0]}"].to_numpy()
+    if c.operator == "window":
+        return table[f"spread:{c.channels[0]}"].to_numpy()
+    if c.operator == "threshold":
+        u = x(c.channels[0]) - p["knee"]
+        return _hinge(u if p.get("above", True) else -u, p["softness"])
+    if c.operator == "product":
+        return x(c.channels[0]) * x(c.channels[1])
+    if c.operator == "resonance":
+        return np.exp(-0.5 * ((x(c.channels[0]) - p["center"]) / p["width"]) ** 2)
+    raise ValueError(f"operator {c.operator!r} is not evaluated from window means")
+
+
+def library(table: pd.DataFrame, *, model_inputs=(), knee_quantiles=(0.05, 0.1, 0.25, 0.5, 0.75, 0.9, 0.95),
+            resonance_channels=("rotor_rpm",), resonance_centers: int = 9,
+            product_channels=("advance_ratio", "blade_loading", "climb_rate_fpm", "mlf", "rotor_rpm",
+                              "collective_pct")) -> list[Candidate]:
+    """Every candidate of a window table.
+
+    `input` candidates are the channels the model does not already take (and the magnitude
+    of every signed channel); the other operators apply to every channel. Knees sit at the
+    `knee_quantiles` of the channel's window means (above and below); resonance centres
+    span the 5–95 % range of the channel with a width of one grid step.
+
+    Args:
+        table: `window_table` of the windows the candidates are fitted on.
+        model_inputs: the model's inputs.
+
+    Returns:
+        list of `Candidate`.
+    """
+    chans = [c[2:] for c in table.columns if c.startswith("x:")]
+    signed = set(table.attrs.get("signed", ()))
+    varying = [k for k in chans if np.ptp(table[f"x:{k}"].to_numpy()) > 0]
+    out: list[Candidate] = []
+    for k in varying:
+        if k not in model_inputs:
+            out.append(Candidate("input", (k,)))
+        if k in signed:
+            out.append(Candidate("input", (k,), {"transform": "abs"}))
+        out += [Candidate("rate", (k,)), Candidate("abs_rate", (k,)), Candidate("window", (k,))]
+        xv = table[f"x:{k}"].to_numpy()
+        soft = 0.02 * float(np.subtract(*np.percentile(xv, [95, 5]))) or 1e-6
+        for q in knee_quantiles:
+            knee = float(np.quantile(xv, q))
+            if q >= 0.5:
+                out.append(Candidate("threshold", (k,), {"knee": knee, "above": True, "softness": soft}))
+            if q <= 0.5:
+                out.append(Candidate("threshold", (k,), {"knee": knee, "above": False, "softness": soft}))
+    for k in resonance_channels:
+        if k in varying:
+            lo, hi = np.percentile(table[f"x:{k}"], [5, 95])
+            centers = np.linspace(lo, hi, resonance_centers)
+            width = float(centers[1] - centers[0]) if resonance_centers > 1 else float(hi - lo) or 1.0
+            out += [Candidate("resonance", (k,), {"center": float(c), "width": width}) for c in centers]
+    prods = [k for k in product_channels if k in varying]
+    for i, a in enumerate(prods):
+        for b in prods[i + 1:]:
+            out.append(Candidate("product", (a, b)))
+    return out

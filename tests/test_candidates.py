@@ -1,0 +1,89 @@
+"""Candidate library: window means against dense numerical integration, the spread against
+NumPy's standard deviation, operators against their formulas, the library's contents."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from pvvjax.candidates import Candidate, describe, interval_means, library, values, window_table
+
+
+def test_interval_means_integrate_the_linear_interpolant():
+    rng = np.random.default_rng(0)
+    t = np.cumsum(rng.uniform(0.5, 1.5, 200)) * 0.01
+    s = np.sin(7 * t) + rng.normal(0, 0.1, t.size)
+    t0 = rng.uniform(t[0], t[-1] - 0.3, 25)
+    t1 = t0 + rng.uniform(0.01, 0.3, 25)
+    dense = []
+    for a, b in zip(t0, t1):
+        tt = np.linspace(a, b, 20001)
+        dense.append(np.trapezoid(np.interp(tt, t, s), tt) / (b - a))
+    np.testing.assert_allclose(interval_means(s, t, t0, t1), dense, atol=1e-7)
+    two = interval_means(np.stack([s, 2 * s], 1), t, t0, t1)
+    np.testing.assert_allclose(two[:, 1], 2 * two[:, 0], rtol=1e-12)
+
+
+def _campaign(tiny):
+    from pvvjax.campaign import campaign_from_frames
+
+    counters, recs = tiny
+    for r in recs.values():  # channels that vary, and one that takes both signs
+        r["pitch_rate_dps"] = 3.0 * np.sin(0.9 * r.time_s)
+        r["airspeed_kt"] = r.airspeed_kt + 5.0 * r.time_s
+    return campaign_from_frames(counters, recs)
+
+
+def test_window_table_columns_match_numpy(tiny):
+    c = _campaign(tiny)
+    name = c.names[0]
+    rec = c.records[name]
+    t = rec.time_s.to_numpy()
+    iv = pd.DataFrame({"counter": name, "t0": [t[10], t[200]], "t1": [t[10] + 1.0, t[200] + 0.5]})
+    tab = window_table(c, iv)
+    x = rec.pitch_rate_dps.to_numpy(float)
+    # Sample-exact intervals: the interpolant's mean is the trapezoid mean.
+    for j, (a, b) in enumerate(zip(iv.t0, iv.t1)):
+        sel = (t >= a - 1e-12) & (t <= b + 1e-12)
+        if abs(t[sel][-1] - b) > 1e-9:
+            continue
+        assert tab["x:pitch_rate_dps"].iloc[j] == pytest.approx(np.trapezoid(x[sel], t[sel]) / (b - a), abs=1e-9)
+    assert {"x:advance_ratio", "x:blade_loading", "rate:roll_angle_deg", "spread:rotor_rpm"} <= set(tab.columns)
+    assert "x:az_g" not in tab.columns and "x:time_s" not in tab.columns
+    # The spread of a window is the standard deviation of the interpolant: for a constant, 0.
+    assert np.all(tab["spread:gross_weight_lb"] == 0.0)
+
+
+def test_spread_of_a_ramp():
+    t = np.linspace(0, 1, 1001)
+    x = 3.0 * t
+    m = interval_means(np.stack([x, x * x], 1), t, np.array([0.0]), np.array([1.0]))[0]
+    assert np.sqrt(m[1] - m[0] ** 2) == pytest.approx(3.0 / np.sqrt(12.0), rel=1e-5)
+
+
+def test_operators_and_names():
+    tab = pd.DataFrame({"x:collective_pct": [50.0, 60.0, 70.0], "abs:roll_rate_dps": [1.0, 2.0, 3.0],
+                        "x:rotor_rpm": [250.0, 258.0, 270.0], "x:advance_ratio": [0.1, 0.2, 0.3]})
+    th = Candidate("threshold", ("collective_pct",), {"knee": 62.0, "above": True, "softness": 1e-6})
+    np.testing.assert_allclose(values(th, tab), [0.0, 0.0, 8.0], atol=1e-5)
+    res = Candidate("resonance", ("rotor_rpm",), {"center": 258.0, "width": 4.0})
+    np.testing.assert_allclose(values(res, tab), np.exp(-0.5 * ((tab["x:rotor_rpm"] - 258.0) / 4.0) ** 2))
+    pr = Candidate("product", ("collective_pct", "advance_ratio"))
+    np.testing.assert_allclose(values(pr, tab), [5.0, 12.0, 21.0])
+    mag = Candidate("input", ("roll_rate_dps",), {"transform": "abs"})
+    assert describe(mag) == "roll rate magnitude"
+    assert describe(Candidate("abs_rate", ("pitch_rate_dps",))) == "pitch acceleration magnitude"
+    assert describe(th) == "collective knee (above 62)"
+    assert th.key == "threshold:collective_pct:above=True,knee=62,softness=1e-06"
+
+
+def test_library_leaves_out_the_model_inputs_as_plain_inputs(tiny):
+    c = _campaign(tiny)
+    iv = pd.DataFrame({"counter": [n for n in c.names for _ in range(5)],
+                       "t0": np.tile(np.linspace(0.5, 5, 5), len(c.names))}).assign(t1=lambda d: d.t0 + 2.0)
+    tab = window_table(c, iv)
+    lib = library(tab, model_inputs=("advance_ratio", "rotor_rpm"))
+    keys = {x.key for x in lib}
+    assert "input:advance_ratio" not in keys and "input:airspeed_kt" in keys
+    assert "input:pitch_rate_dps:transform=abs" in keys  # a signed channel's magnitude
+    assert {x.operator for x in lib} >= {"input", "rate", "abs_rate", "window", "threshold"}
+    assert all(x.operator != "resonance" or x.channels == ("rotor_rpm",) for x in lib)
