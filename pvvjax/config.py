@@ -29,6 +29,7 @@ __all__ = [
     "CampaignConfig",
     "ColumnMap",
     "ConfigError",
+    "DiscoveryConfig",
     "ExperimentConfig",
     "ReplayConfig",
     "SweepConfig",
@@ -313,6 +314,84 @@ class CalibrationConfig:
 
 
 @dataclass(frozen=True)
+class DiscoveryConfig:
+    """The discovery workflow (see `pvvjax.discovery`).
+
+    Attributes:
+        database: the model's database (db1, db2 or db3).
+        hidden: hidden-layer widths of its nets.
+        seeds: training seeds of the ensemble; metrics are medians over seeds.
+        folds: k of the k-fold split by condition (every counter is replayed by the nets that
+            held its condition out).
+        split_seed: seed of the assignment of conditions to folds.
+        hop_revs: spacing of the replay windows, revolutions.
+        calibrate_offset: fit the input-to-vibration offset on the held-out windows (else
+            use `offset_s`).
+        offset_s: the offset when it is not calibrated, s.
+        offset_bounds: [lo, hi] of the offset grid, s; offset_step_s: its step.
+        max_effects: effects added at most (0: the baseline and its residual map only).
+        proposals: significant candidates tried (in rank order) per round.
+        alpha: significance level of the permutation test; permutations: its permutations.
+        min_gain: smallest relative drop of the held-out (by condition) residual error a
+            candidate must bring to be proposed.
+        min_shrink: smallest median (over seeds) relative drop of the held-out RMS, where the
+            effect was found, that confirms it after retraining.
+        augment: how a candidate joins the model: "additive" (a term b·candidate fitted on the
+            windows, cross-fitted by fold, the nets retrained on the peaks minus it) or
+            "input" (an extra network input). A lag is always a learned lag of the replay.
+        selection_stride: every n-th window of a counter enters the selection.
+        lag_taus: time constants of the lag candidates, s (the chosen one is refined).
+        knee_quantiles: quantiles of a channel where threshold candidates put their knee.
+        exclude_channels: channels never used as candidates.
+    """
+
+    database: str = "db1"
+    hidden: tuple[int, ...] = (10, 5)
+    seeds: int = 4
+    folds: int = 5
+    split_seed: int = 0
+    hop_revs: float = 1.0
+    calibrate_offset: bool = True
+    offset_s: float = 0.0
+    offset_bounds: tuple[float, float] = (0.0, 3.0)
+    offset_step_s: float = 0.1
+    max_effects: int = 3
+    proposals: int = 3
+    alpha: float = 0.01
+    permutations: int = 99
+    min_gain: float = 0.02
+    min_shrink: float = 0.05
+    augment: Literal["additive", "input"] = "additive"
+    selection_stride: int = 4
+    lag_taus: tuple[float, ...] = (0.25, 0.5, 1.0, 1.5, 2.0, 3.0)
+    knee_quantiles: tuple[float, ...] = (0.05, 0.1, 0.25, 0.5, 0.75, 0.9, 0.95)
+    exclude_channels: tuple[str, ...] = ()
+
+    def __post_init__(self):
+        _check_databases("discovery", (self.database,))
+        _bounds("discovery.offset_bounds", self.offset_bounds)
+        if not self.hidden or min(self.hidden) < 1:
+            raise ValueError(f"discovery.hidden needs widths >= 1, got {list(self.hidden)}")
+        if self.max_effects < 0:
+            raise ValueError(f"discovery.max_effects must be >= 0 (0: baseline and residual map only), "
+                             f"got {self.max_effects}")
+        for name in ("seeds", "proposals", "selection_stride", "permutations"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"discovery.{name} must be >= 1, got {getattr(self, name)}")
+        if self.folds < 3:
+            raise ValueError(f"discovery.folds must be >= 3, got {self.folds}")
+        for name in ("hop_revs", "offset_step_s", "alpha"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"discovery.{name} must be > 0, got {getattr(self, name)}")
+        if not 0 <= self.min_gain < 1 or not 0 <= self.min_shrink < 1:
+            raise ValueError("discovery.min_gain and discovery.min_shrink must lie in [0, 1)")
+        if not self.lag_taus or min(self.lag_taus) <= 0:
+            raise ValueError(f"discovery.lag_taus must be > 0, got {list(self.lag_taus)}")
+        if any(not 0 < q < 1 for q in self.knee_quantiles):
+            raise ValueError(f"discovery.knee_quantiles must lie in (0, 1), got {list(self.knee_quantiles)}")
+
+
+@dataclass(frozen=True)
 class ExperimentConfig:
     """One experiment: a campaign and the pipeline settings applied to it."""
 
@@ -325,6 +404,7 @@ class ExperimentConfig:
     sweep: SweepConfig = field(default_factory=SweepConfig)
     replay: ReplayConfig = field(default_factory=ReplayConfig)
     calibration: CalibrationConfig = field(default_factory=CalibrationConfig)
+    discovery: DiscoveryConfig = field(default_factory=DiscoveryConfig)
 
     def with_(self, **changes) -> "ExperimentConfig":
         return dataclasses.replace(self, **changes)

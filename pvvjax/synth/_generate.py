@@ -46,6 +46,7 @@ class SynthConfig:
         scatter: condition-to-condition scatter of the 4P level (relative std).
         format: time-series file format.
         conditions: generate only these condition ids (empty: all).
+        maneuvers: generate only conditions of these maneuver kinds (empty: all).
         counts: random conditions per maneuver kind, beyond the named ones and the sweep.
         effects: per-effect overrides by name (see `pvvjax.synth.EFFECTS`).
     """
@@ -58,6 +59,7 @@ class SynthConfig:
     scatter: float = 0.04
     format: Literal["parquet", "csv"] = "parquet"
     conditions: tuple[str, ...] = ()
+    maneuvers: tuple[str, ...] = ()
     counts: dict[str, int] = field(default_factory=dict)
     effects: dict[str, EffectConfig] = field(default_factory=dict)
 
@@ -69,6 +71,9 @@ class SynthConfig:
             if unknown:
                 raise ValueError(f"effects.{name}.params: unknown {sorted(unknown)}; "
                                  f"known: {', '.join(EFFECTS[name].params)}")
+        bad = sorted(set(self.maneuvers) - set(DEFAULT_COUNTS))
+        if bad:
+            raise ValueError(f"maneuvers: unknown {bad}; known: {', '.join(DEFAULT_COUNTS)}")
         for kind, n in self.counts.items():
             if kind not in DEFAULT_COUNTS:
                 raise ValueError(f"counts.{kind}: unknown maneuver; known: {', '.join(DEFAULT_COUNTS)}")
@@ -141,6 +146,8 @@ def generate(cfg: SynthConfig = SynthConfig()) -> tuple[pd.DataFrame, dict[str, 
         if missing:
             raise ValueError(f"conditions: unknown condition ids {missing}")
         conds = [c for c in conds if c.id in set(cfg.conditions)]
+    if cfg.maneuvers:
+        conds = [c for c in conds if c.maneuver in set(cfg.maneuvers)]
     t, states = _simulate(conds, cfg)
     dt = float(t[1] - t[0])
     settings = cfg.effect_settings()

@@ -11,7 +11,7 @@ vibratory response follows a change of flight state with a delay.
 Each effect has an on/off switch, a scale and named parameters, all set from the
 generator config. Symbols: μ advance ratio, L = C_W/σ·n_z blade loading, ḣ climb rate
 (ft/min), q pitch rate (deg/s), q̇ pitch acceleration (deg/s²), p roll rate (deg/s),
-β sideslip (deg), f₄ = 4Ω/2π (Hz), s(x) = w·softplus(x/w) a smooth ramp.
+β sideslip (deg), θ₀ collective (%), f₄ = 4Ω/2π (Hz), s(x) = w·softplus(x/w) a smooth ramp.
 """
 
 from __future__ import annotations
@@ -82,6 +82,10 @@ def _sideslip(s, a):
     return a * np.abs(s["beta"])
 
 
+def _collective_stall(s, a, knee):
+    return a * _ramp(s["collective"] - knee, 1.0)
+
+
 def _rotor_resonance(s, gain, f_mode, bandwidth, f_ref):
     h = lambda f: 1.0 + gain / (1.0 + ((f - f_mode) / bandwidth) ** 2)  # noqa: E731
     return h(s["f4"]) / h(f_ref)
@@ -121,6 +125,9 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in [
     Effect("sideslip", "additive", "a·|β|",
            "tail-rotor and fuselage interference with the main-rotor wake in sideslip (pedal)",
            dict(a=0.005), ("sideslip_deg", "pedal_pct"), default_on=False, fn=_sideslip),
+    Effect("collective_stall", "additive", "a·s(θ₀ − knee)",
+           "retreating-blade stall at high collective pitch θ₀ (%), beyond a knee the steady data rarely reach",
+           dict(a=0.006, knee=62.0), ("collective_pct",), default_on=False, fn=_collective_stall),
     Effect("rotor_resonance", "gain", "H(f4)/H(f_ref), H(f) = 1 + gain/(1 + ((f − f_mode)/bandwidth)²)",
            "airframe response at 4Ω near a fuselage mode (H-60 pilot-station peak at 17–17.5 Hz)",
            dict(gain=0.5, f_mode=17.4, bandwidth=0.6, f_ref=17.19), ("rotor_rpm",), fn=_rotor_resonance),
@@ -141,7 +148,8 @@ def vibration_state(states: dict, aircraft) -> dict:
     return dict(
         mu=mu, loading=cw / aircraft.solidity * states["nz_g"], climb_fpm=states["climb_rate_fpm"],
         q=states["pitch_rate_dps"], p=states["roll_rate_dps"], qdot=states["pitch_accel_dps2"],
-        beta=states["sideslip_deg"], f4=aircraft.blades * states["rotor_rpm"] / 60.0,
+        beta=states["sideslip_deg"], collective=states["collective_pct"],
+        f4=aircraft.blades * states["rotor_rpm"] / 60.0,
     )
 
 

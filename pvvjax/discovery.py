@@ -1,0 +1,763 @@
+"""Discovery: find where simulation and measurement disagree, name the missing effect, add
+it to the model and show the gap shrink (data-contract §3).
+
+1. **Baseline.** Nets of one database, trained k-fold by condition over several seeds
+   (`fit_ensemble`). Every counter is replayed by the nets that held its condition out; the
+   input-to-vibration offset is fitted on the held-out windows.
+2. **Localize.** Window residuals (measured − predicted, median over seeds) by maneuver
+   kind, flight regime and position inside the maneuvers (`residuals.localize`).
+3. **Explain.** The candidate library (`candidates`) and lags of the model's own
+   prediction, ranked by forward selection with cross-validation by condition and a
+   selection-aware block permutation test (`selection.forward_select`). A chosen knee,
+   resonance or time constant is then refined by least squares (optimistix LM).
+4. **Add and confirm.** A candidate becomes an extra network input (each condition's
+   database row gets the candidate at its peak window, and the nets are retrained with the
+   same folds and seeds); a lag becomes a learned first-order lag of the replayed
+   prediction (offset and τ refitted). The effect is kept only if the held-out RMS, median
+   over seeds, drops by `min_shrink`: a candidate that only re-expresses the static map's
+   error floor, or retraining noise, gains nothing once the nets are retrained with it.
+   Then the next round, until nothing significant confirms.
+
+The workflow reads the campaign only (never a generator's ground truth).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, replace
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optimistix as optx
+import pandas as pd
+
+from . import train as _train
+from .batch import to_batch
+from .campaign import Campaign
+from .candidates import Candidate, library, values, window_table
+from .config import ExperimentConfig
+from .databases import DB_INPUTS, OUTPUT, STATE_CHANNELS, build_databases
+from .effects import lag as _lag
+from .networks import mlp_apply, mlp_init, scaling
+from .replay import FEATURES, make_settings, prepare
+from .replay_tables import _replay_all
+from .residuals import localize
+from .selection import forward_select
+from .sweep import train_nets
+
+__all__ = [
+    "Discovery",
+    "Model",
+    "discover",
+    "fit_ensemble",
+    "floor_features",
+    "knn_floor",
+    "metrics",
+    "summary",
+]
+
+TRANSIENT = ("pullup", "pushover", "roll", "autorotation", "flare")
+# The canonical inputs each derived feature is computed from (`features`): a derived feature
+# belongs to a model's own inputs when they include all of these.
+_DERIVED_FROM = {
+    "advance_ratio": ("advance_ratio",), "mlf": ("mlf",),
+    "thrust_coefficient": ("gross_weight_lb", "density_ratio", "rotor_rpm"),
+    "blade_loading": ("gross_weight_lb", "density_ratio", "rotor_rpm", "mlf"),
+}
+
+
+def floor_features(inputs) -> tuple[str, ...]:
+    """The model's inputs and the derived features computed from them alone: a static map
+    on these can express anything built from them, so a misfit in them is the map's error
+    floor (too few peaks to learn it), not a missing effect."""
+    return tuple(inputs) + tuple(k for k, src in _DERIVED_FROM.items() if k not in inputs and set(src) <= set(inputs))
+
+
+# --------------------------------------------------------------------------- networks
+
+
+def fit_ensemble(x, y, folds, *, k: int, seeds: int, hidden, train_cfg, seed: int = 0) -> dict:
+    """Nets trained k-fold by condition over seeds (validation: the next fold).
+
+    Args:
+        x: (n, d) inputs. y: (n,) peak PVV, or (k, n) a target per fold. folds: (n,) fold of
+            each row (by condition).
+        k, seeds: folds and seeds. hidden: hidden widths. train_cfg: `TrainConfig`.
+
+    Returns:
+        Parameters stacked (k, seeds, ...): entry (f, s) never saw fold f.
+    """
+    x, y = np.asarray(x, np.float32), np.asarray(y, np.float32)
+    y = np.broadcast_to(y, (k, x.shape[0]))
+    splits = [_train.split_masks(folds, f, k) for f in range(k)]
+    n_tr = max(int(w.sum()) for w, _, _ in splits)
+    n_va = max(int(v.sum()) for _, v, _ in splits)
+    data = [_train.make_data(x, y[f], w, v, n_tr, n_va) for f, (w, v, _) in enumerate(splits)]
+    params = []
+    for f, (w, _, _) in enumerate(splits):
+        sc = scaling(x[w > 0], y[f][w > 0])
+        params += [mlp_init(jax.random.key(seed + s), x.shape[1], tuple(hidden), scale=sc) for s in range(seeds)]
+    stack = lambda trees: jax.tree.map(lambda *a: np.stack([np.asarray(v) for v in a]), *trees)  # noqa: E731
+    fits = train_nets(stack(params), stack(data), np.repeat(np.arange(k), seeds), train_cfg)
+    if np.any(np.asarray(fits.failed_step) >= 0):
+        raise _train.TrainingError("discovery: a net diverged; lower train.learning_rate")
+    return jax.tree.map(lambda a: np.asarray(a).reshape((k, seeds) + a.shape[1:]), fits.params)
+
+
+_apply_seeds = jax.jit(jax.vmap(mlp_apply, in_axes=(0, None)))
+
+
+def _predict(params, fold, x) -> np.ndarray:
+    """(S, n) predictions of each seed's net that held out each row's fold."""
+    S = jax.tree.leaves(params)[0].shape[1]
+    out = np.zeros((S, len(fold)), np.float64)
+    for f in np.unique(fold):
+        rows = fold == f
+        out[:, rows] = np.asarray(_apply_seeds(jax.tree.map(lambda a: a[f], params), jnp.asarray(x[rows], jnp.float32)))
+    return out
+
+
+# --------------------------------------------------------------------------- model and replay
+
+
+class Model(NamedTuple):
+    """A model under discovery: nets, extra inputs, additive effect terms, offset and an
+    optional learned lag.
+
+    Attributes:
+        params: nets (k, seeds, ...). inputs: database inputs. extra: candidates added as
+        network inputs. terms: (candidate, (k, 2) intercept and coefficient per fold)
+        added to the nets' output (the nets are trained on the peaks minus the terms).
+        offset_s: input-to-vibration offset, s. lag_tau_s: first-order lag of the replayed
+        prediction, s (0: none).
+    """
+
+    params: dict
+    inputs: tuple[str, ...]
+    extra: tuple[Candidate, ...] = ()
+    offset_s: float = 0.0
+    lag_tau_s: float = 0.0
+    terms: tuple = ()
+
+
+@dataclass
+class _Ctx:
+    campaign: Campaign
+    cfg: ExperimentConfig
+    db: pd.DataFrame
+    x_db: np.ndarray
+    folds: np.ndarray
+    info: pd.DataFrame
+    counter_fold: np.ndarray
+    batch: object
+    recs: object
+    settings: object
+    train_table: pd.DataFrame
+    replay_params: dict
+    cache: dict = field(default_factory=dict)
+
+
+@dataclass
+class _Windows:
+    """Replayed windows at one offset (weight > 0), flattened, and their (N, W) layout."""
+
+    table: pd.DataFrame  # counter, condition, maneuver, window, time_s, t0, t1, measured_g, weight, FEATURES, i, k
+    shape: tuple[int, int]
+    exclude: tuple
+    campaign: Campaign
+    _cands: pd.DataFrame | None = None
+
+    @property
+    def cands(self) -> pd.DataFrame:
+        """`candidates.window_table` of the same rows (computed on first use)."""
+        if self._cands is None:
+            self._cands = window_table(self.campaign, self.table[["counter", "t0", "t1"]], self.exclude)
+        return self._cands
+
+    def columns(self, extra) -> pd.DataFrame:
+        """The window means the candidates `extra` need (all of them if already computed)."""
+        if self._cands is not None:
+            return self._cands
+        chans = {ch for c in extra for ch in c.channels}
+        return window_table(self.campaign, self.table[["counter", "t0", "t1"]], self.exclude, channels=chans)
+
+
+def _replay(ctx: _Ctx, offset: float) -> _Windows:
+    key = round(float(offset), 6)
+    if key in ctx.cache:
+        return ctx.cache[key]
+    d = ctx.cfg.discovery
+    N = len(ctx.info)
+    L = ctx.cfg.analysis.window_revs
+    theta = jnp.asarray(np.tile([offset, L, 0.0], (N, 1)), jnp.float32)
+    model = dict(params=jax.tree.map(lambda a: jnp.asarray(a[ctx.counter_fold]), ctx.replay_params),
+                 idx=jnp.asarray(np.tile([FEATURES.index(f) for f in DB_INPUTS[d.database]], (N, 1)), jnp.int32))
+    rep = jax.device_get(_replay_all(model, ctx.recs, theta, ctx.settings))
+    W = rep.time.shape[1]
+    # Input windows in record time: measured window edges (revolutions) -> time -> − offset.
+    a = np.asarray(ctx.recs.rev_start)[:, None] + d.hop_revs * np.arange(W)[None, :]
+    t0 = np.zeros((N, W))
+    t1 = np.zeros((N, W))
+    for i in range(N):
+        m = np.asarray(ctx.batch.mask[i])
+        rev, t = np.asarray(ctx.batch.rev[i])[m], np.asarray(ctx.batch.time[i])[m]
+        t0[i], t1[i] = np.interp(a[i], rev, t) - offset, np.interp(a[i] + L, rev, t) - offset
+    ii, kk = np.nonzero(np.asarray(rep.weight) > 0)
+    tab = pd.DataFrame({
+        "counter": ctx.info.index.to_numpy()[ii], "condition": ctx.info.condition.to_numpy()[ii],
+        "maneuver": ctx.info.maneuver.to_numpy()[ii], "window": kk, "time_s": rep.time[ii, kk],
+        "t0": t0[ii, kk], "t1": t1[ii, kk], "measured_g": rep.measured[ii, kk], "weight": rep.weight[ii, kk],
+        **{f: rep.features[ii, kk, j] for j, f in enumerate(FEATURES)}, "i": ii, "k": kk,
+    })
+    out = _Windows(tab, (N, W), d.exclude_channels, ctx.campaign)
+    ctx.cache[key] = out
+    return out
+
+
+def _fill_leading(y, valid):
+    """Windows before a counter's first valid one take its value (a lag starts at rest)."""
+    first = np.argmax(valid, axis=-1)
+    idx = np.maximum(np.arange(y.shape[-1])[None, :], first[:, None])
+    return np.take_along_axis(y, np.broadcast_to(idx, y.shape), axis=-1)
+
+
+def _lag_windows(pred, win: _Windows, tau: float) -> np.ndarray:
+    """A first-order lag of (S, n) window predictions along each counter's window times."""
+    if tau <= 0:
+        return pred
+    N, W = win.shape
+    i, k = win.table.i.to_numpy(), win.table.k.to_numpy()
+    valid = np.zeros((N, W), bool)
+    valid[i, k] = True
+    tgrid = np.zeros((N, W))
+    tgrid[i, k] = win.table.time_s
+    tgrid = _fill_leading(tgrid, valid)
+    tgrid = np.maximum.accumulate(tgrid + 1e-9 * np.arange(W), axis=1)  # padding: increasing times
+    out = np.empty_like(pred)
+    for s in range(pred.shape[0]):
+        y = np.zeros((N, W))
+        y[i, k] = pred[s]
+        y = _fill_leading(y, valid)
+        out[s] = np.asarray(_lag_grid(jnp.asarray(y), jnp.asarray(tgrid), tau))[i, k]
+    return out
+
+
+_lag_grid = jax.jit(jax.vmap(_lag, in_axes=(0, 0, None)))
+
+
+def _inputs(ctx: _Ctx, model: Model, win: _Windows) -> np.ndarray:
+    x = win.table[list(model.inputs)].to_numpy(np.float64)
+    if model.extra:
+        tab = win.columns(model.extra)
+        x = np.column_stack([x] + [values(c, tab) for c in model.extra])
+    return x
+
+
+def _terms(model: Model, table: pd.DataFrame, fold) -> np.ndarray:
+    """The additive effect terms of a model on rows of a window table, (n,)."""
+    out = np.zeros(len(fold))
+    for c, coef in model.terms:
+        out += coef[fold, 0] + coef[fold, 1] * values(c, table)
+    return out
+
+
+def predictions(ctx: _Ctx, model: Model, win: _Windows) -> np.ndarray:
+    """(S, n) held-out predictions of every window (weight > 0), per seed."""
+    fold = ctx.counter_fold[win.table.i.to_numpy()]
+    pred = _predict(model.params, fold, _inputs(ctx, model, win))
+    if model.terms:
+        pred = pred + _terms(model, win.columns(tuple(c for c, _ in model.terms)), fold)[None]
+    return _lag_windows(pred, win, model.lag_tau_s)
+
+
+def metrics(pred, win: _Windows, full=None) -> dict:
+    """Held-out metrics of (S, n) predictions on the fully weighted windows, median over seeds.
+
+    rms_g: RMS of measured − predicted over the windows. peak_error_g: mean over counters of
+    |predicted − measured peak|. phase_error_s: mean over transient-maneuver counters of
+    |predicted − measured peak time|.
+    """
+    t = win.table
+    full = (t.weight.to_numpy() >= 0.999) if full is None else full
+    meas, time_s, ctr = t.measured_g.to_numpy()[full], t.time_s.to_numpy()[full], t.counter.to_numpy()[full]
+    trans = t.maneuver.isin(TRANSIENT).to_numpy()[full]
+    codes, first = np.unique(ctr, return_index=True)
+    order = np.argsort(pd.Categorical(ctr, categories=codes).codes, kind="stable")
+    bounds = np.searchsorted(pd.Categorical(ctr, categories=codes).codes[order], np.arange(len(codes)))
+    per = []
+    for p in np.atleast_2d(pred)[:, full]:
+        rms = float(np.sqrt(np.mean((p - meas) ** 2)))
+        po, mo, to = p[order], meas[order], time_s[order]
+        pk_p, pk_m = np.maximum.reduceat(po, bounds), np.maximum.reduceat(mo, bounds)
+        arg_p = np.array([b + np.argmax(po[b:e]) for b, e in zip(bounds, list(bounds[1:]) + [len(po)])])
+        arg_m = np.array([b + np.argmax(mo[b:e]) for b, e in zip(bounds, list(bounds[1:]) + [len(mo)])])
+        tr = trans[order][bounds]
+        phase = np.abs(to[arg_p] - to[arg_m])[tr]
+        per.append((rms, float(np.mean(np.abs(pk_p - pk_m))), float(np.mean(phase)) if phase.size else 0.0))
+    per = np.array(per)
+    med = np.median(per, axis=0)
+    return dict(rms_g=float(med[0]), peak_error_g=float(med[1]), phase_error_s=float(med[2]), rms_by_seed=per[:, 0])
+
+
+# --------------------------------------------------------------------------- fits
+
+
+def _fit_tau(yhat, meas, win: _Windows, full, taus) -> tuple[float, float]:
+    """Time constant of a lag of the (ensemble) prediction that best fits the measured PVV:
+    the best of `taus`, refined by Levenberg–Marquardt in log τ. Returns (τ, SSE)."""
+    sse = [float(np.sum((_lag_windows(yhat[None], win, t)[0][full] - meas[full]) ** 2)) for t in taus]
+    t_best = float(taus[int(np.argmin(sse))])
+    N, W = win.shape
+    i, k = win.table.i.to_numpy(), win.table.k.to_numpy()
+    valid = np.zeros((N, W), bool)
+    valid[i, k] = True
+    tg = np.zeros((N, W))
+    tg[i, k] = win.table.time_s
+    tg = np.maximum.accumulate(_fill_leading(tg, valid) + 1e-9 * np.arange(W), axis=1)
+    y = np.zeros((N, W))
+    y[i, k] = yhat
+    y = jnp.asarray(_fill_leading(y, valid))
+    sel = (jnp.asarray(i[full]), jnp.asarray(k[full]))
+    target = jnp.asarray(meas[full])
+
+    def resid(log_tau, _):
+        return _lag_grid(y, jnp.asarray(tg), jnp.exp(log_tau))[sel] - target
+
+    sol = optx.least_squares(resid, optx.LevenbergMarquardt(rtol=1e-6, atol=1e-9), jnp.log(t_best), max_steps=64,
+                             throw=False)
+    tau = float(jnp.exp(sol.value))
+    fit = float(jnp.sum(resid(sol.value, None) ** 2))
+    return (tau, fit) if np.isfinite(fit) and fit <= min(sse) else (t_best, min(sse))
+
+
+def _fit_offset(ctx: _Ctx, model: Model, with_lag: bool) -> Model:
+    """The offset (grid over `offset_bounds`) and, with `with_lag`, the lag time constant
+    that minimise the held-out window SSE of the ensemble median."""
+    d = ctx.cfg.discovery
+    if not d.calibrate_offset:
+        offsets = np.array([d.offset_s])
+    else:
+        offsets = np.arange(d.offset_bounds[0], d.offset_bounds[1] + 1e-9, d.offset_step_s)
+    best = (np.inf, 0.0, 0.0)
+    for off in offsets:
+        win = _replay(ctx, float(off))
+        full = win.table.weight.to_numpy() >= 0.999
+        meas = win.table.measured_g.to_numpy()
+        yhat = np.median(predictions(ctx, model._replace(lag_tau_s=0.0), win), axis=0)
+        if with_lag:
+            tau, sse = _fit_tau(yhat, meas, win, full, d.lag_taus)
+        else:
+            tau, sse = 0.0, float(np.sum((yhat[full] - meas[full]) ** 2))
+        if sse < best[0]:
+            best = (sse, float(off), tau)
+    return model._replace(offset_s=best[1], lag_tau_s=best[2])
+
+
+def _refine(c: Candidate, residual, cands: pd.DataFrame) -> Candidate:
+    """Refine a knee, or a resonance's centre and width, by variable-projection least
+    squares: residual ≈ b0 + b·candidate(θ), (b0, b) solved inside, θ by LM."""
+    if c.operator not in ("threshold", "resonance"):
+        return c
+    x = jnp.asarray(cands[f"x:{c.channels[0]}"].to_numpy())
+    r = jnp.asarray(residual)
+    p = c.parameters
+
+    def column(theta):
+        if c.operator == "threshold":
+            u = (x - theta[0]) if p["above"] else (theta[0] - x)
+            return p["softness"] * jax.nn.softplus(u / p["softness"])
+        return jnp.exp(-0.5 * ((x - theta[0]) / jnp.exp(theta[1])) ** 2)
+
+    def resid(theta, _):
+        A = jnp.stack([jnp.ones_like(x), column(theta)], axis=1)
+        coef = jnp.linalg.lstsq(A, r)[0]
+        return r - A @ coef
+
+    th0 = jnp.array([p["knee"]]) if c.operator == "threshold" else jnp.array([p["center"], np.log(p["width"])])
+    sol = optx.least_squares(resid, optx.LevenbergMarquardt(rtol=1e-6, atol=1e-10), th0, max_steps=100, throw=False)
+    th = np.asarray(sol.value)
+    better = float(jnp.sum(resid(sol.value, None) ** 2)) <= float(jnp.sum(resid(th0, None) ** 2))
+    if not (np.all(np.isfinite(th)) and better):
+        return c
+    lo, hi = float(x.min()), float(x.max())
+    if c.operator == "threshold":
+        return replace(c, parameters={**p, "knee": float(np.clip(th[0], lo, hi))})
+    return replace(c, parameters={**p, "center": float(np.clip(th[0], lo, hi)), "width": float(np.exp(th[1]))})
+
+
+# --------------------------------------------------------------------------- the workflow
+
+
+@dataclass
+class Discovery:
+    """The outcome of `discover` (`summary` turns it into data-contract §3).
+
+    Attributes:
+        campaign: path or name. database: the model's database.
+        baseline, final: the baseline and the final (augmented) `Model`.
+        before, after: their held-out metrics (medians over seeds; `rms_by_seed` per seed).
+        effects: one dict per confirmed effect, ranked (see `summary`).
+        rounds: every tried proposal (a table).
+        localized: `residuals.localize` tables of the baseline.
+        windows: the baseline replay windows with `predicted_before_g`, `predicted_after_g`.
+        seconds: wall time per stage.
+    """
+
+    campaign: str
+    database: str
+    baseline: Model
+    final: Model
+    before: dict
+    after: dict
+    effects: list
+    rounds: pd.DataFrame
+    localized: dict
+    windows: pd.DataFrame
+    seconds: dict
+
+
+def _context(campaign: Campaign, cfg: ExperimentConfig, log) -> _Ctx:
+    d = cfg.discovery
+    dbs = build_databases(campaign, cfg.analysis)
+    db = dbs[d.database]
+    folds = _train.condition_folds(db.condition, d.folds, d.split_seed)
+    fold_of = dict(zip(db.condition, folds))
+    info = campaign.counters.loc[:, ["maneuver", "condition"]]
+    info = info[info.condition.isin(fold_of)]
+    batch = to_batch(campaign, STATE_CHANNELS, list(info.index))
+    recs = prepare(batch)
+    L = cfg.analysis.window_revs
+    lo, hi = d.offset_bounds if d.calibrate_offset else (min(0.0, d.offset_s), max(0.0, d.offset_s))
+    settings = make_settings(batch, max_window_revs=L, min_window_revs=L, hop_revs=d.hop_revs,
+                             offset_bounds=(float(min(lo, 0.0)), float(max(hi, 0.0))))
+    # Each database row's peak window (zero offset), where extra inputs are taken for training.
+    rows = []
+    for r in db.itertuples():
+        rec = campaign.records[r.counter]
+        m = np.asarray(batch.mask[list(info.index).index(r.counter)])
+        rev = np.asarray(batch.rev[list(info.index).index(r.counter)])[m]
+        t = rec.time_s.to_numpy()
+        mid = np.interp(r.peak_time_s, t, rev)
+        rows.append((r.counter, np.interp(mid - L / 2, rev, t), np.interp(mid + L / 2, rev, t)))
+    train_iv = pd.DataFrame(rows, columns=["counter", "t0", "t1"])
+    log(f"discovery: {d.database} on {len(db)} conditions, {len(info)} counters replayed "
+        f"({d.folds}-fold by condition x {d.seeds} seeds)")
+    return _Ctx(campaign, cfg, db, db[list(DB_INPUTS[d.database])].to_numpy(np.float64), folds, info,
+                np.array([fold_of[c] for c in info.condition]), batch, recs, settings,
+                window_table(campaign, train_iv, d.exclude_channels), replay_params={})
+
+
+def _train_model(ctx: _Ctx, extra: tuple[Candidate, ...], terms: tuple = ()) -> dict:
+    """Nets on the database inputs and the extra inputs, trained on the peaks minus the
+    model's additive terms (per fold: each fold's terms were fitted without it)."""
+    d = ctx.cfg.discovery
+    x = ctx.x_db
+    if extra:
+        x = np.column_stack([x] + [values(c, ctx.train_table) for c in extra])
+    y = ctx.db[OUTPUT].to_numpy(np.float64)
+    if terms:
+        y = np.stack([y - _terms(Model({}, (), terms=terms), ctx.train_table, np.full(len(y), f))
+                      for f in range(d.folds)])
+    return fit_ensemble(x, y, ctx.folds, k=d.folds, seeds=d.seeds, hidden=d.hidden, train_cfg=ctx.cfg.train,
+                        seed=ctx.cfg.seed)
+
+
+def _fit_term(ctx: _Ctx, model: Model, c: Candidate, win: _Windows) -> np.ndarray:
+    """Intercept and coefficient of an additive term on the residual of `model`, per fold,
+    each fitted on the windows of the other folds' conditions (cross-fitting). (k, 2)."""
+    full = win.table.weight.to_numpy() >= 0.999
+    fold = ctx.counter_fold[win.table.i.to_numpy()]
+    r = win.table.measured_g.to_numpy() - np.median(predictions(ctx, model, win), axis=0)
+    A = np.column_stack([np.ones(len(r)), values(c, win.columns((c,)))])
+    out = np.zeros((ctx.cfg.discovery.folds, 2))
+    for f in range(len(out)):
+        rows = full & (fold != f)
+        out[f] = np.linalg.lstsq(A[rows], r[rows], rcond=None)[0]
+    return out
+
+
+def _augment(ctx: _Ctx, model: Model, c: Candidate, how: str) -> Model:
+    """The model with one more effect: an extra network input, or an additive term (fitted
+    on the windows, the nets retrained on the corrected peaks, the term refitted)."""
+    if how == "input":
+        extra = model.extra + (c,)
+        return model._replace(params=_train_model(ctx, extra, model.terms), extra=extra)
+    win = _replay(ctx, model.offset_s)
+    first = model._replace(terms=model.terms + ((c, _fit_term(ctx, model, c, win)),))
+    params = _train_model(ctx, model.extra, first.terms)
+    refit = _fit_term(ctx, model._replace(params=params), c, win)
+    return model._replace(params=params, terms=model.terms + ((c, refit),))
+
+
+def _lag_candidates(yhat, win: _Windows, taus) -> tuple[list[Candidate], np.ndarray]:
+    cols = [(_lag_windows(yhat[None], win, t)[0] - yhat) for t in taus]
+    return [Candidate("lag", (), {"tau_s": float(t)}) for t in taus], np.column_stack(cols)
+
+
+def _floor_basis(win: _Windows, yhat, rows, floor, knots=(0.25, 0.5, 0.75)) -> np.ndarray:
+    """Covariates for the error floor: the prediction, and each floor feature with hinges at
+    interior quantiles (a piecewise-linear map of the model's own inputs; interior knots, so
+    that a held-out condition at the edge of the data is not extrapolated by a steep hinge)."""
+    cols = [yhat[rows]]
+    for f in floor:
+        x = win.cands[f"x:{f}"].to_numpy()[rows]
+        cols.append(x)
+        cols += [np.maximum(x - k, 0.0) for k in np.unique(np.quantile(x, knots)) if np.ptp(np.maximum(x - k, 0)) > 0]
+    return np.column_stack(cols)
+
+
+def knn_floor(features, residual, groups, k: int = 30, chunk: int = 1024) -> np.ndarray:
+    """The residual a static map of these features leaves near each window: the mean
+    residual of its `k` nearest windows (standardised features) among *other* conditions.
+
+    A misfit that is a function of the model's own inputs (the map's error floor: too few
+    peaks there, an extrapolation) reappears at the same inputs in other conditions, so this
+    covariate absorbs it; a missing effect does not, unless it follows the inputs.
+
+    Args:
+        features: (n, d) the model's inputs per window. residual: (n,). groups: (n,) condition.
+
+    Returns:
+        (n,) the floor estimate.
+    """
+    X = np.asarray(features, float)
+    sd = X.std(axis=0)
+    X = (X - X.mean(axis=0)) / np.where(sd > 0, sd, 1.0)
+    g = pd.factorize(np.asarray(groups))[0]
+    out = np.empty(len(X))
+    sq = np.sum(X * X, axis=1)
+    for a in range(0, len(X), chunk):
+        d2 = sq[a:a + chunk, None] + sq[None, :] - 2.0 * X[a:a + chunk] @ X.T
+        d2[g[a:a + chunk, None] == g[None, :]] = np.inf
+        kk = min(k, d2.shape[1] - 1)
+        idx = np.argpartition(d2, kk, axis=1)[:, :kk]
+        out[a:a + chunk] = residual[idx].mean(axis=1)
+    return out
+
+
+def _candidate_matrix(ctx: _Ctx, model: Model, win: _Windows, yhat, used_keys) -> tuple[list[Candidate], np.ndarray]:
+    d = ctx.cfg.discovery
+    own = floor_features(model.inputs)
+    lib = library(win.cands, model_inputs=tuple(model.inputs) + tuple(c.channels[0] for c in model.extra
+                                                                    if c.operator == "input"),
+                  knee_quantiles=d.knee_quantiles)
+    # Static refinements of the model's own inputs (their knees and products) are the floor's
+    # business (see `_floor_basis`), not discoveries.
+    lib = [c for c in lib if c.key not in used_keys
+           and not (c.operator in ("input", "threshold", "product") and set(c.channels) <= set(own))]
+    C = np.column_stack([values(c, win.cands) for c in lib])
+    if model.lag_tau_s <= 0:
+        lc, LC = _lag_candidates(yhat, win, d.lag_taus)
+        lib, C = lib + lc, np.column_stack([C, LC])
+    # Drop non-finite and duplicate columns (e.g. |x| of a channel that is never negative).
+    ok = np.all(np.isfinite(C), axis=0) & (np.ptp(C, axis=0) > 0)
+    _, first = np.unique(np.round(C[:, ok], 12), axis=1, return_index=True)
+    keep = np.flatnonzero(ok)[np.sort(first)]
+    return [lib[j] for j in keep], C[:, keep]
+
+
+def _region(win: _Windows, full, before, after) -> dict:
+    """The maneuver kinds that hold ≥ 80 % of the squared change the effect made, with the
+    RMS there before and after (medians over seeds)."""
+    t = win.table[full]
+    change = (np.median(after, axis=0) - np.median(before, axis=0))[full] ** 2
+    share = pd.Series(change, index=t.maneuver.to_numpy()).groupby(level=0).sum().sort_values(ascending=False)
+    share = share / max(share.sum(), 1e-30)
+    kinds = list(share.index[: int(np.searchsorted(share.cumsum().to_numpy(), 0.8) + 1)])
+    sel = t.maneuver.isin(kinds).to_numpy()
+    meas = t.measured_g.to_numpy()[sel]
+    rms = lambda p: float(np.median(np.sqrt(np.mean((p[:, full][:, sel] - meas) ** 2, axis=1))))  # noqa: E731
+    return {"where": ", ".join(kinds), "before_rms_g": rms(before), "after_rms_g": rms(after)}
+
+
+def _rms_by_seed(pred, win: _Windows, rows) -> np.ndarray:
+    return np.sqrt(np.mean((pred[:, rows] - win.table.measured_g.to_numpy()[rows]) ** 2, axis=1))
+
+
+def _propose(win: _Windows, yhat, resid, C, rows, own, d, seed: int) -> list:
+    """Significant candidates, over all windows and inside each maneuver kind where the
+    residual concentrates (localize, then explain: an effect of rolls alone is diluted
+    among all windows). Bonferroni over
+    the subsets; the permutations grow so that the corrected level can be reached.
+
+    Returns:
+        list of (where, candidate column, `Selected`), most residual² explained first, at
+        most `d.proposals`, one per candidate.
+    """
+    groups = win.table.condition.to_numpy()
+    kinds = win.table.maneuver.to_numpy()
+    subsets = [("all", rows)]
+    r2 = resid[rows] ** 2
+    for kind in sorted(set(kinds[rows])):
+        sub = rows & (kinds == kind)
+        # Kinds where the residual concentrates (share of residual² ≥ share of windows),
+        # with conditions enough for the k-fold split.
+        concentration = (np.sum(resid[sub] ** 2) / np.sum(r2)) / (np.sum(sub) / np.sum(rows))
+        if concentration >= 1.0 and len(set(groups[sub])) >= max(d.folds + 3, 8):
+            subsets.append((kind, sub))
+    alpha = d.alpha / len(subsets)
+    perms = max(d.permutations, int(np.ceil(1.0 / alpha)) - 1)
+    found = []
+    for where, sub in subsets:
+        Cs = C[sub]
+        keep = np.flatnonzero(np.ptp(Cs, axis=0) > 0)
+        floor = np.column_stack([
+            _floor_basis(win, yhat, sub, own),
+            knn_floor(win.cands.loc[sub, [f"x:{f}" for f in own]].to_numpy(), resid[sub], groups[sub])])
+        for s in forward_select(resid[sub], Cs[:, keep], groups[sub], base=floor, folds=d.folds, max_effects=1,
+                                min_gain=d.min_gain, alpha=alpha, permutations=perms, seed=seed):
+            amount = s.gain * float(np.sum(resid[sub] ** 2))
+            found.append((amount, where, int(keep[s.index]), s))
+    out, seen = [], set()
+    for _, where, j, s in sorted(found, key=lambda f: -f[0]):
+        if j not in seen:
+            seen.add(j)
+            out.append((where, j, s))
+    return out[: d.proposals]
+
+
+def _public_parameters(c: Candidate) -> dict:
+    p = dict(c.parameters)
+    p.pop("softness", None)
+    return p
+
+
+def discover(campaign: Campaign, cfg: ExperimentConfig = ExperimentConfig(), *, name: str = "", log=print,
+             progress=None) -> Discovery:
+    """Run the discovery workflow on a campaign (see the module docstring).
+
+    Args:
+        campaign: any campaign in the data-contract format.
+        cfg: experiment config (`analysis`, `train` and `discovery` sections).
+        name: the campaign's path or name, for the summary.
+        log: progress messages.
+
+    Returns:
+        `Discovery`.
+    """
+    d = cfg.discovery
+    sec = {}
+    t0 = time.perf_counter()
+    ctx = _context(campaign, cfg, log)
+    sec["prepare"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    params = _train_model(ctx, ())
+    ctx.replay_params = params
+    sec["train_baseline"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    model = _fit_offset(ctx, Model(params, tuple(DB_INPUTS[d.database])), with_lag=False)
+    win = _replay(ctx, model.offset_s)
+    full = win.table.weight.to_numpy() >= 0.999
+    pred0 = predictions(ctx, model, win)
+    before = metrics(pred0, win)
+    sec["offset_and_replay"] = time.perf_counter() - t0
+    log(f"baseline {d.database}: offset {model.offset_s:.2f} s, held-out RMS {before['rms_g']:.4f} g, peak error "
+        f"{before['peak_error_g']:.4f} g, phase error {before['phase_error_s']:.2f} s")
+    loc_windows = win.table.assign(database=d.database, predicted_g=np.median(pred0, axis=0))
+    localized = localize(loc_windows[full])
+    log("residual by maneuver (share of the squared residual): " + ", ".join(
+        f"{k} {v:.0%}" for k, v in localized["maneuver"].share_sq.head(4).items()))
+
+    baseline, current, pred, cur_metrics = model, model, pred0, before
+    effects, rounds, used = [], [], set()
+    t_explain = t_confirm = 0.0
+    for rnd in range(d.max_effects):
+        t0 = time.perf_counter()
+        win = _replay(ctx, current.offset_s)
+        full = win.table.weight.to_numpy() >= 0.999
+        yhat = np.median(pred, axis=0)
+        resid = win.table.measured_g.to_numpy() - yhat
+        lib, C = _candidate_matrix(ctx, current, win, yhat, used)
+        sel_rows = full & (win.table.k.to_numpy() % d.selection_stride == 0)
+        proposals = _propose(win, yhat, resid, C, sel_rows, floor_features(current.inputs), d, seed=cfg.seed + rnd)
+        t_explain += time.perf_counter() - t0
+        log(f"round {rnd + 1}: {len(lib)} candidates, {len(proposals)} significant: "
+            + (", ".join(f"{lib[j].name} in {where} (p={s.p_value:.4f})" for where, j, s in proposals) or "none"))
+        accepted = None
+        for where, j, s in proposals:
+            t0 = time.perf_counter()
+            c = _refine(lib[j], resid[full], win.cands[full])
+            if c.operator == "lag":
+                trial = _fit_offset(ctx, current, with_lag=True)
+                c = replace(c, parameters={"tau_s": trial.lag_tau_s})
+            else:
+                trial = _augment(ctx, current, c, d.augment)
+                if trial.terms and trial.terms[-1][0] is c:
+                    c = replace(c, parameters={**c.parameters,
+                                               "coefficient": float(np.median(trial.terms[-1][1][:, 1]))})
+            twin = _replay(ctx, trial.offset_s)
+            tpred = predictions(ctx, trial, twin)
+            prev = predictions(ctx, current, twin)  # the current model on the same windows
+            m = metrics(tpred, twin)
+            tfull = twin.table.weight.to_numpy() >= 0.999
+            region = tfull & (twin.table.maneuver.to_numpy() == where if where != "all" else True)
+            shrink = 1.0 - _rms_by_seed(tpred, twin, tfull) / _rms_by_seed(prev, twin, tfull)
+            local = 1.0 - _rms_by_seed(tpred, twin, region) / _rms_by_seed(prev, twin, region)
+            # Confirmed: the held-out RMS drops where the effect was found (median over seeds),
+            # and does not rise over all windows.
+            ok = float(np.median(local)) >= d.min_shrink and float(np.median(shrink)) > 0.0
+            t_confirm += time.perf_counter() - t0
+            rounds.append(dict(round=rnd + 1, where=where, candidate=c.key, name=c.name, operator=c.operator,
+                               channels=",".join(c.channels), p_value=s.p_value, cv_gain=s.gain,
+                               explained_fraction=s.explained_fraction, rms_before_g=cur_metrics["rms_g"],
+                               rms_after_g=m["rms_g"], median_shrink=float(np.median(shrink)),
+                               region_shrink=float(np.median(local)), confirmed=ok))
+            log(f"  {c.name}: held-out RMS {cur_metrics['rms_g']:.4f} -> {m['rms_g']:.4f} g, median shrink over "
+                f"seeds {np.median(shrink):+.1%} (all), {np.median(local):+.1%} ({where}): "
+                f"{'confirmed' if ok else 'not confirmed'}")
+            used.add(lib[j].key)
+            if ok:
+                effects.append(dict(rank=len(effects) + 1, name=c.name, operator=c.operator,
+                                    channels=list(c.channels) or list(current.inputs),
+                                    parameters=_public_parameters(c), explained_fraction=s.explained_fraction,
+                                    p_value=s.p_value, region=_region(twin, tfull, prev, tpred),
+                                    key=c.key, candidate=c, found_in=where))
+                accepted = (trial, tpred, m)
+                break
+        if accepted is None:
+            break
+        current, pred, cur_metrics = accepted
+    sec["explain"], sec["confirm"] = t_explain, t_confirm
+
+    # Before and after on the final model's windows (the same counters and windows; the
+    # baseline re-predicted there if the offset moved).
+    win = _replay(ctx, current.offset_s)
+    final_pred = predictions(ctx, current, win)
+    base_win = _replay(ctx, baseline.offset_s)
+    after = metrics(final_pred, win)
+    table = base_win.table.assign(predicted_before_g=np.median(pred0, axis=0))
+    table = table.merge(win.table[["counter", "window"]].assign(predicted_after_g=np.median(final_pred, axis=0)),
+                        on=["counter", "window"], how="left")
+    for e in effects:  # each effect's value per window, for its partial-dependence plot
+        c = e["candidate"]
+        if c.operator == "lag":
+            yb = np.median(pred0, axis=0)
+            table[f"effect_{e['rank']}"] = _lag_windows(yb[None], base_win, c.parameters["tau_s"])[0] - yb
+        else:
+            table[f"effect_{e['rank']}"] = values(c, base_win.columns((c,)))
+    log(f"final: {len(effects)} effect(s); held-out RMS {before['rms_g']:.4f} -> {after['rms_g']:.4f} g")
+    return Discovery(name or str(campaign.source), d.database, baseline, current, before, after, effects,
+                     pd.DataFrame(rounds), localized, table, sec)
+
+
+def summary(res: Discovery) -> dict:
+    """The data-contract §3 summary (`discovery.json`)."""
+    m = lambda x: {k: round(float(x[k]), 6) for k in ("rms_g", "peak_error_g", "phase_error_s")}  # noqa: E731
+    effects = []
+    for e in res.effects:
+        effects.append({k: e[k] for k in ("rank", "name", "operator", "channels")}
+                       | {"parameters": {k: (round(v, 6) if isinstance(v, float) else v)
+                                         for k, v in e["parameters"].items()},
+                          "explained_fraction": round(float(e["explained_fraction"]), 4),
+                          "p_value": round(float(e["p_value"]), 4),
+                          "region": {k: (round(v, 6) if isinstance(v, float) else v) for k, v in e["region"].items()}})
+    return {
+        "campaign": res.campaign,
+        "baseline": {"database": res.database, "metrics": m(res.before)},
+        "effects": effects,
+        "augmented": {"added": [e["name"] for e in res.effects], "metrics": m(res.after)},
+        "gap_shrink": round(1.0 - res.after["rms_g"] / res.before["rms_g"], 4),
+    }
