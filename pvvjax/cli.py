@@ -477,6 +477,27 @@ def cmd_realtime(args) -> int:
     return 0
 
 
+def cmd_discover(args) -> int:
+    """Find, name, add and confirm the effects a static map misses (data-contract §3)."""
+    from .config import ExperimentConfig, load_config
+    from .discovery import discover
+    from .discovery_report import write_discovery
+
+    cfg = load_config(args.config) if args.config else ExperimentConfig(name="discovery")
+    enable_compilation_cache()
+    if args.campaign:
+        campaign, folder = resolve_campaign(cfg, args.campaign)
+    else:
+        campaign, folder = resolve_campaign(cfg)
+    t0 = time.perf_counter()
+    res = discover(campaign, cfg, name=str(folder))
+    report = write_discovery(res, args.out, cfg)
+    print(f"{len(res.effects)} effect(s) named; held-out RMS {res.before['rms_g']:.4f} -> {res.after['rms_g']:.4f} g "
+          f"({time.perf_counter() - t0:.0f} s)")
+    print(f"discovery: {Path(args.out) / 'discovery.json'}; report: {report}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="pvvjax", description="Helicopter pilot-floor 4/rev vibration (PVV) toolkit.")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -564,11 +585,42 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", default=None, help="output folder (default: OUT_DIR/NAME/calibration)")
     s.set_defaults(fn=cmd_calibrate)
 
+    s = sub.add_parser("discover", help="find, name, add and confirm effects the static map misses",
+                       description="Replay every counter through held-out nets, locate the residual, rank "
+                                   "candidate effects (cross-validated, permutation-tested), add each to the "
+                                   "model, retrain and keep it only if the held-out error drops. Writes "
+                                   "OUT/discovery.json (data contract section 3) and OUT/report.md.")
+    s.add_argument("--campaign", default=None, help="campaign folder (default: embedded synthetic)")
+    s.add_argument("--out", required=True, help="output folder")
+    s.add_argument("--config", default=None, help="experiment config ([discovery], [train], [analysis] sections)")
+    s.set_defaults(fn=cmd_discover)
+
     s = sub.add_parser("run", help="run an experiment config end to end (the main job)",
                        description="Campaign, databases and figures for one experiment config.")
     s.add_argument("config", help="experiment config (TOML)")
     s.set_defaults(fn=cmd_run)
     return p
+
+
+def cli_reference(width: int = 96) -> str:
+    """The command-line reference as Markdown, generated from the parser itself (every
+    subcommand's `--help`), so that the docs cannot drift from the CLI."""
+    old = os.environ.get("COLUMNS")
+    os.environ["COLUMNS"] = str(width)  # argparse wraps to the terminal width
+    try:
+        p = build_parser()
+        parts = ["# Command-line reference", "",
+                 "Generated from the CLI itself (`python experiments/cli_reference.py --docs`); "
+                 "every subcommand also has `--help`.", "", "```", p.format_help().rstrip(), "```", ""]
+        sub = next(a for a in p._actions if isinstance(a, argparse._SubParsersAction))
+        for name, sp in sub.choices.items():
+            parts += [f"## pvvjax {name}", "", "```", sp.format_help().rstrip(), "```", ""]
+        return "\n".join(parts)
+    finally:
+        if old is None:
+            os.environ.pop("COLUMNS", None)
+        else:
+            os.environ["COLUMNS"] = old
 
 
 def main(argv=None) -> int:

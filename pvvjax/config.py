@@ -340,6 +340,11 @@ class DiscoveryConfig:
             windows, cross-fitted by fold, the nets retrained on the peaks minus it) or
             "input" (an extra network input). A lag is always a learned lag of the replay.
         selection_stride: every n-th window of a counter enters the selection.
+        local_selection: also run the selection inside each maneuver kind where the residual
+            concentrates (Bonferroni over the subsets). Off by default: on the benchmark's
+            null worlds it names floor structure of single kinds (a collective knee in
+            descents), see docs/discovery-benchmark.md.
+        min_subset_conditions: conditions a maneuver kind needs for a selection of its own.
         lag_taus: time constants of the lag candidates, s (the chosen one is refined).
         knee_quantiles: quantiles of a channel where threshold candidates put their knee.
         exclude_channels: channels never used as candidates.
@@ -363,6 +368,8 @@ class DiscoveryConfig:
     min_shrink: float = 0.05
     augment: Literal["additive", "input"] = "additive"
     selection_stride: int = 4
+    local_selection: bool = False
+    min_subset_conditions: int = 20
     lag_taus: tuple[float, ...] = (0.25, 0.5, 1.0, 1.5, 2.0, 3.0)
     knee_quantiles: tuple[float, ...] = (0.05, 0.1, 0.25, 0.5, 0.75, 0.9, 0.95)
     exclude_channels: tuple[str, ...] = ()
@@ -375,6 +382,9 @@ class DiscoveryConfig:
         if self.max_effects < 0:
             raise ValueError(f"discovery.max_effects must be >= 0 (0: baseline and residual map only), "
                              f"got {self.max_effects}")
+        if self.min_subset_conditions < self.folds:
+            raise ValueError(f"discovery.min_subset_conditions must be >= folds ({self.folds}), "
+                             f"got {self.min_subset_conditions}")
         for name in ("seeds", "proposals", "selection_stride", "permutations"):
             if getattr(self, name) < 1:
                 raise ValueError(f"discovery.{name} must be >= 1, got {getattr(self, name)}")

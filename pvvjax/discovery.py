@@ -168,6 +168,8 @@ class _Windows:
     exclude: tuple
     campaign: Campaign
     _cands: pd.DataFrame | None = None
+    offset: float = 0.0
+    _shifted: dict = field(default_factory=dict)
 
     @property
     def cands(self) -> pd.DataFrame:
@@ -182,6 +184,26 @@ class _Windows:
             return self._cands
         chans = {ch for c in extra for ch in c.channels}
         return window_table(self.campaign, self.table[["counter", "t0", "t1"]], self.exclude, channels=chans)
+
+    def at(self, offset: float, extra=None) -> pd.DataFrame:
+        """Window means with the input windows `offset` s before the measured windows
+        (the replay's own offset: `cands`); only the channels of `extra` if given."""
+        if abs(offset - self.offset) < 1e-9:
+            return self.cands if extra is None else self.columns(extra)
+        key = round(float(offset), 6)
+        if key in self._shifted:
+            return self._shifted[key]
+        iv = self.table[["counter", "t0", "t1"]].assign(t0=self.table.t0 + self.offset - offset,
+                                                         t1=self.table.t1 + self.offset - offset)
+        chans = None if extra is None else {ch for c in extra for ch in c.channels}
+        out = window_table(self.campaign, iv, self.exclude, channels=chans)
+        if extra is None:
+            self._shifted[key] = out
+        return out
+
+    def values(self, c: Candidate) -> np.ndarray:
+        """A candidate's value per window, at its own alignment (`offset_s` parameter)."""
+        return values(c, self.at(c.parameters.get("offset_s", self.offset), (c,)))
 
 
 def _replay(ctx: _Ctx, offset: float) -> _Windows:
@@ -211,7 +233,7 @@ def _replay(ctx: _Ctx, offset: float) -> _Windows:
         "t0": t0[ii, kk], "t1": t1[ii, kk], "measured_g": rep.measured[ii, kk], "weight": rep.weight[ii, kk],
         **{f: rep.features[ii, kk, j] for j, f in enumerate(FEATURES)}, "i": ii, "k": kk,
     })
-    out = _Windows(tab, (N, W), d.exclude_channels, ctx.campaign)
+    out = _Windows(tab, (N, W), d.exclude_channels, ctx.campaign, offset=float(offset))
     ctx.cache[key] = out
     return out
 
@@ -250,16 +272,15 @@ _lag_grid = jax.jit(jax.vmap(_lag, in_axes=(0, 0, None)))
 def _inputs(ctx: _Ctx, model: Model, win: _Windows) -> np.ndarray:
     x = win.table[list(model.inputs)].to_numpy(np.float64)
     if model.extra:
-        tab = win.columns(model.extra)
-        x = np.column_stack([x] + [values(c, tab) for c in model.extra])
+        x = np.column_stack([x] + [win.values(c) for c in model.extra])
     return x
 
 
-def _terms(model: Model, table: pd.DataFrame, fold) -> np.ndarray:
-    """The additive effect terms of a model on rows of a window table, (n,)."""
+def _terms(model: Model, value, fold) -> np.ndarray:
+    """The additive effect terms of a model, (n,); `value(candidate)` gives its values."""
     out = np.zeros(len(fold))
     for c, coef in model.terms:
-        out += coef[fold, 0] + coef[fold, 1] * values(c, table)
+        out += coef[fold, 0] + coef[fold, 1] * value(c)
     return out
 
 
@@ -268,7 +289,7 @@ def predictions(ctx: _Ctx, model: Model, win: _Windows) -> np.ndarray:
     fold = ctx.counter_fold[win.table.i.to_numpy()]
     pred = _predict(model.params, fold, _inputs(ctx, model, win))
     if model.terms:
-        pred = pred + _terms(model, win.columns(tuple(c for c, _ in model.terms)), fold)[None]
+        pred = pred + _terms(model, win.values, fold)[None]
     return _lag_windows(pred, win, model.lag_tau_s)
 
 
@@ -304,11 +325,13 @@ def metrics(pred, win: _Windows, full=None) -> dict:
 # --------------------------------------------------------------------------- fits
 
 
-def _fit_tau(yhat, meas, win: _Windows, full, taus) -> tuple[float, float]:
+def _fit_tau(yhat, meas, win: _Windows, full, taus, refine: bool = True) -> tuple[float, float]:
     """Time constant of a lag of the (ensemble) prediction that best fits the measured PVV:
-    the best of `taus`, refined by Levenberg–Marquardt in log τ. Returns (τ, SSE)."""
+    the best of `taus`, refined (if `refine`) by Levenberg–Marquardt in log τ. Returns (τ, SSE)."""
     sse = [float(np.sum((_lag_windows(yhat[None], win, t)[0][full] - meas[full]) ** 2)) for t in taus]
     t_best = float(taus[int(np.argmin(sse))])
+    if not refine:
+        return t_best, min(sse)
     N, W = win.shape
     i, k = win.table.i.to_numpy(), win.table.k.to_numpy()
     valid = np.zeros((N, W), bool)
@@ -329,12 +352,15 @@ def _fit_tau(yhat, meas, win: _Windows, full, taus) -> tuple[float, float]:
                              throw=False)
     tau = float(jnp.exp(sol.value))
     fit = float(jnp.sum(resid(sol.value, None) ** 2))
-    return (tau, fit) if np.isfinite(fit) and fit <= min(sse) else (t_best, min(sse))
+    # Within the grid's span: beyond it a lag only smooths the prediction flat.
+    ok = np.isfinite(fit) and fit <= min(sse) and min(taus) <= tau <= max(taus)
+    return (tau, fit) if ok else (t_best, min(sse))
 
 
 def _fit_offset(ctx: _Ctx, model: Model, with_lag: bool) -> Model:
     """The offset (grid over `offset_bounds`) and, with `with_lag`, the lag time constant
-    that minimise the held-out window SSE of the ensemble median."""
+    (grid, then refined by LM at the best offset) that minimise the held-out window SSE of
+    the ensemble median."""
     d = ctx.cfg.discovery
     if not d.calibrate_offset:
         offsets = np.array([d.offset_s])
@@ -347,12 +373,16 @@ def _fit_offset(ctx: _Ctx, model: Model, with_lag: bool) -> Model:
         meas = win.table.measured_g.to_numpy()
         yhat = np.median(predictions(ctx, model._replace(lag_tau_s=0.0), win), axis=0)
         if with_lag:
-            tau, sse = _fit_tau(yhat, meas, win, full, d.lag_taus)
+            tau, sse = _fit_tau(yhat, meas, win, full, d.lag_taus, refine=False)
         else:
             tau, sse = 0.0, float(np.sum((yhat[full] - meas[full]) ** 2))
         if sse < best[0]:
-            best = (sse, float(off), tau)
-    return model._replace(offset_s=best[1], lag_tau_s=best[2])
+            best = (sse, float(off), tau, yhat, meas, full)
+    tau = best[2]
+    if with_lag:
+        win = _replay(ctx, best[1])
+        tau = _fit_tau(best[3], best[4], win, best[5], sorted({tau, *d.lag_taus}))[0]
+    return model._replace(offset_s=best[1], lag_tau_s=tau)
 
 
 def _refine(c: Candidate, residual, cands: pd.DataFrame) -> Candidate:
@@ -458,7 +488,7 @@ def _train_model(ctx: _Ctx, extra: tuple[Candidate, ...], terms: tuple = ()) -> 
         x = np.column_stack([x] + [values(c, ctx.train_table) for c in extra])
     y = ctx.db[OUTPUT].to_numpy(np.float64)
     if terms:
-        y = np.stack([y - _terms(Model({}, (), terms=terms), ctx.train_table, np.full(len(y), f))
+        y = np.stack([y - _terms(Model({}, (), terms=terms), lambda c: values(c, ctx.train_table), np.full(len(y), f))
                       for f in range(d.folds)])
     return fit_ensemble(x, y, ctx.folds, k=d.folds, seeds=d.seeds, hidden=d.hidden, train_cfg=ctx.cfg.train,
                         seed=ctx.cfg.seed)
@@ -470,7 +500,7 @@ def _fit_term(ctx: _Ctx, model: Model, c: Candidate, win: _Windows) -> np.ndarra
     full = win.table.weight.to_numpy() >= 0.999
     fold = ctx.counter_fold[win.table.i.to_numpy()]
     r = win.table.measured_g.to_numpy() - np.median(predictions(ctx, model, win), axis=0)
-    A = np.column_stack([np.ones(len(r)), values(c, win.columns((c,)))])
+    A = np.column_stack([np.ones(len(r)), win.values(c)])
     out = np.zeros((ctx.cfg.discovery.folds, 2))
     for f in range(len(out)):
         rows = full & (fold != f)
@@ -540,14 +570,21 @@ def knn_floor(features, residual, groups, k: int = 30, chunk: int = 1024) -> np.
 def _candidate_matrix(ctx: _Ctx, model: Model, win: _Windows, yhat, used_keys) -> tuple[list[Candidate], np.ndarray]:
     d = ctx.cfg.discovery
     own = floor_features(model.inputs)
-    lib = library(win.cands, model_inputs=tuple(model.inputs) + tuple(c.channels[0] for c in model.extra
-                                                                    if c.operator == "input"),
-                  knee_quantiles=d.knee_quantiles)
-    # Static refinements of the model's own inputs (their knees and products) are the floor's
-    # business (see `_floor_basis`), not discoveries.
-    lib = [c for c in lib if c.key not in used_keys
-           and not (c.operator in ("input", "threshold", "product") and set(c.channels) <= set(own))]
-    C = np.column_stack([values(c, win.cands) for c in lib])
+    taken = tuple(model.inputs) + tuple(c.channels[0] for c in model.extra if c.operator == "input")
+    # Candidates share the model's offset (`_Windows.at` evaluates them at any other: more
+    # alignments would multiply the candidates, and the best-of-K null with them).
+    lib, cols = [], []
+    for off in (model.offset_s,):
+        table = win.at(off)
+        for c in library(table, model_inputs=taken, knee_quantiles=d.knee_quantiles):
+            c = replace(c, parameters={**c.parameters, "offset_s": off})
+            # Static refinements of the model's own inputs (their knees and products) are the
+            # floor's business (see `_floor_basis`), not discoveries.
+            if c.key in used_keys or (c.operator in ("input", "threshold", "product") and set(c.channels) <= set(own)):
+                continue
+            lib.append(c)
+            cols.append(values(c, table))
+    C = np.column_stack(cols)
     if model.lag_tau_s <= 0:
         lc, LC = _lag_candidates(yhat, win, d.lag_taus)
         lib, C = lib + lc, np.column_stack([C, LC])
@@ -576,10 +613,22 @@ def _rms_by_seed(pred, win: _Windows, rows) -> np.ndarray:
     return np.sqrt(np.mean((pred[:, rows] - win.table.measured_g.to_numpy()[rows]) ** 2, axis=1))
 
 
+def _floor(win: _Windows, yhat, resid, rows, own, groups, min_conditions: int = 40) -> np.ndarray:
+    """The floor covariates of a selection: the prediction and the nearest-neighbour floor;
+    with enough conditions also the piecewise-linear basis of the model's own inputs (in a
+    maneuver kind of a dozen conditions its ~30 columns would fit the held-out folds'
+    noise, not the floor)."""
+    knn = knn_floor(win.cands.loc[rows, [f"x:{f}" for f in own]].to_numpy(), resid[rows], groups[rows])
+    if len(set(groups[rows])) >= min_conditions:
+        return np.column_stack([_floor_basis(win, yhat, rows, own), knn])
+    return np.column_stack([yhat[rows], knn])
+
+
 def _propose(win: _Windows, yhat, resid, C, rows, own, d, seed: int) -> list:
-    """Significant candidates, over all windows and inside each maneuver kind where the
-    residual concentrates (localize, then explain: an effect of rolls alone is diluted
-    among all windows). Bonferroni over
+    """Significant candidates over all windows and, with `local_selection`, inside each
+    maneuver kind where the residual concentrates (an effect of one kind is diluted among
+    all windows) and that has `min_subset_conditions` conditions (with fewer, the floor
+    covariates and the k-fold split cannot tell an effect from the floor). Bonferroni over
     the subsets; the permutations grow so that the corrected level can be reached.
 
     Returns:
@@ -590,12 +639,12 @@ def _propose(win: _Windows, yhat, resid, C, rows, own, d, seed: int) -> list:
     kinds = win.table.maneuver.to_numpy()
     subsets = [("all", rows)]
     r2 = resid[rows] ** 2
-    for kind in sorted(set(kinds[rows])):
+    for kind in sorted(set(kinds[rows])) if d.local_selection else ():
         sub = rows & (kinds == kind)
         # Kinds where the residual concentrates (share of residual² ≥ share of windows),
         # with conditions enough for the k-fold split.
         concentration = (np.sum(resid[sub] ** 2) / np.sum(r2)) / (np.sum(sub) / np.sum(rows))
-        if concentration >= 1.0 and len(set(groups[sub])) >= max(d.folds + 3, 8):
+        if concentration >= 1.0 and len(set(groups[sub])) >= d.min_subset_conditions:
             subsets.append((kind, sub))
     alpha = d.alpha / len(subsets)
     perms = max(d.permutations, int(np.ceil(1.0 / alpha)) - 1)
@@ -603,9 +652,7 @@ def _propose(win: _Windows, yhat, resid, C, rows, own, d, seed: int) -> list:
     for where, sub in subsets:
         Cs = C[sub]
         keep = np.flatnonzero(np.ptp(Cs, axis=0) > 0)
-        floor = np.column_stack([
-            _floor_basis(win, yhat, sub, own),
-            knn_floor(win.cands.loc[sub, [f"x:{f}" for f in own]].to_numpy(), resid[sub], groups[sub])])
+        floor = _floor(win, yhat, resid, sub, own, groups)
         for s in forward_select(resid[sub], Cs[:, keep], groups[sub], base=floor, folds=d.folds, max_effects=1,
                                 min_gain=d.min_gain, alpha=alpha, permutations=perms, seed=seed):
             amount = s.gain * float(np.sum(resid[sub] ** 2))
@@ -679,7 +726,7 @@ def discover(campaign: Campaign, cfg: ExperimentConfig = ExperimentConfig(), *, 
         accepted = None
         for where, j, s in proposals:
             t0 = time.perf_counter()
-            c = _refine(lib[j], resid[full], win.cands[full])
+            c = _refine(lib[j], resid[full], win.at(lib[j].parameters.get("offset_s", win.offset))[full])
             if c.operator == "lag":
                 trial = _fit_offset(ctx, current, with_lag=True)
                 c = replace(c, parameters={"tau_s": trial.lag_tau_s})
@@ -737,7 +784,7 @@ def discover(campaign: Campaign, cfg: ExperimentConfig = ExperimentConfig(), *, 
             yb = np.median(pred0, axis=0)
             table[f"effect_{e['rank']}"] = _lag_windows(yb[None], base_win, c.parameters["tau_s"])[0] - yb
         else:
-            table[f"effect_{e['rank']}"] = values(c, base_win.columns((c,)))
+            table[f"effect_{e['rank']}"] = base_win.values(c)
     log(f"final: {len(effects)} effect(s); held-out RMS {before['rms_g']:.4f} -> {after['rms_g']:.4f} g")
     return Discovery(name or str(campaign.source), d.database, baseline, current, before, after, effects,
                      pd.DataFrame(rounds), localized, table, sec)

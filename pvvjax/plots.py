@@ -174,3 +174,61 @@ def cost_map(grid: pd.DataFrame, optimum: tuple[float, float] | None, title: str
     ax.set_title(title, fontsize=9)
     ax.legend(fontsize=7, loc="upper right")
     return fig if fig is not None else ax
+
+
+def residual_map(localized: dict, title: str):
+    """Where the held-out residual concentrates (`residuals.localize`): RMS residual and
+    share of the squared residual by maneuver kind, by regime, and over time in maneuvers."""
+    regimes = [k for k in localized if k.startswith("regime:")]
+    fig, axes = plt.subplots(1, 2 + len(regimes), figsize=(4.2 * (2 + len(regimes)), 3.8))
+    man = localized["maneuver"].sort_index()
+    axes[0].bar(man.index.astype(str), man.rms_residual_g, color="C0")
+    axes[0].set_ylabel("RMS residual, g")
+    for x, (k, r) in enumerate(man.iterrows()):
+        axes[0].text(x, r.rms_residual_g, f"{r.share_sq:.0%}", ha="center", va="bottom", fontsize=7)
+    axes[0].set_title("by maneuver (labels: share of residual²)", fontsize=8)
+    axes[0].tick_params(axis="x", rotation=60, labelsize=7)
+    for ax, key in zip(axes[1:], regimes):
+        r = localized[key]
+        ax.bar([str(i) for i in r.index], r.mean_residual_g, color="C1", label="mean")
+        ax.plot([str(i) for i in r.index], r.rms_residual_g, "ko-", ms=3, label="RMS")
+        ax.set_title(f"by {key.split(':', 1)[1]} (quantile bins)", fontsize=8)
+        ax.tick_params(axis="x", rotation=60, labelsize=6)
+        ax.axhline(0, color="k", lw=0.5)
+        ax.legend(fontsize=7)
+    t = localized["time"].reset_index()
+    t[["maneuver", "position"]] = t.key.str.split(" @ ", expand=True)
+    piv = t.pivot(index="maneuver", columns="position", values="mean_residual_g")
+    piv = piv[sorted(piv.columns, key=lambda s: float(s.strip("([").split(",")[0]))]
+    lim = float(np.nanmax(np.abs(piv.values))) or 1.0
+    im = axes[-1].imshow(piv.values, cmap="RdBu_r", vmin=-lim, vmax=lim, aspect="auto")
+    axes[-1].set_yticks(range(len(piv.index)), piv.index, fontsize=7)
+    axes[-1].set_xticks(range(len(piv.columns)), [c.split(",")[0].strip("([") for c in piv.columns], fontsize=7)
+    axes[-1].set_xlabel("position inside the counter (0 = start)", fontsize=8)
+    axes[-1].set_title("mean residual over time in maneuvers, g", fontsize=8)
+    fig.colorbar(im, ax=axes[-1], shrink=0.8)
+    fig.suptitle(title, fontsize=9)
+    fig.tight_layout()
+    return fig
+
+
+def partial_dependence(x, residual, change, title: str, xlabel: str, bins: int = 12):
+    """An effect's partial dependence: the baseline residual (measured − predicted) and the
+    change the augmented model made, binned against the effect's value per window."""
+    x, residual, change = map(np.asarray, (x, residual, change))
+    edges = np.unique(np.quantile(x, np.linspace(0, 1, bins + 1)))
+    idx = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, len(edges) - 2)
+    centre = np.array([x[idx == i].mean() for i in range(len(edges) - 1)])
+    mean = lambda v: np.array([v[idx == i].mean() for i in range(len(edges) - 1)])  # noqa: E731
+    fig, ax = plt.subplots(figsize=(5.8, 3.8))
+    sub = np.random.default_rng(0).permutation(len(x))[:3000]
+    ax.plot(x[sub], residual[sub], ".", ms=2, color="0.7", label="baseline residual (windows)")
+    ax.plot(centre, mean(residual), "ko-", ms=4, label="baseline residual, binned mean")
+    ax.plot(centre, mean(change), "s-", color="C3", ms=4, label="augmented − baseline prediction, binned")
+    ax.axhline(0, color="k", lw=0.5)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel("g")
+    ax.set_title(title, fontsize=9)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    return fig

@@ -73,6 +73,36 @@ def _block_permutation(groups, rng):
     return idx
 
 
+class _Design:
+    """Per-fold projections of y ~ 1 + X that do not depend on the candidates, so that a
+    permutation (which only permutes the candidates) costs one product per fold."""
+
+    def __init__(self, y, X, fid):
+        n = y.shape[0]
+        A = np.column_stack([np.ones(n), X])
+        self.n, self.folds = n, []
+        for f in np.unique(fid):
+            te = fid == f
+            U, sv, Vt = np.linalg.svd(A[~te], full_matrices=False)
+            keep = sv > sv[0] * 1e-9  # an orthonormal basis of the covariates, rank-deficient or not
+            Q, W = U[:, keep], Vt[keep].T / sv[keep]  # coef = W @ (Qᵀ rhs): the least-squares solution
+            y_tr = y[~te] - Q @ (Q.T @ y[~te])
+            e0 = y[te] - A[te] @ (W @ (Q.T @ y[~te]))
+            self.folds.append((~te, te, Q, W, A[te], y_tr, e0))
+
+    def scores(self, C) -> np.ndarray:
+        """Held-out SSE of y ~ 1 + X + c_k for every column c_k of C (see `_scores`)."""
+        sse = np.zeros(C.shape[1])
+        for tr, te, Q, W, A_te, y_tr, e0 in self.folds:
+            C_tr = C[tr]
+            QC = Q.T @ C_tr
+            cc = np.einsum("ij,ij->j", C_tr, C_tr) - np.einsum("ij,ij->j", QC, QC)  # |c_tr − Q Qᵀ c_tr|²
+            beta = np.where(cc > 1e-12 * self.n, (C_tr.T @ y_tr) / np.maximum(cc, 1e-300), 0.0)
+            D = C[te] - A_te @ (W @ QC)
+            sse += e0 @ e0 - 2.0 * beta * (D.T @ e0) + beta**2 * np.einsum("ij,ij->j", D, D)
+        return sse
+
+
 def _scores(y, X, C, fid) -> np.ndarray:
     """Held-out SSE of y ~ 1 + X + c_k for every column c_k of C at once, k-fold by `fid`.
 
@@ -80,23 +110,7 @@ def _scores(y, X, C, fid) -> np.ndarray:
     [1, X] on the training rows, so each fold costs a few (n × K) products instead of K
     least-squares solves.
     """
-    n = y.shape[0]
-    A = np.column_stack([np.ones(n), X])
-    sse = np.zeros(C.shape[1])
-    for f in np.unique(fid):
-        te = fid == f
-        U, sv, _ = np.linalg.svd(A[~te], full_matrices=False)
-        Q = U[:, sv > sv[0] * 1e-9]  # an orthonormal basis of the covariates, rank-deficient or not
-        coef_y, *_ = np.linalg.lstsq(A[~te], y[~te], rcond=None)
-        coef_c, *_ = np.linalg.lstsq(A[~te], C[~te], rcond=None)
-        y_tr = y[~te] - Q @ (Q.T @ y[~te])
-        c_tr = C[~te] - Q @ (Q.T @ C[~te])
-        cc = np.einsum("ij,ij->j", c_tr, c_tr)
-        beta = np.where(cc > 1e-12 * n, (c_tr.T @ y_tr) / np.maximum(cc, 1e-300), 0.0)
-        e0 = y[te] - A[te] @ coef_y
-        D = C[te] - A[te] @ coef_c
-        sse += e0 @ e0 - 2.0 * beta * (D.T @ e0) + beta**2 * np.einsum("ij,ij->j", D, D)
-    return sse
+    return _Design(y, X, fid).scores(C)
 
 
 def _remaining(C, chosen, usable):
@@ -153,8 +167,9 @@ def forward_select(residual, candidates, groups, *, base=None, folds: int = 5, m
         free = _remaining(C, chosen, usable)
         if not free.any():
             break
+        design = _Design(y, X, fid)
         scores = np.full(C.shape[1], np.inf)
-        scores[free] = _scores(y, X, C[:, free], fid)
+        scores[free] = design.scores(C[:, free])
         k = int(np.argmin(scores))
         gain = 1.0 - scores[k] / current
         if gain < min_gain:
@@ -164,7 +179,7 @@ def forward_select(residual, candidates, groups, *, base=None, folds: int = 5, m
         null = []
         for _ in range(permutations):
             perm = _block_permutation(groups, rng)
-            null.append(1.0 - np.min(_scores(y, X, C[perm][:, free], fid)) / current)
+            null.append(1.0 - np.min(design.scores(C[perm][:, free])) / current)
             if 1 + np.sum(np.array(null) >= gain) > alpha * (1 + permutations):
                 break  # p > alpha whatever the remaining permutations give
         p = (1 + int(np.sum(np.array(null) >= gain))) / (1 + permutations)

@@ -6,7 +6,7 @@ import pytest
 from pvvjax.campaign import load_campaign
 from pvvjax.cli import build_parser, main
 
-COMMANDS = ["validate", "build-db", "synth", "plot", "sweep", "export", "replay", "calibrate", "realtime", "run"]
+COMMANDS = ["validate", "build-db", "synth", "plot", "sweep", "export", "replay", "calibrate", "realtime", "discover", "run"]
 
 
 def test_every_subcommand_has_help():
@@ -96,3 +96,12 @@ def test_replay_config_mistakes_are_clear_errors(tmp_path, capsys):
     cfg.write_text('[replay]\nsweep = "/nonexistent"\n')
     assert main(["replay", str(cfg)]) == 2
     assert "not a sweep folder" in capsys.readouterr().err
+
+
+def test_cli_reference_in_the_docs_is_current():
+    from pathlib import Path
+
+    from pvvjax.cli import cli_reference
+
+    doc = Path(__file__).parents[1] / "docs" / "cli.md"
+    assert doc.read_text() == cli_reference(), "regenerate with: python experiments/cli_reference.py --docs"

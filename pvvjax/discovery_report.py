@@ -1,0 +1,108 @@
+"""Files of a discovery run: `discovery.json` (data-contract §3), `report.md` with its
+plots, and the tables behind them (the imperative shell around `discovery`)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from . import plots
+from .discovery import Discovery, summary
+from .io import write_config, write_table
+
+__all__ = ["write_discovery"]
+
+
+def _md(df: pd.DataFrame, digits: int = 4) -> str:
+    cols = [str(c) for c in df.columns]
+    lines = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
+    for r in df.itertuples(index=False):
+        lines.append("| " + " | ".join(f"{v:.{digits}g}" if isinstance(v, (float, np.floating)) else str(v)
+                                       for v in r) + " |")
+    return "\n".join(lines)
+
+
+def _metrics_row(label, m):
+    return dict(model=label, rms_g=m["rms_g"], peak_error_g=m["peak_error_g"], phase_error_s=m["phase_error_s"],
+                rms_by_seed=", ".join(f"{v:.4f}" for v in m["rms_by_seed"]))
+
+
+def write_discovery(res: Discovery, out, cfg=None, worst: int = 4) -> Path:
+    """Write a discovery's outputs to `out`.
+
+    Files: discovery.json, report.md, figures/*.png, windows.{parquet,csv} (held-out
+    windows with predictions before and after), rounds.csv (every proposal tried),
+    localize_<table>.csv, config.toml (if `cfg` is given).
+
+    Returns:
+        The path of report.md.
+    """
+    out = Path(out)
+    (out / "figures").mkdir(parents=True, exist_ok=True)
+    js = summary(res)
+    (out / "discovery.json").write_text(json.dumps(js, indent=2))
+    write_table(res.windows, out / "windows", cfg)
+    res.rounds.to_csv(out / "rounds.csv", index=False)
+    for k, t in res.localized.items():
+        t.to_csv(out / f"localize_{k.replace(':', '_')}.csv")
+    if cfg is not None:
+        write_config(cfg, out / "config.toml")
+
+    figs = []
+    fig = plots.residual_map(res.localized, f"held-out residual of the {res.database} baseline "
+                                            f"(offset {res.baseline.offset_s:.2f} s)")
+    figs.append(("Where the baseline misses", plots.save(fig, out / "figures" / "residual_map.png")))
+    w = res.windows[res.windows.weight >= 0.999]
+    for e in res.effects:
+        col = f"effect_{e['rank']}"
+        if col not in w:
+            continue
+        ok = w.predicted_after_g.notna()
+        fig = plots.partial_dependence(w[col][ok], (w.measured_g - w.predicted_before_g)[ok],
+                                       (w.predicted_after_g - w.predicted_before_g)[ok],
+                                       f"effect {e['rank']}: {e['name']}", f"{e['name']} (window value)")
+        figs.append((f"Partial dependence of effect {e['rank']}",
+                     plots.save(fig, out / "figures" / f"effect_{e['rank']}.png")))
+    rms = w.groupby("counter").apply(lambda g: float(np.sqrt(np.mean((g.measured_g - g.predicted_before_g) ** 2))),
+                                     include_groups=False).sort_values(ascending=False)
+    for counter in rms.index[:worst]:
+        g = w[w.counter == counter]
+        series = {"baseline": g.assign(predicted_g=g.predicted_before_g),
+                  "augmented": g.assign(predicted_g=g.predicted_after_g)}
+        fig = plots.replay(series, f"counter {counter} ({g.maneuver.iloc[0]}): held-out replay before and after")
+        figs.append((f"Before and after: {counter}", plots.save(fig, out / "figures" / f"replay_{counter}.png")))
+
+    metrics = pd.DataFrame([_metrics_row("baseline", res.before), _metrics_row("augmented", res.after)])
+    lines = [
+        "# Discovery report", "",
+        f"Campaign: `{res.campaign}`. Model: {res.database} nets, held-out by condition, median over seeds. "
+        f"Offset {res.baseline.offset_s:.2f} s (baseline) and {res.final.offset_s:.2f} s (augmented)."
+        + (f" Learned lag τ = {res.final.lag_tau_s:.2f} s." if res.final.lag_tau_s > 0 else ""), "",
+        "## Metrics (held-out counters, medians over seeds)", "", _md(metrics), "",
+        f"Gap shrink 1 − after/before RMS: **{js['gap_shrink']:.1%}**.", "",
+        "## Effects", "",
+    ]
+    if js["effects"]:
+        eff = pd.DataFrame([dict(rank=e["rank"], name=e["name"], operator=e["operator"],
+                                 channels=", ".join(e["channels"]), parameters=json.dumps(e["parameters"]),
+                                 explained_fraction=e["explained_fraction"], p_value=e["p_value"],
+                                 region=e["region"]["where"], region_before_rms_g=e["region"]["before_rms_g"],
+                                 region_after_rms_g=e["region"]["after_rms_g"]) for e in js["effects"]])
+        lines += [_md(eff), ""]
+    else:
+        lines += ["No candidate was both significant and confirmed by retraining: the model explains this "
+                  "campaign as well as its error floor allows.", ""]
+    if not res.rounds.empty:
+        lines += ["## Every proposal tried", "",
+                  _md(res.rounds[["round", "name", "p_value", "cv_gain", "rms_before_g", "rms_after_g",
+                                  "median_shrink", "confirmed"]]), ""]
+    loc = res.localized["maneuver"].reset_index().rename(columns={"key": "maneuver"})
+    lines += ["## Residual by maneuver (baseline)", "", _md(loc), ""]
+    lines += ["## Wall time, s", "", _md(pd.DataFrame([res.seconds])), ""]
+    for title, path in figs:
+        lines += [f"### {title}", "", f"![{title}](figures/{path.name})", ""]
+    (out / "report.md").write_text("\n".join(lines))
+    return out / "report.md"

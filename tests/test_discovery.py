@@ -1,0 +1,102 @@
+"""Discovery workflow: its numerical pieces against brute-force references, and end to end
+on a small synthetic world with a hidden effect and the same world without it (the fast
+subset of the hidden-effect benchmark, experiments/discovery_benchmark.py)."""
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from pvvjax.discovery import _lag_windows, _Windows, floor_features, knn_floor, metrics
+
+
+def _windows(n_counters=3, W=12, seed=0):
+    rng = np.random.default_rng(seed)
+    rows = []
+    for i in range(n_counters):
+        for k in range(W):
+            rows.append(dict(counter=f"C{i}", condition=f"K{i}", maneuver="pullup" if i else "level", window=k,
+                             time_s=0.25 * k + 0.01 * rng.random(), measured_g=rng.random(), weight=1.0, i=i, k=k))
+    t = pd.DataFrame(rows)
+    return _Windows(t, (n_counters, W), (), None)
+
+
+def test_metrics_against_a_loop():
+    win = _windows()
+    rng = np.random.default_rng(1)
+    pred = rng.random((3, len(win.table)))
+    m = metrics(pred, win)
+    per = []
+    for p in pred:
+        t = win.table.assign(p=p)
+        rms = np.sqrt(np.mean((t.p - t.measured_g) ** 2))
+        pk = np.mean([abs(g.p.max() - g.measured_g.max()) for _, g in t.groupby("counter")])
+        ph = np.mean([abs(g.time_s.iloc[g.p.argmax()] - g.time_s.iloc[g.measured_g.argmax()])
+                      for _, g in t.groupby("counter") if g.maneuver.iloc[0] == "pullup"])
+        per.append((rms, pk, ph))
+    np.testing.assert_allclose([m["rms_g"], m["peak_error_g"], m["phase_error_s"]], np.median(per, axis=0), rtol=1e-9)
+
+
+def test_lag_of_window_series_is_the_exact_recursion():
+    win = _windows()
+    rng = np.random.default_rng(2)
+    x = rng.random(len(win.table))
+    tau = 0.7
+    got = _lag_windows(x[None], win, tau)[0]
+    for i, g in win.table.groupby("i"):
+        xs, ts = x[g.index], g.time_s.to_numpy()
+        y = [xs[0]]
+        for n in range(1, len(xs)):
+            a = np.exp(-(ts[n] - ts[n - 1]) / tau)
+            y.append(a * y[-1] + (1 - a) * xs[n])
+        np.testing.assert_allclose(got[g.index], y, rtol=1e-5)
+
+
+def test_knn_floor_against_brute_force():
+    rng = np.random.default_rng(3)
+    X = rng.random((80, 3))
+    r = rng.standard_normal(80)
+    g = np.repeat(np.arange(16), 5)
+    got = knn_floor(X, r, g, k=4, chunk=7)
+    Z = (X - X.mean(0)) / X.std(0)
+    for j in range(80):
+        d = np.sum((Z - Z[j]) ** 2, axis=1)
+        d[g == g[j]] = np.inf
+        assert got[j] == pytest.approx(r[np.argsort(d)[:4]].mean())
+
+
+def test_floor_features_are_what_the_inputs_determine():
+    from pvvjax.databases import DB_INPUTS
+
+    assert {"thrust_coefficient", "blade_loading"} <= set(floor_features(DB_INPUTS["db1"]))
+    assert "thrust_coefficient" not in floor_features(DB_INPUTS["db3"])  # db3 has no weight
+
+
+# --------------------------------------------------------------------------- end to end
+# The hidden-effect case runs in notebooks/discovery.py (a hidden sideslip effect named
+# first, attributable shrink >= 0.5, asserted there); the null case here, through the CLI.
+# Both use the base world of experiments/configs/discovery/benchmark.toml.
+
+_FAST = dict(seeds=3, proposals=2, max_effects=1, offset_step_s=0.25)
+_BASE = dict(maneuvers=("level", "climb", "descent", "turn", "roll", "pushover", "pullup", "flare"),
+             effects={"roll_rate": {"enabled": False}, "pitch_rate": {"enabled": False}})
+
+
+def test_cli_on_a_world_without_hidden_effects_names_nothing(tmp_path):
+    from pvvjax._strict import from_dict
+    from pvvjax.campaign import write_campaign
+    from pvvjax.cli import main
+    from pvvjax.synth import SynthConfig, generate
+
+    counters, records, _ = generate(from_dict(SynthConfig, {**_BASE, "name": "null", "seed": 51}))
+    folder = write_campaign(tmp_path / "campaign", counters, records)
+    (tmp_path / "cfg.toml").write_text("[discovery]\n" + "\n".join(f"{k} = {v}" for k, v in _FAST.items()) + "\n")
+    assert main(["discover", "--campaign", str(folder), "--out", str(tmp_path / "out"),
+                 "--config", str(tmp_path / "cfg.toml")]) == 0
+    js = json.loads((tmp_path / "out" / "discovery.json").read_text())
+    assert set(js) == {"campaign", "baseline", "effects", "augmented", "gap_shrink"}
+    assert js["effects"] == [] and js["gap_shrink"] == 0.0, js["effects"]
+    assert set(js["baseline"]["metrics"]) == {"rms_g", "peak_error_g", "phase_error_s"}
+    report = (tmp_path / "out" / "report.md").read_text()
+    assert "figures/residual_map.png" in report and (tmp_path / "out" / "figures" / "residual_map.png").exists()
