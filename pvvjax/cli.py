@@ -166,16 +166,93 @@ def cmd_run(args) -> int:
     cfg = load_config(args.config)
     out = Path(cfg.out_dir) / cfg.name
     t0 = time.perf_counter()
-    print(f"[1/3] campaign ({'embedded synthetic' if not cfg.campaign.path else cfg.campaign.path})")
+    n = 4 if cfg.run.discovery_scenario else 3
+    print(f"[1/{n}] campaign ({'embedded synthetic' if not cfg.campaign.path else cfg.campaign.path})")
     campaign, _ = resolve_campaign(cfg)
-    print("[2/3] harmonic analysis, peak PVV, databases 1-3")
+    print(f"[2/{n}] harmonic analysis, peak PVV, databases 1-3")
     dbs = build_databases(campaign, cfg.analysis)
     _write_databases(dbs, out / "databases", cfg)
-    print(_summary(dbs))
-    print("[3/3] figures")
-    _campaign_plots(campaign, cfg, out / "figures")
+    summary = _summary(dbs)
+    print(summary)
+    print(f"[3/{n}] figures")
+    figures = _campaign_plots(campaign, cfg, out / "figures")
+    disc = None
+    if cfg.run.discovery_scenario:
+        print(f"[4/{n}] discovery on the hidden-effect scenario {cfg.run.discovery_scenario}")
+        disc = _run_discovery(cfg, out / "discovery")
+    report = _write_report(cfg, out, summary, figures, disc, time.perf_counter() - t0)
     print(f"done in {time.perf_counter() - t0:.1f} s; results in {out}")
+    print(f"report: {report}")
     return 0
+
+
+def _run_discovery(cfg, out: Path):
+    """Generate (or reuse) the scenario's campaign and run discovery on it; its ground
+    truth is read only afterwards, to print what was hidden beside what was named."""
+    import json as _json
+
+    from .campaign import load_campaign
+    from .discovery import discover
+    from .discovery_report import write_discovery
+    from .synth import cached_campaign, load_synth_config
+
+    scfg = load_synth_config(cfg.run.discovery_scenario)
+    folder = cached_campaign(scfg)
+    enable_compilation_cache()
+    res = discover(load_campaign(folder, cfg.campaign.columns, cfg.analysis.window_revs), cfg, name=str(folder))
+    write_discovery(res, out, cfg)
+    truth_file = folder.parent / f"{folder.name}.truth.json"
+    hidden = []
+    if truth_file.exists():
+        for e in _json.loads(truth_file.read_text())["effects"]:
+            if e["changed"]:
+                hidden.append(f"{e['name']} ({'on' if e['enabled'] else 'off'}"
+                              + (f", scale {e['scale']:g}" if e["enabled"] and e["scale"] != 1 else "") + ")")
+    print(f"generator settings that differ from the default physics: {', '.join(hidden) or 'none'}; named: "
+          f"{', '.join(e['name'] for e in res.effects) or 'nothing'}")
+    return res, hidden
+
+
+def _write_report(cfg, out: Path, summary: str, figures, disc, seconds: float) -> Path:
+    """report.md (and report.html) of the main job: the databases beside the paper, the
+    figures, and the discovery scenario."""
+    lines = [f"# pvvjax main job: {cfg.name}", "",
+             f"Campaign: {cfg.campaign.path or 'the embedded synthetic UH-60A campaign'}; "
+             f"{cfg.analysis.window_revs:g}-revolution windows; {seconds:.0f} s.", "",
+             "## Databases 1-3 and the paper's peak PVV", "", "```", summary, "```", "", "## Figures", ""]
+    for p in figures:
+        lines += [f"![{p.stem}](figures/{p.name})", ""]
+    if disc is not None:
+        from .discovery import summary as disc_summary
+
+        res, hidden = disc
+        js = disc_summary(res)
+        lines += ["## Discovery on a hidden-effect scenario", "",
+                  f"Scenario `{cfg.run.discovery_scenario}`; generator settings that differ from the default "
+                  f"physics (its ground truth, read after the run): {', '.join(hidden) or 'none'}.", "",
+                  "| rank | named effect | operator | channels | p-value | region |", "|---|---|---|---|---|---|"]
+        for e in js["effects"]:
+            lines.append(f"| {e['rank']} | {e['name']} | {e['operator']} | {', '.join(e['channels'])} | "
+                         f"{e['p_value']:.3g} | {e['region']['where']} |")
+        lines += ["", f"Held-out RMS {js['baseline']['metrics']['rms_g']:.4f} g before, "
+                      f"{js['augmented']['metrics']['rms_g']:.4f} g after (gap shrink {js['gap_shrink']:.1%}). "
+                      "Full report: [discovery/report.md](discovery/report.md).", "",
+                  "![residual map](discovery/figures/residual_map.png)", ""]
+        for e in js["effects"]:
+            lines += [f"![effect {e['rank']}](discovery/figures/effect_{e['rank']}.png)", ""]
+    path = out / "report.md"
+    path.write_text("\n".join(lines))
+    if cfg.run.html:
+        import markdown
+
+        body = markdown.markdown(path.read_text(), extensions=["tables", "fenced_code"])
+        (out / "report.html").write_text(
+            "<!doctype html><html><head><meta charset='utf-8'><title>pvvjax report</title><style>"
+            "body{font-family:sans-serif;max-width:60em;margin:2em auto}img{max-width:100%}"
+            "table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:2px 6px}</style></head><body>"
+            + body + "</body></html>")
+        return out / "report.html"
+    return path
 
 
 def enable_compilation_cache():
@@ -596,7 +673,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.set_defaults(fn=cmd_discover)
 
     s = sub.add_parser("run", help="run an experiment config end to end (the main job)",
-                       description="Campaign, databases and figures for one experiment config.")
+                       description="Campaign, databases, figures and (with [run] discovery_scenario) a "
+                                   "discovery scenario for one experiment config; writes report.md and "
+                                   "report.html.")
     s.add_argument("config", help="experiment config (TOML)")
     s.set_defaults(fn=cmd_run)
     return p

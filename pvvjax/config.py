@@ -32,6 +32,7 @@ __all__ = [
     "DiscoveryConfig",
     "ExperimentConfig",
     "ReplayConfig",
+    "RunConfig",
     "SweepConfig",
     "TrainConfig",
     "config_hash",
@@ -402,6 +403,20 @@ class DiscoveryConfig:
 
 
 @dataclass(frozen=True)
+class RunConfig:
+    """What the main job (`pvvjax run`) does beyond campaign, databases and figures.
+
+    Attributes:
+        discovery_scenario: a generator config (TOML) whose campaign hides an effect; the
+            main job runs the discovery workflow on it ("": no discovery stage).
+        html: also write report.html beside report.md.
+    """
+
+    discovery_scenario: str = ""
+    html: bool = True
+
+
+@dataclass(frozen=True)
 class ExperimentConfig:
     """One experiment: a campaign and the pipeline settings applied to it."""
 
@@ -415,6 +430,7 @@ class ExperimentConfig:
     replay: ReplayConfig = field(default_factory=ReplayConfig)
     calibration: CalibrationConfig = field(default_factory=CalibrationConfig)
     discovery: DiscoveryConfig = field(default_factory=DiscoveryConfig)
+    run: RunConfig = field(default_factory=RunConfig)
 
     def with_(self, **changes) -> "ExperimentConfig":
         return dataclasses.replace(self, **changes)

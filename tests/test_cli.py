@@ -6,7 +6,8 @@ import pytest
 from pvvjax.campaign import load_campaign
 from pvvjax.cli import build_parser, main
 
-COMMANDS = ["validate", "build-db", "synth", "plot", "sweep", "export", "replay", "calibrate", "realtime", "discover", "run"]
+COMMANDS = ["validate", "build-db", "synth", "plot", "sweep", "export", "replay", "calibrate", "realtime", "discover",
+            "run"]
 
 
 def test_every_subcommand_has_help():
@@ -33,6 +34,9 @@ def test_main_job_on_the_embedded_campaign(tmp_path, capsys, default_campaign_di
     for name in ("db1", "db2", "db3", "peaks"):
         assert (tmp_path / "t" / "databases" / f"{name}.parquet").exists()
     assert (tmp_path / "t" / "figures" / "pullup_11022.png").exists()
+    html = (tmp_path / "t" / "report.html").read_text()
+    assert "<table" not in html or "</table>" in html
+    assert 'src="figures/pullup_11022.png"' in html and "T1-level-135" in html
 
 
 def test_missing_campaign_folder_is_a_clear_error(tmp_path, capsys):
