@@ -245,24 +245,31 @@ def _fill_leading(y, valid):
     return np.take_along_axis(y, np.broadcast_to(idx, y.shape), axis=-1)
 
 
-def _lag_windows(pred, win: _Windows, tau: float) -> np.ndarray:
-    """A first-order lag of (S, n) window predictions along each counter's window times."""
-    if tau <= 0:
-        return pred
+def _grid(win: _Windows):
+    """The (N, W) layout of a window table: row/column of each window, a `to_grid`
+    function (values per window -> (N, W), leading gaps filled), and increasing times."""
     N, W = win.shape
     i, k = win.table.i.to_numpy(), win.table.k.to_numpy()
     valid = np.zeros((N, W), bool)
     valid[i, k] = True
-    tgrid = np.zeros((N, W))
-    tgrid[i, k] = win.table.time_s
-    tgrid = _fill_leading(tgrid, valid)
-    tgrid = np.maximum.accumulate(tgrid + 1e-9 * np.arange(W), axis=1)  # padding: increasing times
+
+    def to_grid(v):
+        g = np.zeros((N, W))
+        g[i, k] = v
+        return _fill_leading(g, valid)
+
+    times = np.maximum.accumulate(to_grid(win.table.time_s.to_numpy()) + 1e-9 * np.arange(W), axis=1)
+    return i, k, to_grid, times  # padding past the last window: increasing times
+
+
+def _lag_windows(pred, win: _Windows, tau: float) -> np.ndarray:
+    """A first-order lag of (S, n) window predictions along each counter's window times."""
+    if tau <= 0:
+        return pred
+    i, k, to_grid, times = _grid(win)
     out = np.empty_like(pred)
     for s in range(pred.shape[0]):
-        y = np.zeros((N, W))
-        y[i, k] = pred[s]
-        y = _fill_leading(y, valid)
-        out[s] = np.asarray(_lag_grid(jnp.asarray(y), jnp.asarray(tgrid), tau))[i, k]
+        out[s] = np.asarray(_lag_grid(jnp.asarray(to_grid(pred[s])), jnp.asarray(times), tau))[i, k]
     return out
 
 
@@ -332,16 +339,8 @@ def _fit_tau(yhat, meas, win: _Windows, full, taus, refine: bool = True) -> tupl
     t_best = float(taus[int(np.argmin(sse))])
     if not refine:
         return t_best, min(sse)
-    N, W = win.shape
-    i, k = win.table.i.to_numpy(), win.table.k.to_numpy()
-    valid = np.zeros((N, W), bool)
-    valid[i, k] = True
-    tg = np.zeros((N, W))
-    tg[i, k] = win.table.time_s
-    tg = np.maximum.accumulate(_fill_leading(tg, valid) + 1e-9 * np.arange(W), axis=1)
-    y = np.zeros((N, W))
-    y[i, k] = yhat
-    y = jnp.asarray(_fill_leading(y, valid))
+    i, k, to_grid, tg = _grid(win)
+    y = jnp.asarray(to_grid(yhat))
     sel = (jnp.asarray(i[full]), jnp.asarray(k[full]))
     target = jnp.asarray(meas[full])
 
