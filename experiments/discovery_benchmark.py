@@ -151,8 +151,12 @@ def main():
     ap.add_argument("--only", default="", help="comma-separated scenario names")
     ap.add_argument("--out", default="runs/discovery-benchmark")
     ap.add_argument("--docs", action="store_true", help="also write docs/discovery-benchmark.md")
+    ap.add_argument("--exclude", nargs="+", default=[], metavar="CHANNEL",
+                    help="channels left out of the candidates (added to [discovery] exclude_channels)")
     args = ap.parse_args()
     scenarios, overrides = scenario_configs(args.config)
+    if args.exclude:
+        overrides = {**overrides, "exclude_channels": [*overrides.get("exclude_channels", []), *args.exclude]}
     if args.only:
         keep = set(args.only.split(","))
         scenarios = [s for s in scenarios if s["name"] in keep]
