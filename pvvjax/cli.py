@@ -12,12 +12,9 @@ import sys
 import time
 from pathlib import Path
 
-__all__ = ["main"]
+from .paper import PAPER_TABLE1  # the paper's numbers (no JAX, no plotting)
 
-PAPER_TABLE1 = {  # condition id -> the paper's measured peak PVV, g
-    "T1-level-135": 0.10, "T1-descent-160": 0.25, "T1-climb-62": 0.12, "T1-turn45-145": 0.13,
-    "11022": 0.22, "AR60": 0.26,
-}
+__all__ = ["main"]
 
 
 def _experiment(args):
@@ -161,29 +158,53 @@ def cmd_plot(args) -> int:
 def cmd_run(args) -> int:
     """The main job of an experiment config."""
     from .config import load_config
-    from .databases import build_databases
 
     cfg = load_config(args.config)
+    if cfg.run.networks:
+        use_cpu_cores(cfg.sweep.cpu_devices)  # before anything imports JAX
+    from .databases import build_databases
+
     out = Path(cfg.out_dir) / cfg.name
     t0 = time.perf_counter()
-    n = 4 if cfg.run.discovery_scenario else 3
-    print(f"[1/{n}] campaign ({'embedded synthetic' if not cfg.campaign.path else cfg.campaign.path})")
+    stages = ["campaign", "databases", "figures"] + (["networks"] if cfg.run.networks else []) + (
+        ["discovery"] if cfg.run.discovery_scenario else [])
+    step = lambda name, text: print(f"[{stages.index(name) + 1}/{len(stages)}] {text}")  # noqa: E731
+    step("campaign", f"campaign ({'embedded synthetic' if not cfg.campaign.path else cfg.campaign.path})")
     campaign, _ = resolve_campaign(cfg)
-    print(f"[2/{n}] harmonic analysis, peak PVV, databases 1-3")
+    step("databases", "harmonic analysis, peak PVV, databases 1-3")
     dbs = build_databases(campaign, cfg.analysis)
     _write_databases(dbs, out / "databases", cfg)
     summary = _summary(dbs)
     print(summary)
-    print(f"[3/{n}] figures")
+    step("figures", "figures")
     figures = _campaign_plots(campaign, cfg, out / "figures")
+    nets = None
+    if cfg.run.networks:
+        step("networks", f"networks: {', '.join(cfg.sweep.databases)} x {len(cfg.sweep.hidden)} architecture(s) x "
+                         f"{cfg.sweep.seeds} seeds x {cfg.sweep.folds} folds (Figs 10-12, Table 1)")
+        nets = _run_networks(cfg, dbs, out, args.config)
     disc = None
     if cfg.run.discovery_scenario:
-        print(f"[4/{n}] discovery on the hidden-effect scenario {cfg.run.discovery_scenario}")
+        step("discovery", f"discovery on the hidden-effect scenario {cfg.run.discovery_scenario}")
         disc = _run_discovery(cfg, out / "discovery")
-    report = _write_report(cfg, out, summary, figures, disc, time.perf_counter() - t0)
+    report = _write_report(cfg, out, summary, figures, nets, disc, time.perf_counter() - t0)
     print(f"done in {time.perf_counter() - t0:.1f} s; results in {out}")
     print(f"report: {report}")
     return 0
+
+
+def _run_networks(cfg, dbs, out: Path, source) -> tuple[str, list]:
+    """Train (or resume) the config's sweep; Figs 10-12 and Table 1 beside the paper."""
+    from tqdm.auto import tqdm
+
+    from .paper import networks_results
+    from .sweep import run_sweep
+
+    enable_compilation_cache()
+    res = run_sweep(cfg, dbs, out / "sweep", progress=lambda **kw: tqdm(desc="nets", unit="net", **kw))
+    md, figs, _ = networks_results(res, dbs, out / "figures", str(source))
+    print(md.split("\n\nPoints outside")[0])
+    return md, figs
 
 
 def _run_discovery(cfg, out: Path):
@@ -213,7 +234,7 @@ def _run_discovery(cfg, out: Path):
     return res, hidden
 
 
-def _write_report(cfg, out: Path, summary: str, figures, disc, seconds: float) -> Path:
+def _write_report(cfg, out: Path, summary: str, figures, nets, disc, seconds: float) -> Path:
     """report.md (and report.html) of the main job: the databases beside the paper, the
     figures, and the discovery scenario."""
     lines = [f"# pvvjax main job: {cfg.name}", "",
@@ -222,6 +243,10 @@ def _write_report(cfg, out: Path, summary: str, figures, disc, seconds: float) -
              "## Databases 1-3 and the paper's peak PVV", "", "```", summary, "```", "", "## Figures", ""]
     for p in figures:
         lines += [f"![{p.stem}](figures/{p.name})", ""]
+    if nets is not None:
+        md, figs = nets
+        lines += ["## Networks (paper Figs 10-12, Table 1)", "", md.replace("# Networks", "### Networks", 1), ""]
+        lines += [f"![{p.stem}](figures/{p.name})" for p in figs] + [""]
     if disc is not None:
         from .discovery import summary as disc_summary
 
@@ -673,9 +698,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.set_defaults(fn=cmd_discover)
 
     s = sub.add_parser("run", help="run an experiment config end to end (the main job)",
-                       description="Campaign, databases, figures and (with [run] discovery_scenario) a "
-                                   "discovery scenario for one experiment config; writes report.md and "
-                                   "report.html.")
+                       description="Campaign, databases and figures for one experiment config; with [run] "
+                                   "networks the paper's networks (Figs 10-12, Table 1), with [run] "
+                                   "discovery_scenario a hidden-effect discovery; writes report.md and report.html.")
     s.add_argument("config", help="experiment config (TOML)")
     s.set_defaults(fn=cmd_run)
     return p

@@ -407,11 +407,14 @@ class RunConfig:
     """What the main job (`pvvjax run`) does beyond campaign, databases and figures.
 
     Attributes:
+        networks: train the config's `[sweep]` (resumable) and report Figs 10-12 and Table 1
+            beside the paper.
         discovery_scenario: a generator config (TOML) whose campaign hides an effect; the
             main job runs the discovery workflow on it ("": no discovery stage).
         html: also write report.html beside report.md.
     """
 
+    networks: bool = False
     discovery_scenario: str = ""
     html: bool = True
 

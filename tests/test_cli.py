@@ -109,3 +109,18 @@ def test_cli_reference_in_the_docs_is_current():
 
     doc = Path(__file__).parents[1] / "docs" / "cli.md"
     assert doc.read_text() == cli_reference(), "regenerate with: python experiments/cli_reference.py --docs"
+
+
+def test_main_job_with_networks_reports_table1_beside_the_paper(tmp_path, small_campaign_dir, capsys):
+    cfg = tmp_path / "p.toml"
+    cfg.write_text(f'''name = "p"\nout_dir = "{tmp_path.as_posix()}"\n[campaign]\npath = "{small_campaign_dir.as_posix()}"
+[run]\nnetworks = true\nhtml = false
+[sweep]\ndatabases = ["db1", "db3"]\nhidden = [[4]]\nseeds = 1\nfolds = 3
+[train]\nmax_steps = 300\nlearning_rate = 0.01\n''')
+    assert main(["run", str(cfg)]) == 0
+    assert "[4/4] networks" in capsys.readouterr().out
+    report = (tmp_path / "p" / "report.md").read_text()
+    assert "| condition | paper test | test | paper db1 | db1 | paper db3 | db3 |" in report
+    assert "| T1-level-135 | 0.100 |" in report and "figures/fig10_correlation_db1.png" in report
+    assert (tmp_path / "p" / "figures" / "fig12_correlation_db3.png").exists()
+    assert not (tmp_path / "p" / "report.html").exists()

@@ -1,0 +1,71 @@
+"""The paper's numbers, and the result sections that put a reproduction beside them (used by
+the main job and by `experiments/paper_networks.py`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pandas as pd
+
+__all__ = ["PAPER_T1", "PAPER_TABLE1", "networks_results"]
+
+PAPER_TABLE1 = {  # condition id -> the paper's measured peak PVV, g
+    "T1-level-135": 0.10, "T1-descent-160": 0.25, "T1-climb-62": 0.12, "T1-turn45-145": 0.13,
+    "11022": 0.22, "AR60": 0.26,
+}
+PAPER_T1 = {  # Table 1 of the paper: test and db1/db2/db3 predictions, g
+    "T1-level-135": (0.10, 0.09, 0.10, 0.11), "T1-descent-160": (0.25, 0.24, 0.25, 0.26),
+    "T1-climb-62": (0.12, 0.12, 0.12, 0.12), "T1-turn45-145": (0.13, 0.13, 0.13, 0.14),
+}
+
+
+def networks_results(res: pd.DataFrame, dbs: dict, figures: Path, source: str
+                     ) -> tuple[str, list[Path], pd.DataFrame]:
+    """Figs 10-12 (held-out correlation per database), the held-out error summary and
+    Table 1 beside the paper's values.
+
+    Args:
+        res: sweep results (`sweep.run_sweep`). dbs: the databases. figures: folder for the
+            figures. source: what produced the sweep (a config path), for the text.
+
+    Returns:
+        (Markdown, figure paths, held-out predictions).
+    """
+    from . import plots
+    from .evaluation import attach_measured, heldout_predictions, table1
+
+    pred = attach_measured(heldout_predictions(res), dbs)
+    figs = []
+    for i, db in enumerate(("db1", "db2", "db3")):
+        sel = pred[pred.database == db]
+        if sel.empty:
+            continue
+        arch = sel.architecture.iloc[0]
+        fig = plots.correlation(sel, f"Fig {10 + i}: {db}, {arch}, median of {sel.n_nets.max()} seeds")
+        figs.append(plots.save(fig, Path(figures) / f"fig{10 + i}_correlation_{db}.png"))
+    t1 = table1(pred, {k: v for k, v in PAPER_TABLE1.items() if k in PAPER_T1})
+    dbs_here = [db for db in ("db1", "db2", "db3") if db in t1.columns and t1[db].notna().any()]
+    for db_i, db in enumerate(("db1", "db2", "db3"), start=1):
+        if db in dbs_here:
+            t1[f"paper {db}"] = [PAPER_T1[c][db_i] for c in t1.condition]
+    t1 = t1[["condition", "paper test", "test"] + [c for db in dbs_here for c in (f"paper {db}", db)]]
+    lines = ["# Networks on the embedded campaign: held-out results", "",
+             f"Config `{source}`; {len(res)} nets; predictions are the median over seeds of the net that held "
+             "each condition out (5-fold cross-validation by condition).", "",
+             "| database | architecture | held-out RMS (g) | max abs error (g) | 95th pct abs error (g) "
+             "| within ±0.05 g |",
+             "|---|---|---|---|---|---|"]
+    for db, g in pred.groupby("database"):
+        lines.append(f"| {db} | {g.architecture.iloc[0]} | {(g.error**2).mean() ** 0.5:.3f} | "
+                     f"{g.error.abs().max():.3f} | {g.error.abs().quantile(0.95):.3f} | "
+                     f"{(~g.outside_band).mean():.0%} |")
+    lines += ["", "Table 1 (g): the paper's values beside the synthetic campaign's, held-out predictions.", "",
+              "| " + " | ".join(t1.columns) + " |", "|" + "---|" * len(t1.columns)]
+    for r in t1.itertuples(index=False):
+        lines.append("| " + " | ".join(f"{v:.3f}" if isinstance(v, float) else str(v) for v in r) + " |")
+    flagged = pred[pred.outside_band].sort_values("error", key=abs, ascending=False)
+    lines += ["", f"Points outside ±0.05 g (flagged as possible bad data, as the paper does): {len(flagged)}", "",
+              "| database | condition | maneuver | measured | predicted |", "|---|---|---|---|---|"]
+    for r in flagged.head(15).itertuples():
+        lines.append(f"| {r.database} | {r.condition} | {r.maneuver} | {r.measured:.3f} | {r.predicted:.3f} |")
+    return "\n".join(lines) + "\n", figs, pred
