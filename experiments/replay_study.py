@@ -24,6 +24,8 @@ from pvvjax import plots
 from pvvjax.cli import enable_compilation_cache, resolve_campaign
 from pvvjax.config import load_config
 from pvvjax.io import write_table
+from pvvjax.paper import PAPER_REPLAY as PAPER
+from pvvjax.paper import PULLUP, pullup_replays
 from pvvjax.replay_tables import (
     calibration_settings,
     calibration_table,
@@ -36,13 +38,6 @@ from pvvjax.replay_tables import (
     select_counters,
     settings_at,
 )
-
-PULLUP = "11022"
-PAPER = {  # the paper's replay of 11022 (Figs 13-14)
-    "db1": "peak within 0.02 g; peak time ~1 s off at zero offset, about coincident at a half-segment offset",
-    "db2": "overshoot ~0.04 g; peak time ~3 s off (zero offset), ~2 s (half segment)",
-    "db3": "overshoot ~0.10 g; peak time ~3 s off (zero offset), ~2 s (half segment)",
-}
 
 
 def md_table(df: pd.DataFrame, digits=3) -> str:
@@ -81,32 +76,11 @@ def main():
     tau_all = fixed8.set_index("database").offset_s
 
     # ---------------------------------------------------------------- 2. Figs 13-14 for the pull-up
+    fig1314, figs = pullup_replays(campaign, info, batch, recs, models, tau_all.to_dict(), out,
+                                   {"optimized, 11022 alone": own.set_index("database").offset_s.to_dict()})
     i = counters.index(PULLUP)
-    one = info.loc[[PULLUP]]
-    rec1 = _take(recs, [i])
-    models1 = {db: _take(m, [i]) for db, m in models.items()}
-    rpm = float(campaign.records[PULLUP].rotor_rpm.mean())
-    half = 4.0 / (rpm / 60.0)  # half of an 8-rev segment, s
-    variants = {"zero offset": {db: 0.0 for db in models}, f"half segment ({half:.2f} s)": {db: half for db in models},
-                "optimized, all maneuvers": tau_all.to_dict(),
-                "optimized, 11022 alone": own.set_index("database").offset_s.to_dict()}
-    rows, windows = [], {}
-    for name, taus in variants.items():
-        hi = max(taus.values())
-        settings = settings_at(batch, (max(hi, 0.0), 8.0, 0.0))  # one plan for the databases' offsets
-        w = replay_windows(one, rec1, models1, {db: (t, 8.0, 0.0) for db, t in taus.items()}, settings)
-        windows[name] = w
-        s = peak_summary(w)
-        s.insert(0, "offset", name)
-        rows.append(s)
-    fig1314 = pd.concat(rows, ignore_index=True)
-    for name, tag in (("zero offset", "fig13"), (list(variants)[1], "fig14"), ("optimized, all maneuvers", "fig14opt")):
-        w = windows[name]
-        for sub, dbs in (("a", ["db1"]), ("b", ["db2", "db3"])):
-            series = {f"{db} (offset {w[w.database == db].offset_s.iloc[0]:.2f} s)": w[w.database == db] for db in dbs}
-            inputs = "MLF" if sub == "a" else "sticks"
-            title = f"{tag.replace('opt', ' (optimized)')}{sub}: pull-up {PULLUP}, {name}, {inputs}"
-            figs.append(plots.save(plots.replay(series, title), out / f"{tag}{sub}_replay_{PULLUP}.png"))
+    one, rec1, models1 = info.loc[[PULLUP]], _take(recs, [i]), {db: _take(m, [i]) for db, m in models.items()}
+    windows = {}
     write_table(fig1314, out / "figs13_14", cfg)
     md += ["## Paper Figs 13-14: pull-up 11022, consecutive 8-rev windows\n",
            "The paper: " + "; ".join(f"{db}: {v}" for db, v in PAPER.items()) + ".\n",

@@ -166,8 +166,9 @@ def cmd_run(args) -> int:
 
     out = Path(cfg.out_dir) / cfg.name
     t0 = time.perf_counter()
+    replay = cfg.run.networks and cfg.run.replay
     stages = ["campaign", "databases", "figures"] + (["networks"] if cfg.run.networks else []) + (
-        ["discovery"] if cfg.run.discovery_scenario else [])
+        ["replay"] if replay else []) + (["discovery"] if cfg.run.discovery_scenario else [])
     step = lambda name, text: print(f"[{stages.index(name) + 1}/{len(stages)}] {text}")  # noqa: E731
     step("campaign", f"campaign ({'embedded synthetic' if not cfg.campaign.path else cfg.campaign.path})")
     campaign, _ = resolve_campaign(cfg)
@@ -183,11 +184,15 @@ def cmd_run(args) -> int:
         step("networks", f"networks: {', '.join(cfg.sweep.databases)} x {len(cfg.sweep.hidden)} architecture(s) x "
                          f"{cfg.sweep.seeds} seeds x {cfg.sweep.folds} folds (Figs 10-12, Table 1)")
         nets = _run_networks(cfg, dbs, out, args.config)
+    reps = None
+    if replay:
+        step("replay", "quasi-static replay: offset fitted on all maneuvers, pull-up 11022 (Figs 13-14)")
+        reps = _run_replay(cfg, campaign, out)
     disc = None
     if cfg.run.discovery_scenario:
         step("discovery", f"discovery on the hidden-effect scenario {cfg.run.discovery_scenario}")
         disc = _run_discovery(cfg, out / "discovery")
-    report = _write_report(cfg, out, summary, figures, nets, disc, time.perf_counter() - t0)
+    report = _write_report(cfg, out, summary, figures, nets, reps, disc, time.perf_counter() - t0)
     print(f"done in {time.perf_counter() - t0:.1f} s; results in {out}")
     print(f"report: {report}")
     return 0
@@ -204,6 +209,37 @@ def _run_networks(cfg, dbs, out: Path, source) -> tuple[str, list]:
     res = run_sweep(cfg, dbs, out / "sweep", progress=lambda **kw: tqdm(desc="nets", unit="net", **kw))
     md, figs, _ = networks_results(res, dbs, out / "figures", str(source))
     print(md.split("\n\nPoints outside")[0])
+    return md, figs
+
+
+def _run_replay(cfg, campaign, out: Path) -> tuple[str, list]:
+    """The offset fitted on every transient maneuver (8-rev windows), and the pull-up 11022
+    replayed at zero, half-segment and fitted offsets beside the paper (Figs 13-14)."""
+    import dataclasses
+
+    from .io import write_table
+    from .paper import PAPER_REPLAY, PULLUP, pullup_replays
+    from .replay_tables import calibration_table, load_replay_set, select_counters
+
+    counters = select_counters(campaign, cfg.replay)
+    if PULLUP not in counters:
+        counters.append(PULLUP)
+    info, batch, recs, models = load_replay_set(campaign, counters, out / "sweep", cfg.sweep.databases)
+    off_cfg = dataclasses.replace(cfg.calibration, free=("offset_s",), groups="all")
+    cal = calibration_table(info, batch, recs, models, off_cfg, (0.0, 8.0, 0.0))
+    tau = cal.set_index("database").offset_s.to_dict()
+    tab, figs = pullup_replays(campaign, info, batch, recs, models, tau, out / "figures")
+    write_table(tab, out / "replay" / "figs13_14", cfg)
+    cols = ["offset", "database", "offset_s", "measured_peak_g", "predicted_peak_g", "peak_error_g",
+            "phase_error_s"]
+    lines = [f"Offset fitted by gradient on {len(info)} transient-maneuver counters (8-rev windows): "
+             + ", ".join(f"{db} {t:.2f} s" for db, t in tau.items()) + ".", "",
+             "The paper: " + "; ".join(f"{db}: {v}" for db, v in PAPER_REPLAY.items() if db in models) + ".", "",
+             "| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
+    for r in tab[cols].itertuples(index=False):
+        lines.append("| " + " | ".join(f"{v:.3f}" if isinstance(v, float) else str(v) for v in r) + " |")
+    md = "\n".join(lines)
+    print(md)
     return md, figs
 
 
@@ -234,7 +270,7 @@ def _run_discovery(cfg, out: Path):
     return res, hidden
 
 
-def _write_report(cfg, out: Path, summary: str, figures, nets, disc, seconds: float) -> Path:
+def _write_report(cfg, out: Path, summary: str, figures, nets, reps, disc, seconds: float) -> Path:
     """report.md (and report.html) of the main job: the databases beside the paper, the
     figures, and the discovery scenario."""
     lines = [f"# pvvjax main job: {cfg.name}", "",
@@ -246,6 +282,10 @@ def _write_report(cfg, out: Path, summary: str, figures, nets, disc, seconds: fl
     if nets is not None:
         md, figs = nets
         lines += ["## Networks (paper Figs 10-12, Table 1)", "", md.replace("# Networks", "### Networks", 1), ""]
+        lines += [f"![{p.stem}](figures/{p.name})" for p in figs] + [""]
+    if reps is not None:
+        md, figs = reps
+        lines += ["## Quasi-static replay of the pull-up 11022 (paper Figs 13-14)", "", md, ""]
         lines += [f"![{p.stem}](figures/{p.name})" for p in figs] + [""]
     if disc is not None:
         from .discovery import summary as disc_summary

@@ -409,12 +409,15 @@ class RunConfig:
     Attributes:
         networks: train the config's `[sweep]` (resumable) and report Figs 10-12 and Table 1
             beside the paper.
+        replay: with `networks`, fit the offset on every transient maneuver ([replay]
+            maneuvers, [calibration]) and replay the pull-up 11022 (Figs 13-14).
         discovery_scenario: a generator config (TOML) whose campaign hides an effect; the
             main job runs the discovery workflow on it ("": no discovery stage).
         html: also write report.html beside report.md.
     """
 
     networks: bool = False
+    replay: bool = True
     discovery_scenario: str = ""
     html: bool = True
 

@@ -5,9 +5,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
-__all__ = ["PAPER_T1", "PAPER_TABLE1", "networks_results"]
+__all__ = ["PAPER_REPLAY", "PAPER_T1", "PAPER_TABLE1", "PULLUP", "networks_results", "pullup_replays"]
 
 PAPER_TABLE1 = {  # condition id -> the paper's measured peak PVV, g
     "T1-level-135": 0.10, "T1-descent-160": 0.25, "T1-climb-62": 0.12, "T1-turn45-145": 0.13,
@@ -69,3 +70,59 @@ def networks_results(res: pd.DataFrame, dbs: dict, figures: Path, source: str
     for r in flagged.head(15).itertuples():
         lines.append(f"| {r.database} | {r.condition} | {r.maneuver} | {r.measured:.3f} | {r.predicted:.3f} |")
     return "\n".join(lines) + "\n", figs, pred
+
+
+PULLUP = "11022"
+PAPER_REPLAY = {  # the paper's replay of 11022 (Figs 13-14)
+    "db1": "peak within 0.02 g; peak time ~1 s off at zero offset, about coincident at a half-segment offset",
+    "db2": "overshoot ~0.04 g; peak time ~3 s off (zero offset), ~2 s (half segment)",
+    "db3": "overshoot ~0.10 g; peak time ~3 s off (zero offset), ~2 s (half segment)",
+}
+
+
+def pullup_replays(campaign, info, batch, recs, models: dict, tau_all: dict, figures: Path, extra: dict | None = None
+                   ) -> tuple[pd.DataFrame, list[Path]]:
+    """Paper Figs 13-14: the pull-up 11022 replayed through the held-out nets at zero offset,
+    at half an 8-rev segment, at the offset fitted on all maneuvers (and any `extra`
+    variants: name -> database -> offset), consecutive 8-rev windows.
+
+    Args:
+        campaign, info, batch, recs, models: a replay set (`replay_tables.load_replay_set`)
+            that contains 11022.
+        tau_all: database -> offset fitted on all maneuvers, s.
+        figures: folder for the figures.
+
+    Returns:
+        (peak summary per offset and database, figure paths).
+    """
+    import jax
+
+    from . import plots
+    from .replay_tables import peak_summary, replay_windows, settings_at
+
+    counters = list(info.index)
+    i = counters.index(PULLUP)
+    take = lambda tree: jax.tree.map(lambda a: a[np.asarray([i])], tree)  # noqa: E731
+    one, rec1, models1 = info.loc[[PULLUP]], take(recs), {db: take(m) for db, m in models.items()}
+    half = 4.0 / (float(campaign.records[PULLUP].rotor_rpm.mean()) / 60.0)  # half of an 8-rev segment, s
+    variants = {"zero offset": {db: 0.0 for db in models}, f"half segment ({half:.2f} s)": {db: half for db in models},
+                "optimized, all maneuvers": dict(tau_all), **(extra or {})}
+    rows, windows, figs = [], {}, []
+    for name, taus in variants.items():
+        settings = settings_at(batch, (max(max(taus.values()), 0.0), 8.0, 0.0))  # one plan for all databases
+        w = replay_windows(one, rec1, models1, {db: (t, 8.0, 0.0) for db, t in taus.items()}, settings)
+        windows[name] = w
+        s = peak_summary(w)
+        s.insert(0, "offset", name)
+        rows.append(s)
+    for name, tag in (("zero offset", "fig13"), (list(variants)[1], "fig14"), ("optimized, all maneuvers", "fig14opt")):
+        w = windows[name]
+        for sub, dbs in (("a", ["db1"]), ("b", ["db2", "db3"])):
+            dbs = [db for db in dbs if db in models]
+            if not dbs:
+                continue
+            series = {f"{db} (offset {w[w.database == db].offset_s.iloc[0]:.2f} s)": w[w.database == db] for db in dbs}
+            inputs = "MLF" if sub == "a" else "sticks"
+            title = f"{tag.replace('opt', ' (optimized)')}{sub}: pull-up {PULLUP}, {name}, {inputs}"
+            figs.append(plots.save(plots.replay(series, title), Path(figures) / f"{tag}{sub}_replay_{PULLUP}.png"))
+    return pd.concat(rows, ignore_index=True), figs

@@ -118,8 +118,9 @@ def test_main_job_with_networks_reports_table1_beside_the_paper(tmp_path, small_
 [sweep]\ndatabases = ["db1", "db3"]\nhidden = [[4]]\nseeds = 1\nfolds = 3
 [train]\nmax_steps = 300\nlearning_rate = 0.01\n''')
     assert main(["run", str(cfg)]) == 0
-    assert "[4/4] networks" in capsys.readouterr().out
+    assert "[4/5] networks" in capsys.readouterr().out
     report = (tmp_path / "p" / "report.md").read_text()
+    assert "| zero offset | db1 | 0.000 |" in report and "figures/fig13a_replay_11022.png" in report
     assert "| condition | paper test | test | paper db1 | db1 | paper db3 | db3 |" in report
     assert "| T1-level-135 | 0.100 |" in report and "figures/fig10_correlation_db1.png" in report
     assert (tmp_path / "p" / "figures" / "fig12_correlation_db3.png").exists()
