@@ -15,7 +15,6 @@ report); with --docs also docs/discovery-benchmark.md.
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from pathlib import Path
 
@@ -26,6 +25,7 @@ from pvvjax._strict import from_dict
 from pvvjax.campaign import campaign_from_frames
 from pvvjax.config import DiscoveryConfig, ExperimentConfig, load_toml
 from pvvjax.discovery import discover, summary
+from pvvjax.discovery_report import write_discovery
 from pvvjax.io import write_table
 from pvvjax.synth import SynthConfig, generate
 
@@ -68,8 +68,7 @@ def run_scenario(sc: dict, overrides: dict, out: Path, log=print):
     seconds = time.perf_counter() - t0
     js = summary(res)
     folder = out / sc["name"]
-    folder.mkdir(parents=True, exist_ok=True)
-    (folder / "discovery.json").write_text(json.dumps(js, indent=2))
+    write_discovery(res, folder, cfg)  # discovery.json, report.md, figures, tables
     truth = sc["truth"] or {}
     first = js["effects"][0] if js["effects"] else None
     row = dict(scenario=sc["name"], seed=sc["seed"], database=sc["database"], hidden=truth.get("effect", "none"),

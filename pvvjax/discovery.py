@@ -655,6 +655,7 @@ def _propose(win: _Windows, yhat, resid, C, rows, own, d, seed: int) -> list:
         for s in forward_select(resid[sub], Cs[:, keep], groups[sub], base=floor, folds=d.folds, max_effects=1,
                                 min_gain=d.min_gain, alpha=alpha, permutations=perms, seed=seed):
             amount = s.gain * float(np.sum(resid[sub] ** 2))
+            s = s._replace(alternatives=tuple((int(keep[a]), g) for a, g in s.alternatives))  # global columns
             found.append((amount, where, int(keep[s.index]), s))
     out, seen = [], set()
     for _, where, j, s in sorted(found, key=lambda f: -f[0]):
@@ -746,8 +747,9 @@ def discover(campaign: Campaign, cfg: ExperimentConfig = ExperimentConfig(), *, 
             # and does not rise over all windows.
             ok = float(np.median(local)) >= d.min_shrink and float(np.median(shrink)) > 0.0
             t_confirm += time.perf_counter() - t0
+            alts = "; ".join(f"{lib[a].name} ({g:.3f})" for a, g in s.alternatives)
             rounds.append(dict(round=rnd + 1, where=where, candidate=c.key, name=c.name, operator=c.operator,
-                               channels=",".join(c.channels), p_value=s.p_value, cv_gain=s.gain,
+                               channels=",".join(c.channels), p_value=s.p_value, cv_gain=s.gain, runners_up=alts,
                                explained_fraction=s.explained_fraction, rms_before_g=cur_metrics["rms_g"],
                                rms_after_g=m["rms_g"], median_shrink=float(np.median(shrink)),
                                region_shrink=float(np.median(local)), confirmed=ok))

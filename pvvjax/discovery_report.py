@@ -98,7 +98,11 @@ def write_discovery(res: Discovery, out, cfg=None, worst: int = 4) -> Path:
     if not res.rounds.empty:
         lines += ["## Every proposal tried", "",
                   _md(res.rounds[["round", "name", "p_value", "cv_gain", "rms_before_g", "rms_after_g",
-                                  "median_shrink", "confirmed"]]), ""]
+                                  "median_shrink", "confirmed"]]), "",
+                  "Runners-up of each proposal (held-out gain; candidates within the permutation spread of the "
+                  "chosen one explain the residual about as well, so read the first rank among them with care):", ""]
+        lines += [f"- round {r.round}, {r.name} ({r.cv_gain:.3f}): {r.runners_up}" for r in res.rounds.itertuples()]
+        lines += [""]
     loc = res.localized["maneuver"].reset_index().rename(columns={"key": "maneuver"})
     lines += ["## Residual by maneuver (baseline)", "", _md(loc), ""]
     lines += ["## Wall time, s", "", _md(pd.DataFrame([res.seconds])), ""]

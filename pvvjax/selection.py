@@ -33,12 +33,15 @@ class Selected(NamedTuple):
         gain: relative drop of the held-out squared error when it was added.
         explained_fraction: 1 − held-out SSE with the selection so far / without any.
         p_value: permutation p-value of the gain.
+        alternatives: ((column, gain), ...) of the five next best candidates at the same
+            step; those within the permutation spread explain the residual about as well.
     """
 
     index: int
     gain: float
     explained_fraction: float
     p_value: float
+    alternatives: tuple = ()
 
 
 def _folds(groups, k: int, seed: int) -> np.ndarray:
@@ -185,6 +188,9 @@ def forward_select(residual, candidates, groups, *, base=None, folds: int = 5, m
         p = (1 + int(np.sum(np.array(null) >= gain))) / (1 + permutations)
         if p > alpha:
             break
+        current_before = current
         current = scores[k]
-        chosen.append(Selected(k, float(gain), float(1.0 - current / start), float(p)))
+        order = [j for j in np.argsort(scores) if j != k and np.isfinite(scores[j])][:5]
+        alts = tuple((int(j), float(1.0 - scores[j] / current_before)) for j in order)
+        chosen.append(Selected(k, float(gain), float(1.0 - current / start), float(p), alts))
     return chosen
