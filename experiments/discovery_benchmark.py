@@ -87,17 +87,17 @@ def run_scenario(sc: dict, overrides: dict, out: Path, log=print):
     row["gap_metric"] = truth.get("gap_metric", "rms_g")
     row["region"] = first["region"]["where"] if first else ""
     row["phase_before_s"], row["phase_after_s"] = res.before["phase_error_s"], res.after["phase_error_s"]
-    w = res.windows[res.windows.weight >= 0.999]
     if row["region"]:
-        r = w[w.maneuver.isin(row["region"].split(", "))]
-        row["region_before_g"] = float(np.sqrt(np.mean((r.measured_g - r.predicted_before_g) ** 2)))
-        row["region_after_g"] = float(np.sqrt(np.mean((r.measured_g - r.predicted_after_g) ** 2)))
+        kinds = row["region"].split(", ")
+        row["region_before_g"] = _rms_in(res, kinds, "predicted_before_g")
+        row["region_after_g"] = _rms_in(res, kinds, "predicted_after_g")
     return row, res
 
 
-def _rms_in(res, kinds) -> float:
+def _rms_in(res, kinds, column: str = "predicted_before_g") -> float:
+    """Held-out RMS of a prediction column over the fully weighted windows of some maneuver kinds."""
     w = res.windows[(res.windows.weight >= 0.999) & res.windows.maneuver.isin(kinds)]
-    return float(np.sqrt(np.mean((w.measured_g - w.predicted_before_g) ** 2)))
+    return float(np.sqrt(np.mean((w.measured_g - w[column]) ** 2)))
 
 
 def attributable(df: pd.DataFrame, nulls: dict) -> pd.DataFrame:

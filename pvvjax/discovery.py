@@ -41,11 +41,11 @@ from .config import ExperimentConfig
 from .databases import DB_INPUTS, OUTPUT, STATE_CHANNELS, build_databases
 from .effects import lag as _lag
 from .networks import mlp_apply, mlp_init, scaling
-from .replay import FEATURES, make_settings, prepare
+from .replay import FEATURES, input_index, make_settings, prepare
 from .replay_tables import _replay_all
 from .residuals import localize
 from .selection import forward_select
-from .sweep import train_nets
+from .sweep import _stack, train_nets
 
 __all__ = [
     "Discovery",
@@ -99,8 +99,7 @@ def fit_ensemble(x, y, folds, *, k: int, seeds: int, hidden, train_cfg, seed: in
     for f, (w, _, _) in enumerate(splits):
         sc = scaling(x[w > 0], y[f][w > 0])
         params += [mlp_init(jax.random.key(seed + s), x.shape[1], tuple(hidden), scale=sc) for s in range(seeds)]
-    stack = lambda trees: jax.tree.map(lambda *a: np.stack([np.asarray(v) for v in a]), *trees)  # noqa: E731
-    fits = train_nets(stack(params), stack(data), np.repeat(np.arange(k), seeds), train_cfg)
+    fits = train_nets(_stack(params), _stack(data), np.repeat(np.arange(k), seeds), train_cfg)
     if np.any(np.asarray(fits.failed_step) >= 0):
         raise _train.TrainingError("discovery: a net diverged; lower train.learning_rate")
     return jax.tree.map(lambda a: np.asarray(a).reshape((k, seeds) + a.shape[1:]), fits.params)
@@ -178,18 +177,12 @@ class _Windows:
             self._cands = window_table(self.campaign, self.table[["counter", "t0", "t1"]], self.exclude)
         return self._cands
 
-    def columns(self, extra) -> pd.DataFrame:
-        """The window means the candidates `extra` need (all of them if already computed)."""
-        if self._cands is not None:
-            return self._cands
-        chans = {ch for c in extra for ch in c.channels}
-        return window_table(self.campaign, self.table[["counter", "t0", "t1"]], self.exclude, channels=chans)
-
     def at(self, offset: float, extra=None) -> pd.DataFrame:
         """Window means with the input windows `offset` s before the measured windows
-        (the replay's own offset: `cands`); only the channels of `extra` if given."""
-        if abs(offset - self.offset) < 1e-9:
-            return self.cands if extra is None else self.columns(extra)
+        (the replay's own offset: `cands`); only the channels of `extra` if given and the
+        full table is not computed yet."""
+        if abs(offset - self.offset) < 1e-9 and (extra is None or self._cands is not None):
+            return self.cands
         key = round(float(offset), 6)
         if key in self._shifted:
             return self._shifted[key]
@@ -215,7 +208,7 @@ def _replay(ctx: _Ctx, offset: float) -> _Windows:
     L = ctx.cfg.analysis.window_revs
     theta = jnp.asarray(np.tile([offset, L, 0.0], (N, 1)), jnp.float32)
     model = dict(params=jax.tree.map(lambda a: jnp.asarray(a[ctx.counter_fold]), ctx.replay_params),
-                 idx=jnp.asarray(np.tile([FEATURES.index(f) for f in DB_INPUTS[d.database]], (N, 1)), jnp.int32))
+                 idx=jnp.asarray(np.tile(input_index(d.database, len(DB_INPUTS[d.database])), (N, 1))))
     rep = jax.device_get(_replay_all(model, ctx.recs, theta, ctx.settings))
     W = rep.time.shape[1]
     # Input windows in record time: measured window edges (revolutions) -> time -> − offset.
@@ -276,7 +269,7 @@ def _lag_windows(pred, win: _Windows, tau: float) -> np.ndarray:
 _lag_grid = jax.jit(jax.vmap(_lag, in_axes=(0, 0, None)))
 
 
-def _inputs(ctx: _Ctx, model: Model, win: _Windows) -> np.ndarray:
+def _inputs(model: Model, win: _Windows) -> np.ndarray:
     x = win.table[list(model.inputs)].to_numpy(np.float64)
     if model.extra:
         x = np.column_stack([x] + [win.values(c) for c in model.extra])
@@ -294,7 +287,7 @@ def _terms(model: Model, value, fold) -> np.ndarray:
 def predictions(ctx: _Ctx, model: Model, win: _Windows) -> np.ndarray:
     """(S, n) held-out predictions of every window (weight > 0), per seed."""
     fold = ctx.counter_fold[win.table.i.to_numpy()]
-    pred = _predict(model.params, fold, _inputs(ctx, model, win))
+    pred = _predict(model.params, fold, _inputs(model, win))
     if model.terms:
         pred = pred + _terms(model, win.values, fold)[None]
     return _lag_windows(pred, win, model.lag_tau_s)
@@ -311,19 +304,19 @@ def metrics(pred, win: _Windows, full=None) -> dict:
     full = (t.weight.to_numpy() >= 0.999) if full is None else full
     meas, time_s, ctr = t.measured_g.to_numpy()[full], t.time_s.to_numpy()[full], t.counter.to_numpy()[full]
     trans = t.maneuver.isin(TRANSIENT).to_numpy()[full]
-    codes, first = np.unique(ctr, return_index=True)
-    order = np.argsort(pd.Categorical(ctr, categories=codes).codes, kind="stable")
-    bounds = np.searchsorted(pd.Categorical(ctr, categories=codes).codes[order], np.arange(len(codes)))
+    code = np.unique(ctr, return_inverse=True)[1]
+    order = np.argsort(code, kind="stable")  # windows grouped by counter, in time order
+    bounds = np.searchsorted(code[order], np.arange(code.max() + 1))
+    ends = np.append(bounds[1:], len(order))
+    mo, to, tr = meas[order], time_s[order], trans[order][bounds]
+    t_m = to[[b + np.argmax(mo[b:e]) for b, e in zip(bounds, ends)]]
     per = []
     for p in np.atleast_2d(pred)[:, full]:
-        rms = float(np.sqrt(np.mean((p - meas) ** 2)))
-        po, mo, to = p[order], meas[order], time_s[order]
-        pk_p, pk_m = np.maximum.reduceat(po, bounds), np.maximum.reduceat(mo, bounds)
-        arg_p = np.array([b + np.argmax(po[b:e]) for b, e in zip(bounds, list(bounds[1:]) + [len(po)])])
-        arg_m = np.array([b + np.argmax(mo[b:e]) for b, e in zip(bounds, list(bounds[1:]) + [len(mo)])])
-        tr = trans[order][bounds]
-        phase = np.abs(to[arg_p] - to[arg_m])[tr]
-        per.append((rms, float(np.mean(np.abs(pk_p - pk_m))), float(np.mean(phase)) if phase.size else 0.0))
+        po = p[order]
+        peak_err = np.maximum.reduceat(po, bounds) - np.maximum.reduceat(mo, bounds)
+        phase = np.abs(to[[b + np.argmax(po[b:e]) for b, e in zip(bounds, ends)]] - t_m)[tr]
+        per.append((float(np.sqrt(np.mean((p - meas) ** 2))), float(np.mean(np.abs(peak_err))),
+                    float(np.mean(phase)) if phase.size else 0.0))
     per = np.array(per)
     med = np.median(per, axis=0)
     return dict(rms_g=float(med[0]), peak_error_g=float(med[1]), phase_error_s=float(med[2]), rms_by_seed=per[:, 0])
@@ -462,11 +455,11 @@ def _context(campaign: Campaign, cfg: ExperimentConfig, log) -> _Ctx:
     settings = make_settings(batch, max_window_revs=L, min_window_revs=L, hop_revs=d.hop_revs,
                              offset_bounds=(float(min(lo, 0.0)), float(max(hi, 0.0))))
     # Each database row's peak window (zero offset), where extra inputs are taken for training.
-    rows = []
+    rows, row_of = [], {c: i for i, c in enumerate(info.index)}
     for r in db.itertuples():
         rec = campaign.records[r.counter]
-        m = np.asarray(batch.mask[list(info.index).index(r.counter)])
-        rev = np.asarray(batch.rev[list(info.index).index(r.counter)])[m]
+        m = np.asarray(batch.mask[row_of[r.counter]])
+        rev = np.asarray(batch.rev[row_of[r.counter]])[m]
         t = rec.time_s.to_numpy()
         mid = np.interp(r.peak_time_s, t, rev)
         rows.append((r.counter, np.interp(mid - L / 2, rev, t), np.interp(mid + L / 2, rev, t)))
@@ -570,19 +563,17 @@ def _candidate_matrix(ctx: _Ctx, model: Model, win: _Windows, yhat, used_keys) -
     d = ctx.cfg.discovery
     own = floor_features(model.inputs)
     taken = tuple(model.inputs) + tuple(c.channels[0] for c in model.extra if c.operator == "input")
-    # Candidates share the model's offset (`_Windows.at` evaluates them at any other: more
-    # alignments would multiply the candidates, and the best-of-K null with them).
+    # Candidates share the model's offset, recorded as their alignment: a term keeps it if a
+    # later round moves the model's offset (`_Windows.values`).
     lib, cols = [], []
-    for off in (model.offset_s,):
-        table = win.at(off)
-        for c in library(table, model_inputs=taken, knee_quantiles=d.knee_quantiles):
-            c = replace(c, parameters={**c.parameters, "offset_s": off})
-            # Static refinements of the model's own inputs (their knees and products) are the
-            # floor's business (see `_floor_basis`), not discoveries.
-            if c.key in used_keys or (c.operator in ("input", "threshold", "product") and set(c.channels) <= set(own)):
-                continue
-            lib.append(c)
-            cols.append(values(c, table))
+    for c in library(win.cands, model_inputs=taken, knee_quantiles=d.knee_quantiles):
+        c = replace(c, parameters={**c.parameters, "offset_s": model.offset_s})
+        # Static refinements of the model's own inputs (their knees and products) are the
+        # floor's business (see `_floor_basis`), not discoveries.
+        if c.key in used_keys or (c.operator in ("input", "threshold", "product") and set(c.channels) <= set(own)):
+            continue
+        lib.append(c)
+        cols.append(values(c, win.cands))
     C = np.column_stack(cols)
     if model.lag_tau_s <= 0:
         lc, LC = _lag_candidates(yhat, win, d.lag_taus)

@@ -116,7 +116,7 @@ def _scores(y, X, C, fid) -> np.ndarray:
     return _Design(y, X, fid).scores(C)
 
 
-def _remaining(C, chosen, usable):
+def _remaining(chosen, usable):
     free = usable.copy()
     free[[s.index for s in chosen]] = False
     return free
@@ -167,7 +167,7 @@ def forward_select(residual, candidates, groups, *, base=None, folds: int = 5, m
     current = start
     for _ in range(max_effects):
         X = np.column_stack([B, C[:, [s.index for s in chosen]]])
-        free = _remaining(C, chosen, usable)
+        free = _remaining(chosen, usable)
         if not free.any():
             break
         design = _Design(y, X, fid)
