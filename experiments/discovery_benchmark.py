@@ -26,7 +26,7 @@ from pvvjax.campaign import campaign_from_frames
 from pvvjax.config import DiscoveryConfig, ExperimentConfig, load_toml
 from pvvjax.discovery import discover, summary
 from pvvjax.discovery_report import write_discovery
-from pvvjax.io import write_table
+from pvvjax.io import markdown_table, write_table
 from pvvjax.synth import SynthConfig, generate
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -130,20 +130,6 @@ def attributable(df: pd.DataFrame, nulls: dict) -> pd.DataFrame:
     return df
 
 
-def md_table(df: pd.DataFrame) -> str:
-    cols = list(df.columns)
-    lines = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
-    for r in df.itertuples(index=False):
-        cells = []
-        for v in r:
-            if isinstance(v, (float, np.floating)):
-                cells.append("" if np.isnan(v) else f"{v:.3g}")
-            else:
-                cells.append(str(v))
-        lines.append("| " + " | ".join(cells) + " |")
-    return "\n".join(lines)
-
-
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("config")
@@ -202,7 +188,7 @@ generation, training, offset, selection, retraining and replays).
   over all windows, `attributable_region` over the named effect's region (the maneuver
   kinds where it acts), both against the null scenario's baseline on the same windows.
 
-{md_table(df[cols])}
+{markdown_table(df[cols], "{:.3g}", nan="")}
 """
     (ROOT / "docs" / "discovery-benchmark.md").write_text(text)
 

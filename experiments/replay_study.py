@@ -23,6 +23,7 @@ import pandas as pd
 from pvvjax import plots
 from pvvjax.cli import enable_compilation_cache, resolve_campaign
 from pvvjax.config import load_config
+from pvvjax.io import markdown_table as md_table
 from pvvjax.io import write_table
 from pvvjax.paper import PAPER_REPLAY as PAPER
 from pvvjax.paper import PULLUP, pullup_replays
@@ -38,15 +39,6 @@ from pvvjax.replay_tables import (
     select_counters,
     settings_at,
 )
-
-
-def md_table(df: pd.DataFrame, digits=3) -> str:
-    cols = list(df.columns)
-    lines = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
-    for r in df.itertuples(index=False):
-        lines.append("| " + " | ".join(f"{v:.{digits}f}" if isinstance(v, (float, np.floating)) else str(v)
-                                       for v in r) + " |")
-    return "\n".join(lines)
 
 
 def main():

@@ -217,7 +217,7 @@ def _run_replay(cfg, campaign, out: Path) -> tuple[str, list]:
     replayed at zero, half-segment and fitted offsets beside the paper (Figs 13-14)."""
     import dataclasses
 
-    from .io import write_table
+    from .io import markdown_table, write_table
     from .paper import PAPER_REPLAY, PULLUP, pullup_replays
     from .replay_tables import calibration_table, load_replay_set, select_counters
 
@@ -235,9 +235,7 @@ def _run_replay(cfg, campaign, out: Path) -> tuple[str, list]:
     lines = [f"Offset fitted by gradient on {len(info)} transient-maneuver counters (8-rev windows): "
              + ", ".join(f"{db} {t:.2f} s" for db, t in tau.items()) + ".", "",
              "The paper: " + "; ".join(f"{db}: {v}" for db, v in PAPER_REPLAY.items() if db in models) + ".", "",
-             "| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
-    for r in tab[cols].itertuples(index=False):
-        lines.append("| " + " | ".join(f"{v:.3f}" if isinstance(v, float) else str(v) for v in r) + " |")
+             markdown_table(tab[cols])]
     md = "\n".join(lines)
     print(md)
     return md, figs

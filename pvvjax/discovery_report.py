@@ -11,18 +11,13 @@ import pandas as pd
 
 from . import plots
 from .discovery import Discovery, summary
-from .io import write_config, write_table
+from .io import markdown_table, write_config, write_table
 
 __all__ = ["write_discovery"]
 
 
-def _md(df: pd.DataFrame, digits: int = 4) -> str:
-    cols = [str(c) for c in df.columns]
-    lines = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
-    for r in df.itertuples(index=False):
-        lines.append("| " + " | ".join(f"{v:.{digits}g}" if isinstance(v, (float, np.floating)) else str(v)
-                                       for v in r) + " |")
-    return "\n".join(lines)
+def _md(df: pd.DataFrame) -> str:
+    return markdown_table(df, "{:.4g}")
 
 
 def _metrics_row(label, m):

@@ -1,17 +1,19 @@
-"""Result tables on disk: Parquet and CSV side by side, with the config that made them."""
+"""Result tables on disk: Parquet and CSV side by side, with the config that made them; and
+as Markdown for reports."""
 
 from __future__ import annotations
 
 import json
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
 from ._strict import to_dict
 
-__all__ = ["read_table", "write_config", "write_table"]
+__all__ = ["markdown_table", "read_table", "write_config", "write_table"]
 
 _META_KEY = b"pvvjax.config"
 
@@ -56,3 +58,16 @@ def write_config(cfg, path: str | Path) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(tomli_w.dumps(to_dict(cfg)))
     return path
+
+
+def markdown_table(df: pd.DataFrame, fmt: str = "{:.3f}", nan: str | None = None) -> str:
+    """A table as Markdown: floats through `fmt`, NaN as `nan` (default: through `fmt`),
+    everything else as `str`."""
+    def cell(v):
+        if isinstance(v, (float, np.floating)):
+            return nan if nan is not None and np.isnan(v) else fmt.format(v)
+        return str(v)
+
+    lines = ["| " + " | ".join(str(c) for c in df.columns) + " |", "|" + "---|" * len(df.columns)]
+    lines += ["| " + " | ".join(cell(v) for v in r) + " |" for r in df.itertuples(index=False)]
+    return "\n".join(lines)

@@ -34,6 +34,7 @@ def networks_results(res: pd.DataFrame, dbs: dict, figures: Path, source: str
     """
     from . import plots
     from .evaluation import attach_measured, heldout_predictions, table1
+    from .io import markdown_table
 
     pred = attach_measured(heldout_predictions(res), dbs)
     figs = []
@@ -61,9 +62,7 @@ def networks_results(res: pd.DataFrame, dbs: dict, figures: Path, source: str
                      f"{g.error.abs().max():.3f} | {g.error.abs().quantile(0.95):.3f} | "
                      f"{(~g.outside_band).mean():.0%} |")
     lines += ["", "Table 1 (g): the paper's values beside the synthetic campaign's, held-out predictions.", "",
-              "| " + " | ".join(t1.columns) + " |", "|" + "---|" * len(t1.columns)]
-    for r in t1.itertuples(index=False):
-        lines.append("| " + " | ".join(f"{v:.3f}" if isinstance(v, float) else str(v) for v in r) + " |")
+              markdown_table(t1)]
     flagged = pred[pred.outside_band].sort_values("error", key=abs, ascending=False)
     lines += ["", f"Points outside ±0.05 g (flagged as possible bad data, as the paper does): {len(flagged)}", "",
               "| database | condition | maneuver | measured | predicted |", "|---|---|---|---|---|"]
