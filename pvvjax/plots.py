@@ -13,7 +13,8 @@ import pandas as pd  # noqa: E402
 
 from .campaign import Campaign  # noqa: E402
 
-__all__ = ["correlation", "cost_map", "pvv_vs_airspeed", "replay", "save", "size_search", "time_histories"]
+__all__ = ["correlation", "cost_map", "offset_bars", "partial_dependence", "pvv_vs_airspeed", "replay", "residual_map",
+           "save", "size_search", "time_histories", "window_profile"]
 
 
 def save(fig, path) -> Path:
@@ -51,7 +52,7 @@ def time_histories(campaign: Campaign, windows: pd.DataFrame, counters, panels, 
         counters: counters drawn one after another (segments of one condition).
         panels: list of (label, [channels]); the channel "pvv" draws the 4P PVV per window.
     """
-    fig, axes = plt.subplots(len(panels), 1, figsize=(7.5, 1.9 * len(panels)), sharex=True)
+    fig, axes = plt.subplots(len(panels), 1, figsize=(7.5, max(2.8, 1.9 * len(panels))), sharex=True)
     axes = np.atleast_1d(axes)
     t0 = 0.0
     for k, counter in enumerate(counters):
@@ -231,4 +232,40 @@ def partial_dependence(x, residual, change, title: str, xlabel: str, bins: int =
     ax.set_title(title, fontsize=9)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
+    return fig
+
+
+def offset_bars(per_kind: pd.DataFrame, tau_all: pd.Series):
+    """Fitted offset per maneuver kind (bars) and the common one (dashed) per database."""
+    fig, ax = plt.subplots(figsize=(7.0, 3.6))
+    kinds = list(dict.fromkeys(per_kind.group))
+    dbs = list(dict.fromkeys(per_kind.database))
+    x = np.arange(len(kinds))
+    for k, db in enumerate(dbs):
+        v = per_kind[per_kind.database == db].set_index("group").loc[kinds, "offset_s"]
+        ax.bar(x + (k - 1) * 0.27, v, 0.27, color=f"C{k}", label=f"{db} per kind")
+        ax.axhline(tau_all[db], color=f"C{k}", ls="--", lw=1, label=f"{db} one for all ({tau_all[db]:.2f} s)")
+    ax.set_xticks(x, kinds)
+    ax.set_ylabel("fitted offset, s")
+    ax.set_title("Input-to-vibration offset: one per maneuver kind vs one for all", fontsize=9)
+    ax.grid(alpha=0.3, axis="y")
+    ax.legend(fontsize=6, ncol=2)
+    return fig
+
+
+def window_profile(profiles: dict):
+    """Replay cost minimised over the offset vs window length (grid) with the gradient optimum,
+    one panel per set-up (label -> (profile table, calibration table))."""
+    fig, axes = plt.subplots(1, len(profiles), figsize=(11.0, 3.8), sharey=False)
+    for ax, (label, (prof, cal)) in zip(np.atleast_1d(axes), profiles.items()):
+        for k, (db, g) in enumerate(prof.groupby("database")):
+            ax.plot(g.window_revs, g.cost, "o-", ms=3, color=f"C{k}", label=f"{db}: min over offset (grid)")
+            r = cal[cal.database == db].iloc[0]
+            ax.plot(r.window_revs, r.cost, "x", color=f"C{k}", ms=10, mew=2, label=f"{db}: gradient optimum")
+        ax.axvline(8.0, color="k", ls=":", lw=1, label="the paper's 8 revs")
+        ax.set_xlabel("window length, revolutions")
+        ax.set_ylabel("mean replay cost")
+        ax.set_title(f"Window length, {label}", fontsize=9)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=6)
     return fig
