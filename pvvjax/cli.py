@@ -121,13 +121,20 @@ def cmd_synth(args) -> int:
 
         cfg = ExperimentConfig()
         campaign, _ = resolve_campaign(cfg, folder)
-        _campaign_plots(campaign, cfg, Path(args.plots))
+        _campaign_plots(campaign, cfg, Path(args.plots))  # the generator's check figures
     return 0
 
 
-def _campaign_plots(campaign, cfg, out: Path) -> list[Path]:
+def _campaign_plots(campaign, cfg, out: Path, paper: bool = False):
+    """PVV vs airspeed and the pull-up / autorotation time histories; with `paper`, the
+    paper's Figs 1-9 one file each and their numbers beside the paper's.
+
+    Returns:
+        (figure paths, [(caption, path)] of Figs 1-9, comparison rows or None).
+    """
     from . import plots
     from .databases import peak_table
+    from .paper import paper_figures
 
     peaks, windows = peak_table(campaign, cfg.analysis)
     paths = [plots.save(plots.pvv_vs_airspeed(peaks), out / "pvv_vs_airspeed.png")]
@@ -143,15 +150,20 @@ def _campaign_plots(campaign, cfg, out: Path) -> list[Path]:
             ("a_z, g", ["az_g"]), ("shaft power, hp", ["shaft_power_hp"]), ("collective, %", ["collective_pct"]),
             ("PVV, g", ["pvv"])], "Autorotation AR60, counters 11539 + 11540 (paper Figs 5-9)")
         paths.append(plots.save(fig, out / "autorotation_AR60.png"))
-    for p in paths:
+    figs, rows = paper_figures(campaign, windows, peaks, out) if paper else ([], None)
+    for p in paths + [f for _, f in figs]:
         print(f"figure: {p}")
-    return paths
+    return paths, figs, rows
 
 
 def cmd_plot(args) -> int:
     cfg = _experiment(args)
     campaign, _ = resolve_campaign(cfg, args.campaign)
-    _campaign_plots(campaign, cfg, Path(args.out))
+    _, _, rows = _campaign_plots(campaign, cfg, Path(args.out), paper=args.paper)
+    if rows is not None:
+        from .paper import comparison_markdown
+
+        print(comparison_markdown(rows))
     return 0
 
 
@@ -162,13 +174,19 @@ def cmd_run(args) -> int:
     cfg = load_config(args.config)
     if cfg.run.networks:
         use_cpu_cores(cfg.sweep.cpu_devices)  # before anything imports JAX
+    import pandas as pd
+
     from .databases import build_databases
+    from .io import write_table
+    from .paper import database_checks
 
     out = Path(cfg.out_dir) / cfg.name
     t0 = time.perf_counter()
     replay = cfg.run.networks and cfg.run.replay
+    studies = replay and cfg.run.studies
     stages = ["campaign", "databases", "figures"] + (["networks"] if cfg.run.networks else []) + (
-        ["replay"] if replay else []) + (["discovery"] if cfg.run.discovery_scenario else [])
+        ["replay"] if replay else []) + (["studies"] if studies else []) + (
+        ["discovery"] if cfg.run.discovery_scenario else [])
     step = lambda name, text: print(f"[{stages.index(name) + 1}/{len(stages)}] {text}")  # noqa: E731
     step("campaign", f"campaign ({'embedded synthetic' if not cfg.campaign.path else cfg.campaign.path})")
     campaign, _ = resolve_campaign(cfg)
@@ -177,68 +195,102 @@ def cmd_run(args) -> int:
     _write_databases(dbs, out / "databases", cfg)
     summary = _summary(dbs)
     print(summary)
-    step("figures", "figures")
-    figures = _campaign_plots(campaign, cfg, out / "figures")
-    nets = None
+    step("figures", "figures (paper Figs 1-9)")
+    figures, paper_figs, fig_rows = _campaign_plots(campaign, cfg, out / "figures", paper=True)
+    checks = [database_checks(dbs["peaks"]), fig_rows]
+    nets = reps = disc = None
+    sections = []
     if cfg.run.networks:
         step("networks", f"networks: {', '.join(cfg.sweep.databases)} x {len(cfg.sweep.hidden)} architecture(s) x "
                          f"{cfg.sweep.seeds} seeds x {cfg.sweep.folds} folds (Figs 10-12, Table 1)")
         nets = _run_networks(cfg, dbs, out, args.config)
-    reps = None
+        checks.append(nets[2])
     if replay:
         step("replay", "quasi-static replay: offset fitted on all maneuvers, pull-up 11022 (Figs 13-14)")
         reps = _run_replay(cfg, campaign, out)
-    disc = None
+        checks.append(reps[2])
+    if studies:
+        step("studies", "studies: one offset per maneuver kind, window length, stick lag")
+        sections = _run_studies(cfg, reps[3], out)
     if cfg.run.discovery_scenario:
         step("discovery", f"discovery on the hidden-effect scenario {cfg.run.discovery_scenario}")
         disc = _run_discovery(cfg, out / "discovery")
-    report = _write_report(cfg, out, summary, figures, nets, reps, disc, time.perf_counter() - t0)
+    checks = pd.concat([c for c in checks if c is not None and len(c)], ignore_index=True)
+    write_table(checks, out / "paper_comparison", cfg)
+    report = _write_report(cfg, out, summary, figures, paper_figs, checks, nets, reps, sections, disc,
+                           time.perf_counter() - t0)
     print(f"done in {time.perf_counter() - t0:.1f} s; results in {out}")
     print(f"report: {report}")
     return 0
 
 
-def _run_networks(cfg, dbs, out: Path, source) -> tuple[str, list]:
-    """Train (or resume) the config's sweep; Figs 10-12 and Table 1 beside the paper."""
+def _run_networks(cfg, dbs, out: Path, source) -> tuple:
+    """Train (or resume) the config's sweep; Figs 10-12 and Table 1 beside the paper.
+
+    Returns:
+        (Markdown, figure paths, comparison rows).
+    """
     from tqdm.auto import tqdm
 
-    from .paper import networks_results
+    from .paper import network_checks, networks_results
     from .sweep import run_sweep
 
     enable_compilation_cache()
     res = run_sweep(cfg, dbs, out / "sweep", progress=lambda **kw: tqdm(desc="nets", unit="net", **kw))
-    md, figs, _ = networks_results(res, dbs, out / "figures", str(source))
+    md, figs, pred = networks_results(res, dbs, out / "figures", str(source))
     print(md.split("\n\nPoints outside")[0])
-    return md, figs
+    return md, figs, network_checks(pred)
 
 
-def _run_replay(cfg, campaign, out: Path) -> tuple[str, list]:
+def _run_replay(cfg, campaign, out: Path) -> tuple:
     """The offset fitted on every transient maneuver (8-rev windows), and the pull-up 11022
-    replayed at zero, half-segment and fitted offsets beside the paper (Figs 13-14)."""
-    import dataclasses
+    replayed at zero, half-segment and fitted offsets beside the paper (Figs 13-14).
 
+    Returns:
+        (Markdown, figure paths, comparison rows, (replay set, common offset) for the studies).
+    """
     from .io import markdown_table, write_table
-    from .paper import PAPER_REPLAY, PULLUP, pullup_replays
-    from .replay_tables import calibration_table, load_replay_set, select_counters
+    from .paper import PAPER_REPLAY, PULLUP, pullup_replays, replay_checks
+    from .replay_tables import load_replay_set, select_counters
+    from .studies import one_offset
 
     counters = select_counters(campaign, cfg.replay)
     if PULLUP not in counters:
         counters.append(PULLUP)
-    info, batch, recs, models = load_replay_set(campaign, counters, out / "sweep", cfg.sweep.databases)
-    off_cfg = dataclasses.replace(cfg.calibration, free=("offset_s",), groups="all")
-    cal = calibration_table(info, batch, recs, models, off_cfg, (0.0, 8.0, 0.0))
-    tau = cal.set_index("database").offset_s.to_dict()
-    tab, figs = pullup_replays(campaign, info, batch, recs, models, tau, out / "figures")
+    rset = load_replay_set(campaign, counters, out / "sweep", cfg.sweep.databases)
+    info = rset[0]
+    common = one_offset(*rset, cfg.calibration)
+    tau = common.offset_s.to_dict()
+    tab, figs = pullup_replays(campaign, *rset, tau, out / "figures")
     write_table(tab, out / "replay" / "figs13_14", cfg)
     cols = ["offset", "database", "offset_s", "measured_peak_g", "predicted_peak_g", "peak_error_g",
             "phase_error_s"]
     lines = [f"Offset fitted by gradient on {len(info)} transient-maneuver counters (8-rev windows): "
              + ", ".join(f"{db} {t:.2f} s" for db, t in tau.items()) + ".", "",
-             "The paper: " + "; ".join(f"{db}: {v}" for db, v in PAPER_REPLAY.items() if db in models) + ".", "",
+             "The paper: " + "; ".join(f"{db}: {v}" for db, v in PAPER_REPLAY.items() if db in rset[3]) + ".", "",
              markdown_table(tab[cols])]
     md = "\n".join(lines)
     print(md)
-    return md, figs
+    return md, figs, replay_checks(tab), (rset, common)
+
+
+def _run_studies(cfg, replay_set, out: Path) -> list:
+    """The studies the paper left open, on the replay set of the replay stage."""
+    from . import studies
+    from .io import write_table
+    from .paper import PULLUP
+
+    rset, common = replay_set
+    figures, cc = out / "figures", cfg.calibration
+    sections = [studies.offset_per_kind(*rset, cc, common, figures),
+                studies.window_length(*rset, cc, figures),
+                studies.stick_lag(*rset, cc, common, PULLUP, figures)]
+    sections = [s for s in sections if s is not None]
+    for s in sections:
+        for name, tab in s.tables.items():
+            write_table(tab, out / "studies" / name, cfg)
+        print(s.markdown.split("\n")[0] + f": {len(s.figures)} figure(s), tables in {out / 'studies'}")
+    return sections
 
 
 def _run_discovery(cfg, out: Path):
@@ -268,23 +320,41 @@ def _run_discovery(cfg, out: Path):
     return res, hidden
 
 
-def _write_report(cfg, out: Path, summary: str, figures, nets, reps, disc, seconds: float) -> Path:
-    """report.md (and report.html) of the main job: the databases beside the paper, the
-    figures, and the discovery scenario."""
+def _write_report(cfg, out: Path, summary: str, figures, paper_figs, checks, nets, reps, sections, disc,
+                  seconds: float) -> Path:
+    """report.md (and report.html) of the main job: every number beside the paper's, the
+    paper's figures and tables reproduced, the studies and the discovery scenario."""
+    from .paper import comparison_markdown
+
+    link = lambda p, alt=None: f"![{alt or p.stem}](figures/{p.name})"  # noqa: E731
     lines = [f"# pvvjax main job: {cfg.name}", "",
              f"Campaign: {cfg.campaign.path or 'the embedded synthetic UH-60A campaign'}; "
              f"{cfg.analysis.window_revs:g}-revolution windows; {seconds:.0f} s.", "",
-             "## Databases 1-3 and the paper's peak PVV", "", "```", summary, "```", "", "## Figures", ""]
-    for p in figures:
-        lines += [f"![{p.stem}](figures/{p.name})", ""]
+             "Contents: [paper comparison](#every-number-beside-the-papers) · [databases](#databases-1-3) · "
+             "[Figs 1-9](#paper-figs-1-9-the-pull-up-and-the-autorotation)"
+             + (" · [networks](#networks-paper-figs-10-12-table-1)" if nets else "")
+             + (" · [replay](#quasi-static-replay-of-the-pull-up-11022-paper-figs-13-14)" if reps else "")
+             + (" · [studies](#studies-the-paper-left-open)" if sections else "")
+             + (" · [discovery](#discovery-on-a-hidden-effect-scenario)" if disc else ""), "",
+             "## Every number beside the paper's", "", comparison_markdown(checks),
+             "The same rows: `paper_comparison.csv`.", "",
+             "## Databases 1-3", "", "```", summary, "```", "",
+             "## Paper Figs 1-9: the pull-up and the autorotation", ""]
+    for caption, p in paper_figs:
+        lines += [f"**{caption}**", "", link(p, caption), ""]
+    lines += ["Overview figures:", ""] + [link(p) for p in figures] + [""]
     if nets is not None:
-        md, figs = nets
+        md, figs, _ = nets
         lines += ["## Networks (paper Figs 10-12, Table 1)", "", md.replace("# Networks", "### Networks", 1), ""]
-        lines += [f"![{p.stem}](figures/{p.name})" for p in figs] + [""]
+        lines += [link(p) for p in figs] + [""]
     if reps is not None:
-        md, figs = reps
+        md, figs, *_ = reps
         lines += ["## Quasi-static replay of the pull-up 11022 (paper Figs 13-14)", "", md, ""]
-        lines += [f"![{p.stem}](figures/{p.name})" for p in figs] + [""]
+        lines += [link(p) for p in figs] + [""]
+    if sections:
+        lines += ["## Studies the paper left open", ""]
+    for s in sections:
+        lines += ["#" + s.markdown, ""]  # one level down
     if disc is not None:
         from .discovery import summary as disc_summary
 
@@ -308,7 +378,7 @@ def _write_report(cfg, out: Path, summary: str, figures, nets, reps, disc, secon
     if cfg.run.html:
         import markdown
 
-        body = markdown.markdown(path.read_text(), extensions=["tables", "fenced_code"])
+        body = markdown.markdown(path.read_text(), extensions=["tables", "fenced_code", "toc"])
         (out / "report.html").write_text(
             "<!doctype html><html><head><meta charset='utf-8'><title>pvvjax report</title><style>"
             "body{font-family:sans-serif;max-width:60em;margin:2em auto}img{max-width:100%}"
@@ -654,6 +724,7 @@ def build_parser() -> argparse.ArgumentParser:
         s.add_argument("--out", required=True, help=out_help)
         s.add_argument("--config", help="experiment config")
         s.set_defaults(fn=fn)
+        return s
 
     campaign_command("build-db", cmd_build_db, "build databases 1-3 from a campaign",
                      "Harmonic analysis, peak PVV per condition and db1-db3 as CSV and Parquet.", "output folder")
@@ -667,8 +738,10 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--plots", default=None, metavar="DIR", help="also write the check figures to DIR")
     s.set_defaults(fn=cmd_synth)
 
-    campaign_command("plot", cmd_plot, "figures of a campaign (PVV vs airspeed, pull-up, autorotation)",
+    s = campaign_command("plot", cmd_plot, "figures of a campaign (PVV vs airspeed, pull-up, autorotation)",
                      "PVV vs airspeed in level flight and paper-style time histories.", "output folder for PNG files")
+    s.add_argument("--paper", action="store_true",
+                   help="also the paper's Figs 1-9, one file each, and their numbers beside the paper's")
 
     s = sub.add_parser("sweep", help="train a sweep of networks (databases x architectures x seeds x folds)",
                        description="Train every net of the config's [sweep] with its [train] settings. "
@@ -766,6 +839,8 @@ def cli_reference(width: int = 96) -> str:
 
 
 def main(argv=None) -> int:
+    """Run the CLI on `argv` (default: the process's arguments); returns the exit status
+    (2 for bad input, reported as one clear message rather than a traceback)."""
     from ._strict import ConfigError
     from .campaign import CampaignError
 

@@ -411,6 +411,8 @@ class RunConfig:
             beside the paper.
         replay: with `networks`, fit the offset on every transient maneuver ([replay]
             maneuvers, [calibration]) and replay the pull-up 11022 (Figs 13-14).
+        studies: with `replay`, the studies the paper left open: one offset per maneuver
+            kind, the window length (gradient and brute-force grid) and a stick lag.
         discovery_scenario: a generator config (TOML) whose campaign hides an effect; the
             main job runs the discovery workflow on it ("": no discovery stage).
         html: also write report.html beside report.md.
@@ -418,6 +420,7 @@ class RunConfig:
 
     networks: bool = False
     replay: bool = True
+    studies: bool = True
     discovery_scenario: str = ""
     html: bool = True
 

@@ -18,6 +18,7 @@ __all__ = ["correlation", "cost_map", "offset_bars", "partial_dependence", "pvv_
 
 
 def save(fig, path) -> Path:
+    """Write `fig` as PNG (creating the folder), close it, and return the path."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110, bbox_inches="tight")

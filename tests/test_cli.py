@@ -1,6 +1,8 @@
 import subprocess
 import sys
+from pathlib import Path
 
+import pandas as pd
 import pytest
 
 from pvvjax.campaign import load_campaign
@@ -103,8 +105,6 @@ def test_replay_config_mistakes_are_clear_errors(tmp_path, capsys):
 
 
 def test_cli_reference_in_the_docs_is_current():
-    from pathlib import Path
-
     from pvvjax.cli import cli_reference
 
     doc = Path(__file__).parents[1] / "docs" / "cli.md"
@@ -116,12 +116,42 @@ def test_main_job_with_networks_reports_table1_beside_the_paper(tmp_path, small_
     cfg.write_text(f'''name = "p"\nout_dir = "{tmp_path.as_posix()}"\n[campaign]\npath = "{small_campaign_dir.as_posix()}"
 [run]\nnetworks = true\nhtml = false
 [sweep]\ndatabases = ["db1", "db3"]\nhidden = [[4]]\nseeds = 1\nfolds = 3
-[train]\nmax_steps = 300\nlearning_rate = 0.01\n''')
+[train]\nmax_steps = 300\nlearning_rate = 0.01
+[calibration]\ngrid_offset_step_s = 0.5\n''')
     assert main(["run", str(cfg)]) == 0
-    assert "[4/5] networks" in capsys.readouterr().out
+    assert "[4/6] networks" in capsys.readouterr().out
     report = (tmp_path / "p" / "report.md").read_text()
     assert "| zero offset | db1 | 0.000 |" in report and "figures/fig13a_replay_11022.png" in report
     assert "| condition | paper test | test | paper db1 | db1 | paper db3 | db3 |" in report
     assert "| T1-level-135 | 0.100 |" in report and "figures/fig10_correlation_db1.png" in report
     assert (tmp_path / "p" / "figures" / "fig12_correlation_db3.png").exists()
     assert not (tmp_path / "p" / "report.html").exists()
+    # Every paper number in one table; Figs 1-9 one file each
+    checks = pd.read_csv(tmp_path / "p" / "paper_comparison.csv")
+    assert {"databases", "networks (Figs 10-12, Table 1)", "replay of the pull-up 11022 (Figs 13-14)"} <= set(
+        checks.section)
+    row = checks[checks.item == "peak PVV, g"].iloc[0]
+    assert row.paper == "0.220" and row.agrees == "yes"
+    assert "## Every number beside the paper's" in report
+    for n in range(1, 10):
+        assert f"**Fig. {n}." in report
+    # Studies: each kind's own offset does at least as well on that kind as the common one, and the
+    # gradient optimum of (offset, window length) is no worse than the brute-force grid's best point
+    kinds = pd.read_csv(tmp_path / "p" / "studies" / "offset_per_kind.csv")
+    cost = kinds.pivot_table(index=["database", "maneuver"], columns="offsets", values="cost")
+    assert (cost["one per kind"] <= cost["one for all"] * 1.01 + 1e-6).all()
+    wl = pd.read_csv(tmp_path / "p" / "studies" / "window_length.csv")
+    assert (wl.gradient_cost <= wl.grid_cost * 1.02).all() and len(wl) == 4
+    assert "## Window length" in report and "figures/window_length.png" in report
+
+
+def test_api_reference_is_current_and_covers_every_public_module():
+    from pvvjax._apidoc import MODULES, api_reference
+
+    text = api_reference()
+    doc = Path(__file__).parents[1] / "docs" / "api.md"
+    assert doc.read_text() == text, "regenerate with: python experiments/api_reference.py --docs"
+    package = Path(__file__).parents[1] / "pvvjax"
+    public = {p.stem for p in package.glob("*.py") if not p.stem.startswith("_")} | {"synth"}
+    assert public - {"__main__"} == set(MODULES), "add the new module to pvvjax._apidoc.MODULES"
+    assert "### `discovery.discover` (function; also `pvvjax.discover`)" in text
