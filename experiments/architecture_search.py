@@ -34,6 +34,8 @@ def main():
               f"(validation RMS {chosen['val_rms']:.4f} g, held-out test RMS {test:.4f} g); figure {path}")
         if args.docs:
             shutil.copy(path, Path("docs/figures") / path.name)
+            print(f"copied to docs/figures/{path.name}")
+    print(f"sweep results: {sweep_dir / 'results.parquet'}")
 
 
 if __name__ == "__main__":

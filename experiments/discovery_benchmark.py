@@ -191,6 +191,7 @@ generation, training, offset, selection, retraining and replays).
 {markdown_table(df[cols], "{:.3g}", nan="")}
 """
     (ROOT / "docs" / "discovery-benchmark.md").write_text(text)
+    print(f"wrote {ROOT / 'docs' / 'discovery-benchmark.md'}")
 
 
 if __name__ == "__main__":

@@ -68,6 +68,7 @@ def main():
     if args.docs:
         for f in figs:
             shutil.copy(f, Path("docs/figures") / f.name)
+        print("copied to docs/figures:", ", ".join(f.name for f in figs))
 
 
 if __name__ == "__main__":

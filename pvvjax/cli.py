@@ -825,7 +825,7 @@ def cli_reference(width: int = 96) -> str:
     try:
         p = build_parser()
         parts = ["# Command-line reference", "",
-                 "Generated from the CLI itself (`python experiments/cli_reference.py --docs`); "
+                 "Generated from the CLI itself (`python experiments/reference_docs.py --docs`); "
                  "every subcommand also has `--help`.", "", "```", p.format_help().rstrip(), "```", ""]
         sub = next(a for a in p._actions if isinstance(a, argparse._SubParsersAction))
         for name, sp in sub.choices.items():

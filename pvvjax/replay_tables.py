@@ -67,6 +67,7 @@ def load_replay_set(campaign: Campaign, counters, sweep_dir, databases, architec
 
 
 def cost_weights(cfg: CalibrationConfig) -> CostWeights:
+    """The replay-cost weights and scales of a calibration config."""
     return CostWeights(cfg.peak_weight, cfg.phase_weight, cfg.rms_weight, cfg.peak_scale_g, cfg.phase_scale_s,
                        cfg.temperature_g, cfg.phase_cap_s)
 
@@ -162,6 +163,8 @@ def settings_at(batch, theta, hop_revs: float = 0.0) -> Settings:
 
 
 def calibration_settings(batch, cfg: CalibrationConfig, stick_lag: bool) -> Settings:
+    """Replay settings that cover every θ inside the config's bounds (the window plan of the
+    longest window, the largest offsets), so one compiled cost serves the whole search."""
     lo, hi = cfg.offset_bounds
     if stick_lag:  # the sticks' total offset must stay inside the record too
         lo, hi = lo + min(cfg.stick_offset_bounds[0], 0.0), hi + max(cfg.stick_offset_bounds[1], 0.0)

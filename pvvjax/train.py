@@ -158,6 +158,8 @@ def init_state(params: dict, data: Data, cfg, apply=mlp_apply) -> TrainState:
 
 
 def done(state: TrainState, cfg) -> jax.Array:
+    """Whether training stops: the step budget is spent, validation stopped improving for
+    `patience` evaluations, or the loss went non-finite."""
     return (state.step >= cfg.max_steps) | (state.since >= cfg.patience) | (state.failed >= 0)
 
 
@@ -205,6 +207,8 @@ def run(state: TrainState, const: dict, data: Data, cfg, max_evals: int | None =
 
 
 def result(state: TrainState, const: dict) -> Fit:
+    """The fit a finished state holds: the best-validation parameters (with the constant
+    scalings) and where they were found."""
     return Fit({**const, **state.best}, state.best_step, state.best_val, state.step, state.failed)
 
 

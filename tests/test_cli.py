@@ -108,7 +108,7 @@ def test_cli_reference_in_the_docs_is_current():
     from pvvjax.cli import cli_reference
 
     doc = Path(__file__).parents[1] / "docs" / "cli.md"
-    assert doc.read_text() == cli_reference(), "regenerate with: python experiments/cli_reference.py --docs"
+    assert doc.read_text() == cli_reference(), "regenerate with: python experiments/reference_docs.py --docs"
 
 
 def test_main_job_with_networks_reports_table1_beside_the_paper(tmp_path, small_campaign_dir, capsys):
@@ -150,7 +150,7 @@ def test_api_reference_is_current_and_covers_every_public_module():
 
     text = api_reference()
     doc = Path(__file__).parents[1] / "docs" / "api.md"
-    assert doc.read_text() == text, "regenerate with: python experiments/api_reference.py --docs"
+    assert doc.read_text() == text, "regenerate with: python experiments/reference_docs.py --docs"
     package = Path(__file__).parents[1] / "pvvjax"
     public = {p.stem for p in package.glob("*.py") if not p.stem.startswith("_")} | {"synth"}
     assert public - {"__main__"} == set(MODULES), "add the new module to pvvjax._apidoc.MODULES"

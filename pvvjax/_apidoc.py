@@ -1,0 +1,64 @@
+"""The Python API reference, generated from the package (`experiments/reference_docs.py`)."""
+
+from __future__ import annotations
+
+import importlib
+import inspect
+import re
+
+# Pipeline order: data, analysis, networks, replay, studies, discovery, real time, shell.
+MODULES = ["campaign", "units", "batch", "constants", "features", "harmonics", "databases", "networks", "train",
+           "sweep", "evaluation", "npnet", "replay", "calibration", "replay_tables", "studies", "residuals",
+           "candidates", "selection", "discovery", "discovery_report", "effects", "realtime", "rtelement", "synth",
+           "config", "io", "plots", "paper", "cli"]
+
+
+def _signature(name: str, obj) -> str:
+    try:
+        sig = str(inspect.signature(obj))
+    except (TypeError, ValueError):
+        return name
+    sig = re.sub(r" at 0x[0-9a-f]+", "", sig)  # reprs of default callables carry addresses
+    return f"{name}{sig}"
+
+
+def _first_paragraph(doc: str | None) -> str:
+    return (doc or "").strip().split("\n\n")[0].replace("\n", " ")
+
+
+def _entry(modname: str, name: str, obj) -> list[str]:
+    top = f"; also `pvvjax.{name}`" if _top_level().get(name) == modname else ""
+    if inspect.isclass(obj) or callable(obj):
+        kind = "class" if inspect.isclass(obj) else "function"
+        lines = [f"### `{modname}.{name}` ({kind}{top})", "", "```python", _signature(name, obj), "```", ""]
+        doc = inspect.getdoc(obj) if (inspect.isclass(obj) and obj.__doc__) or not inspect.isclass(obj) else ""
+        if doc and not doc.startswith(f"{name}("):  # dataclasses' generated docstrings repeat the signature
+            lines += [doc, ""]
+        return lines
+    return [f"### `{modname}.{name}` (constant, `{type(obj).__name__}`{top})", ""]
+
+
+def _top_level() -> dict:
+    import pvvjax
+
+    return getattr(pvvjax, "_WHERE")
+
+
+def api_reference() -> str:
+    """docs/api.md: every public module in pipeline order, each with its docstring and every
+    name in its `__all__` (signature and docstring)."""
+    lines = ["# Python API", "",
+             "Generated from the package itself (`python experiments/reference_docs.py --docs`); a test keeps it "
+             "current. The names most scripts need are importable from `pvvjax` directly (marked below); the rest "
+             "from their modules. Numerical functions are pure (JAX arrays and PyTrees in, out); files, plots and "
+             "the CLI are at the edges. See [concepts](concepts.md) for the pipeline and [the CLI](cli.md) for "
+             "the commands.", "", "## Modules", "", "| module | what it holds |", "|---|---|"]
+    mods = {m: importlib.import_module(f"pvvjax.{m}") for m in MODULES}
+    for m, mod in mods.items():
+        lines.append(f"| [`pvvjax.{m}`](#pvvjax{m.replace('_', '')}) | {_first_paragraph(mod.__doc__)} |")
+    lines.append("")
+    for m, mod in mods.items():
+        lines += [f"## pvvjax.{m}", "", (inspect.getdoc(mod) or "").strip(), ""]
+        for name in getattr(mod, "__all__", []):
+            lines += _entry(m, name, getattr(mod, name))
+    return "\n".join(lines).rstrip() + "\n"
