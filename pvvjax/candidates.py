@@ -81,6 +81,13 @@ class Candidate:
     def name(self) -> str:
         return describe(self)
 
+    @property
+    def complexity(self) -> int:
+        """1 for a channel (or its magnitude), 2 for a derivative or a spread inside the window,
+        3 for an operator with a fitted parameter or two channels (knee, resonance, lag,
+        product): the order in which a simpler explanation is preferred."""
+        return {"input": 1, "rate": 2, "abs_rate": 2, "window": 2}.get(self.operator, 3)
+
 
 def _fmt(v):
     return f"{v:.4g}" if isinstance(v, float) else str(v)

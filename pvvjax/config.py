@@ -335,11 +335,16 @@ class DiscoveryConfig:
         alpha: significance level of the permutation test; permutations: its permutations.
         min_gain: smallest relative drop of the held-out (by condition) residual error a
             candidate must bring to be proposed.
+        parsimony: once the best candidate is significant, name the simplest candidate
+            (fewest operators and fitted parameters) whose held-out error is within this many
+            standard errors of the best's (0: always the best).
         min_shrink: smallest median (over seeds) relative drop of the held-out RMS, where the
             effect was found, that confirms it after retraining.
         augment: how a candidate joins the model: "additive" (a term b·candidate fitted on the
-            windows, cross-fitted by fold, the nets retrained on the peaks minus it) or
-            "input" (an extra network input). A lag is always a learned lag of the replay.
+            windows, cross-fitted by fold, the nets retrained on the peaks minus it),
+            "input" (an extra network input: the nets learn its shape and its interactions),
+            or "auto" (both; the one that lowers the held-out RMS more). A lag is always a
+            learned lag of the replay.
         selection_stride: every n-th window of a counter enters the selection.
         local_selection: also run the selection inside each maneuver kind where the residual
             concentrates (Bonferroni over the subsets). Off by default: on the benchmark's
@@ -366,8 +371,9 @@ class DiscoveryConfig:
     alpha: float = 0.01
     permutations: int = 99
     min_gain: float = 0.02
+    parsimony: float = 1.0
     min_shrink: float = 0.05
-    augment: Literal["additive", "input"] = "additive"
+    augment: Literal["additive", "input", "auto"] = "auto"
     selection_stride: int = 4
     local_selection: bool = False
     min_subset_conditions: int = 20
@@ -380,6 +386,8 @@ class DiscoveryConfig:
         _bounds("discovery.offset_bounds", self.offset_bounds)
         if not self.hidden or min(self.hidden) < 1:
             raise ValueError(f"discovery.hidden needs widths >= 1, got {list(self.hidden)}")
+        if self.parsimony < 0:
+            raise ValueError(f"discovery.parsimony must be >= 0 (standard errors), got {self.parsimony}")
         if self.max_effects < 0:
             raise ValueError(f"discovery.max_effects must be >= 0 (0: baseline and residual map only), "
                              f"got {self.max_effects}")

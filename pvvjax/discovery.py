@@ -513,6 +513,29 @@ def _augment(ctx: _Ctx, model: Model, c: Candidate, how: str) -> Model:
     return model._replace(params=params, terms=model.terms + ((c, refit),))
 
 
+def _confirm(ctx: _Ctx, current: Model, trial: Model, where: str, d) -> tuple[bool, dict]:
+    """Whether a trial model confirms its effect: the held-out RMS drops by `min_shrink`
+    where the effect acts (median over seeds) and does not rise over all windows. Where it
+    acts: the maneuver kind it was found in, or, for an effect found over all windows, the
+    kinds that hold most of the change it makes (`_region`), so that an effect of a few
+    maneuver kinds is not diluted among all windows.
+
+    Returns:
+        (confirmed, dict of the trial's predictions, metrics, median shrinks and region).
+    """
+    twin = _replay(ctx, trial.offset_s)
+    tpred = predictions(ctx, trial, twin)
+    prev = predictions(ctx, current, twin)  # the current model on the same windows
+    tfull = twin.table.weight.to_numpy() >= 0.999
+    region = _region(twin, tfull, prev, tpred)
+    kinds = [where] if where != "all" else region["where"].split(", ")
+    local_rows = tfull & np.isin(twin.table.maneuver.to_numpy(), kinds)
+    shrink = float(np.median(1.0 - _rms_by_seed(tpred, twin, tfull) / _rms_by_seed(prev, twin, tfull)))
+    local = float(np.median(1.0 - _rms_by_seed(tpred, twin, local_rows) / _rms_by_seed(prev, twin, local_rows)))
+    ok = local >= d.min_shrink and shrink > 0.0
+    return ok, dict(pred=tpred, metrics=metrics(tpred, twin), shrink=shrink, local=local, region=region)
+
+
 def _lag_candidates(yhat, win: _Windows, taus) -> tuple[list[Candidate], np.ndarray]:
     cols = [(_lag_windows(yhat[None], win, t)[0] - yhat) for t in taus]
     return [Candidate("lag", (), {"tau_s": float(t)}) for t in taus], np.column_stack(cols)
@@ -614,16 +637,18 @@ def _floor(win: _Windows, yhat, resid, rows, own, groups, min_conditions: int = 
     return np.column_stack([yhat[rows], knn])
 
 
-def _propose(win: _Windows, yhat, resid, C, rows, own, d, seed: int) -> list:
+def _propose(win: _Windows, yhat, resid, C, rows, own, d, seed: int, complexity) -> list:
     """Significant candidates over all windows and, with `local_selection`, inside each
     maneuver kind where the residual concentrates (an effect of one kind is diluted among
     all windows) and that has `min_subset_conditions` conditions (with fewer, the floor
     covariates and the k-fold split cannot tell an effect from the floor). Bonferroni over
     the subsets; the permutations grow so that the corrected level can be reached.
+    `complexity` (one per column of C) is for the selection's parsimony rule.
 
     Returns:
-        list of (where, candidate column, `Selected`), most residual² explained first, at
-        most `d.proposals`, one per candidate.
+        list of (where, candidate column, `Selected`), most residual² explained first and,
+        inside a selection, the candidates it cannot tell apart (simplest first); at most
+        `d.proposals`, one per candidate.
     """
     groups = win.table.condition.to_numpy()
     kinds = win.table.maneuver.to_numpy()
@@ -644,15 +669,19 @@ def _propose(win: _Windows, yhat, resid, C, rows, own, d, seed: int) -> list:
         keep = np.flatnonzero(np.ptp(Cs, axis=0) > 0)
         floor = _floor(win, yhat, resid, sub, own, groups)
         for s in forward_select(resid[sub], Cs[:, keep], groups[sub], base=floor, folds=d.folds, max_effects=1,
-                                min_gain=d.min_gain, alpha=alpha, permutations=perms, seed=seed):
+                                min_gain=d.min_gain, alpha=alpha, permutations=perms, seed=seed,
+                                complexity=complexity[keep], parsimony=d.parsimony):
             amount = s.gain * float(np.sum(resid[sub] ** 2))
-            s = s._replace(alternatives=tuple((int(keep[a]), g) for a, g in s.alternatives))  # global columns
-            found.append((amount, where, int(keep[s.index]), s))
+            s = s._replace(index=int(keep[s.index]),  # global columns
+                           alternatives=tuple((int(keep[a]), g) for a, g in s.alternatives),
+                           equivalents=tuple((int(keep[a]), g) for a, g in s.equivalents))
+            found.append((amount, where, s))
     out, seen = [], set()
-    for _, where, j, s in sorted(found, key=lambda f: -f[0]):
-        if j not in seen:
-            seen.add(j)
-            out.append((where, j, s))
+    for _, where, s in sorted(found, key=lambda f: -f[0]):
+        for j, g in s.equivalents or ((s.index, s.gain),):  # the candidates it cannot tell apart
+            if j not in seen:
+                seen.add(j)
+                out.append((where, j, s._replace(index=j, gain=g)))
     return out[: d.proposals]
 
 
@@ -710,55 +739,59 @@ def discover(campaign: Campaign, cfg: ExperimentConfig = ExperimentConfig(), *, 
         resid = win.table.measured_g.to_numpy() - yhat
         lib, C = _candidate_matrix(ctx, current, win, yhat, used)
         sel_rows = full & (win.table.k.to_numpy() % d.selection_stride == 0)
-        proposals = _propose(win, yhat, resid, C, sel_rows, floor_features(current.inputs), d, seed=cfg.seed + rnd)
+        proposals = _propose(win, yhat, resid, C, sel_rows, floor_features(current.inputs), d, seed=cfg.seed + rnd,
+                             complexity=np.array([c.complexity for c in lib]))
         t_explain += time.perf_counter() - t0
-        log(f"round {rnd + 1}: {len(lib)} candidates, {len(proposals)} significant: "
-            + (", ".join(f"{lib[j].name} in {where} (p={s.p_value:.4f})" for where, j, s in proposals) or "none"))
-        accepted = None
+        log(f"round {rnd + 1}: {len(lib)} candidates, {len(proposals)} proposed: "
+            + (", ".join(f"{lib[j].name} in {where} (p={s.p_value:.4f}, gain {s.gain:.3f})"
+                         for where, j, s in proposals) or "none")
+            + "".join(f"; {len(s.equivalents)} equivalent to the best in {where}: "
+                      + ", ".join(lib[a].name for a, _ in s.equivalents[:10]) for where, _, s in proposals[:1]))
+        confirmed = []
         for where, j, s in proposals:
             t0 = time.perf_counter()
-            c = _refine(lib[j], resid[full], win.at(lib[j].parameters.get("offset_s", win.offset))[full])
-            if c.operator == "lag":
-                trial = _fit_offset(ctx, current, with_lag=True)
-                c = replace(c, parameters={"tau_s": trial.lag_tau_s})
-            else:
-                trial = _augment(ctx, current, c, d.augment)
-                if trial.terms and trial.terms[-1][0] is c:
-                    c = replace(c, parameters={**c.parameters,
-                                               "coefficient": float(np.median(trial.terms[-1][1][:, 1]))})
-            twin = _replay(ctx, trial.offset_s)
-            tpred = predictions(ctx, trial, twin)
-            prev = predictions(ctx, current, twin)  # the current model on the same windows
-            m = metrics(tpred, twin)
-            tfull = twin.table.weight.to_numpy() >= 0.999
-            region = tfull & (twin.table.maneuver.to_numpy() == where if where != "all" else True)
-            shrink = 1.0 - _rms_by_seed(tpred, twin, tfull) / _rms_by_seed(prev, twin, tfull)
-            local = 1.0 - _rms_by_seed(tpred, twin, region) / _rms_by_seed(prev, twin, region)
-            # Confirmed: the held-out RMS drops where the effect was found (median over seeds),
-            # and does not rise over all windows.
-            ok = float(np.median(local)) >= d.min_shrink and float(np.median(shrink)) > 0.0
-            t_confirm += time.perf_counter() - t0
-            alts = "; ".join(f"{lib[a].name} ({g:.3f})" for a, g in s.alternatives)
-            rounds.append(dict(round=rnd + 1, where=where, candidate=c.key, name=c.name, operator=c.operator,
-                               channels=",".join(c.channels), p_value=s.p_value, cv_gain=s.gain, runners_up=alts,
-                               explained_fraction=s.explained_fraction, rms_before_g=cur_metrics["rms_g"],
-                               rms_after_g=m["rms_g"], median_shrink=float(np.median(shrink)),
-                               region_shrink=float(np.median(local)), confirmed=ok))
-            log(f"  {c.name}: held-out RMS {cur_metrics['rms_g']:.4f} -> {m['rms_g']:.4f} g, median shrink over "
-                f"seeds {np.median(shrink):+.1%} (all), {np.median(local):+.1%} ({where}): "
-                f"{'confirmed' if ok else 'not confirmed'}")
+            refined = _refine(lib[j], resid[full], win.at(lib[j].parameters.get("offset_s", win.offset))[full])
+            modes = ("lag",) if refined.operator == "lag" else (
+                ("additive", "input") if d.augment == "auto" else (d.augment,))
+            for mode in modes:
+                c = refined
+                if mode == "lag":
+                    trial = _fit_offset(ctx, current, with_lag=True)
+                    c = replace(c, parameters={"tau_s": trial.lag_tau_s})
+                else:
+                    trial = _augment(ctx, current, c, mode)
+                    if trial.terms and trial.terms[-1][0] is c:
+                        c = replace(c, parameters={**c.parameters,
+                                                   "coefficient": float(np.median(trial.terms[-1][1][:, 1]))})
+                ok, conf = _confirm(ctx, current, trial, where, d)
+                t_confirm += time.perf_counter() - t0
+                t0 = time.perf_counter()
+                alts = "; ".join(f"{lib[a].name} ({g:.3f})" for a, g in s.alternatives)
+                rounds.append(dict(round=rnd + 1, where=where, candidate=c.key, name=c.name, operator=c.operator,
+                                   channels=",".join(c.channels), augment=mode, p_value=s.p_value, cv_gain=s.gain,
+                                   runners_up=alts, explained_fraction=s.explained_fraction,
+                                   rms_before_g=cur_metrics["rms_g"], rms_after_g=conf["metrics"]["rms_g"],
+                                   median_shrink=conf["shrink"], region_shrink=conf["local"], confirmed=ok,
+                                   chosen=False))
+                log(f"  {c.name} ({mode}): held-out RMS {cur_metrics['rms_g']:.4f} -> {conf['metrics']['rms_g']:.4f} "
+                    f"g, median shrink over seeds {conf['shrink']:+.1%} (all), {conf['local']:+.1%} "
+                    f"({where if where != 'all' else conf['region']['where']}): "
+                    f"{'confirmed' if ok else 'not confirmed'}")
+                if ok:  # "auto" tries both ways and keeps the better
+                    confirmed.append((conf["shrink"], where, s, c, trial, conf))
             used.add(lib[j].key)
-            if ok:
-                effects.append(dict(rank=len(effects) + 1, name=c.name, operator=c.operator,
-                                    channels=list(c.channels) or list(current.inputs),
-                                    parameters=_public_parameters(c), explained_fraction=s.explained_fraction,
-                                    p_value=s.p_value, region=_region(twin, tfull, prev, tpred),
-                                    key=c.key, candidate=c, found_in=where))
-                accepted = (trial, tpred, m)
-                break
-        if accepted is None:
+        if not confirmed:
             break
-        current, pred, cur_metrics = accepted
+        # Of the confirmed proposals (the candidates the selection could not tell apart, or
+        # the best of several subsets), the one whose retrained model closes most of the gap
+        # over all windows (the same windows for every proposal).
+        _, where, s, c, trial, conf = max(confirmed, key=lambda t: t[0])
+        effects.append(dict(rank=len(effects) + 1, name=c.name, operator=c.operator,
+                            channels=list(c.channels) or list(current.inputs), parameters=_public_parameters(c),
+                            explained_fraction=s.explained_fraction, p_value=s.p_value, region=conf["region"],
+                            key=c.key, candidate=c, found_in=where))
+        rounds[-1 - [r["candidate"] for r in reversed(rounds)].index(c.key)]["chosen"] = True
+        current, pred, cur_metrics = trial, conf["pred"], conf["metrics"]
     sec["explain"], sec["confirm"] = t_explain, t_confirm
 
     # Before and after on the final model's windows (the same counters and windows; the

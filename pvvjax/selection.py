@@ -22,7 +22,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["Selected", "cv_sse", "forward_select"]
+__all__ = ["Selected", "cv_sse", "equivalent", "forward_select"]
 
 
 class Selected(NamedTuple):
@@ -35,6 +35,9 @@ class Selected(NamedTuple):
         p_value: permutation p-value of the gain.
         alternatives: ((column, gain), ...) of the five next best candidates at the same
             step; those within the permutation spread explain the residual about as well.
+        equivalents: ((column, gain), ...) of the candidates the selection cannot tell from
+            the best (`equivalent`, within `parsimony` standard errors; `index` first), simplest
+            first, then by gain.
     """
 
     index: int
@@ -42,6 +45,7 @@ class Selected(NamedTuple):
     explained_fraction: float
     p_value: float
     alternatives: tuple = ()
+    equivalents: tuple = ()
 
 
 def _folds(groups, k: int, seed: int) -> np.ndarray:
@@ -105,6 +109,18 @@ class _Design:
             sse += e0 @ e0 - 2.0 * beta * (D.T @ e0) + beta**2 * np.einsum("ij,ij->j", D, D)
         return sse
 
+    def errors(self, C) -> np.ndarray:
+        """(n, K) held-out residual of every window (in its test fold) with each column of C
+        added; `scores` is the column sums of their squares."""
+        err = np.zeros((self.n, C.shape[1]))
+        for tr, te, Q, W, A_te, y_tr, e0 in self.folds:
+            C_tr = C[tr]
+            QC = Q.T @ C_tr
+            cc = np.einsum("ij,ij->j", C_tr, C_tr) - np.einsum("ij,ij->j", QC, QC)
+            beta = np.where(cc > 1e-12 * self.n, (C_tr.T @ y_tr) / np.maximum(cc, 1e-300), 0.0)
+            err[te] = e0[:, None] - (C[te] - A_te @ (W @ QC)) * beta
+        return err
+
 
 def _scores(y, X, C, fid) -> np.ndarray:
     """Held-out SSE of y ~ 1 + X + c_k for every column c_k of C at once, k-fold by `fid`.
@@ -116,6 +132,31 @@ def _scores(y, X, C, fid) -> np.ndarray:
     return _Design(y, X, fid).scores(C)
 
 
+def equivalent(design: _Design, C, cols, best: int, groups, width: float = 1.0) -> np.ndarray:
+    """Which candidates explain the residual as well as `best`, within `width` standard
+    errors: the paired difference of their held-out squared errors, summed per condition
+    (conditions are the independent units), is compared with its standard error (the
+    one-standard-error rule of cross-validated model choice).
+
+    Args:
+        design: the selection's design (covariates so far).
+        C: (n, K) candidates; cols: the columns to compare (including `best`).
+        best: the column with the least held-out error.
+        groups: (n,) condition of each window.
+
+    Returns:
+        bool mask over `cols`.
+    """
+    cols = np.asarray(cols)
+    sq = design.errors(C[:, cols]) ** 2
+    _, inverse = np.unique(groups, return_inverse=True)
+    per = np.zeros((inverse.max() + 1, len(cols)))
+    np.add.at(per, inverse, sq)
+    d = per - per[:, [int(np.flatnonzero(cols == best)[0])]]
+    se = np.sqrt(per.shape[0]) * d.std(axis=0, ddof=1)
+    return d.sum(axis=0) <= width * se + 1e-12
+
+
 def _remaining(chosen, usable):
     free = usable.copy()
     free[[s.index for s in chosen]] = False
@@ -124,7 +165,7 @@ def _remaining(chosen, usable):
 
 def forward_select(residual, candidates, groups, *, base=None, folds: int = 5, max_effects: int = 3,
                    min_gain: float = 0.02, alpha: float = 0.01, permutations: int = 199,
-                   seed: int = 0) -> list[Selected]:
+                   seed: int = 0, complexity=None, parsimony: float = 0.0, compare: int = 20) -> list[Selected]:
     """Candidates that explain the residual, most explanatory first (possibly none).
 
     Args:
@@ -140,6 +181,11 @@ def forward_select(residual, candidates, groups, *, base=None, folds: int = 5, m
         alpha: significance level of the permutation test.
         permutations: permutations per test.
         seed: seed of the folds and permutations.
+        complexity: (K,) complexity of each candidate (e.g. its number of operators and
+            fitted parameters), for `parsimony`.
+        parsimony: > 0: once the best candidate's gain is significant, name instead the
+            simplest of the `compare` best candidates that are `equivalent` to it within
+            `parsimony` standard errors (the simpler explanation of the same miss).
 
     Returns:
         list of `Selected`.
@@ -188,9 +234,18 @@ def forward_select(residual, candidates, groups, *, base=None, folds: int = 5, m
         p = (1 + int(np.sum(np.array(null) >= gain))) / (1 + permutations)
         if p > alpha:
             break
+        same = (k,)
+        if parsimony > 0 and complexity is not None:
+            top = np.argsort(scores)[:compare]
+            top = top[np.isfinite(scores[top])]
+            same = tuple(int(j) for j in sorted(top[equivalent(design, C, top, k, groups, parsimony)],
+                                                key=lambda j: (complexity[j], scores[j])))
+            k = same[0]
+            gain = 1.0 - scores[k] / current
+        same = tuple((j, float(1.0 - scores[j] / current)) for j in same)
         current_before = current
         current = scores[k]
         order = [j for j in np.argsort(scores) if j != k and np.isfinite(scores[j])][:5]
         alts = tuple((int(j), float(1.0 - scores[j] / current_before)) for j in order)
-        chosen.append(Selected(k, float(gain), float(1.0 - current / start), float(p), alts))
+        chosen.append(Selected(k, float(gain), float(1.0 - current / start), float(p), alts, same))
     return chosen

@@ -77,3 +77,47 @@ def test_base_covariates_absorb_what_they_explain():
     cands = np.column_stack([C[:, 1:], floor + 0.3 * C[:, 1]])  # ...that a candidate partly re-expresses
     assert forward_select(y, cands, groups, permutations=49, alpha=0.02)  # found without the floor covariates
     assert forward_select(y, cands, groups, base=floor[:, None], permutations=49, alpha=0.02) == []
+
+
+def test_heldout_errors_equal_a_least_squares_fit_per_fold():
+    from pvvjax.selection import _Design, _folds
+
+    C, groups, noise = _data(n_cond=30, per=10, K=6, seed=7)
+    y = 0.02 * C[:, 1] + noise
+    X, fid = C[:, [4]], _folds(groups, 5, 0)
+    err = _Design(y, X, fid).errors(C)
+    for k in range(C.shape[1]):
+        A = np.column_stack([np.ones(len(y)), X, C[:, k]])
+        for f in range(5):
+            te = fid == f
+            coef, *_ = np.linalg.lstsq(A[~te], y[~te], rcond=None)
+            np.testing.assert_allclose(err[te, k], y[te] - A[te] @ coef, atol=1e-12)
+
+
+def test_parsimony_names_the_simpler_of_two_equivalent_candidates():
+    from pvvjax.selection import _Design, _folds, equivalent
+
+    C, groups, noise = _data(seed=8)
+    rng = np.random.default_rng(0)
+    y = 0.03 * C[:, 5] + noise
+    # Column 9: the effect re-expressed with a little noise of its own (which of 5 and 9 fits
+    # best is chance); column 10: the effect buried in noise (clearly worse).
+    cands = np.column_stack([C[:, :9], C[:, 5] + 0.02 * rng.standard_normal(len(y)),
+                             C[:, 5] + rng.standard_normal(len(y))])
+    kw = dict(permutations=49, alpha=0.05, max_effects=1)
+    best = forward_select(y, cands, groups, **kw)[0].index
+    other = {5: 9, 9: 5}[best]
+    complexity = np.ones(cands.shape[1], int)
+    complexity[best] = 3  # the best fit is the complex one: parsimony names the other
+    simple = forward_select(y, cands, groups, complexity=complexity, parsimony=1.0, **kw)
+    assert simple[0].index == other
+    assert forward_select(y, cands, groups, complexity=complexity, parsimony=0.0, **kw)[0].index == best
+    # The rule's test: the best is equivalent to itself and to its twin, not to the noisy copy.
+    cz = (cands - cands.mean(0)) / cands.std(0)
+    same = equivalent(_Design(y, np.empty((len(y), 0)), _folds(groups, 5, 0)), cz, np.array([best, other, 10]),
+                      best, groups)
+    assert same.tolist() == [True, True, False]
+    # Nothing simpler among the equivalents when the noisy copy is the only simple one.
+    complexity = np.full(cands.shape[1], 3)
+    complexity[10] = 1
+    assert forward_select(y, cands, groups, complexity=complexity, parsimony=1.0, **kw)[0].index in (5, 9)
