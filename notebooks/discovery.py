@@ -29,6 +29,8 @@
 
 # %%
 import json
+import tempfile
+from pathlib import Path
 
 import matplotlib.pyplot as plt
 
@@ -69,10 +71,24 @@ res.localized["maneuver"].round(4)
 # %% [markdown]
 # ## 2. Explain: what was proposed, what was confirmed
 
-# %%
-res.rounds[["round", "name", "p_value", "cv_gain", "rms_before_g", "rms_after_g", "median_shrink", "confirmed"]]
+# %% [markdown]
+# Each proposal (the candidates the selection cannot tell from the best, simplest first) is
+# tried as an additive term and as an extra network input; the confirmed try that closes most
+# of the gap is `chosen`.
 
 # %%
+res.rounds[["round", "name", "augment", "p_value", "cv_gain", "rms_before_g", "rms_after_g", "median_shrink",
+            "confirmed", "chosen"]]
+
+# %% [markdown]
+# The files a run writes (`pvvjax discover` writes the same): `discovery.json` in the format of
+# the data contract, `report.md` with its figures, and the tables behind them.
+
+# %%
+from pvvjax.discovery_report import write_discovery  # noqa: E402
+
+report = write_discovery(res, Path(tempfile.mkdtemp()) / "discovery", cfg)
+print(report.read_text()[:1500])
 print(json.dumps(summary(res), indent=2))
 
 # %% [markdown]

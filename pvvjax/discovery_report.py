@@ -93,14 +93,14 @@ def write_discovery(res: Discovery, out, cfg=None, worst: int = 4) -> Path:
     if not res.rounds.empty:
         lines += ["## Every proposal tried", "",
                   "A round proposes the candidates the selection cannot tell apart (held-out errors within one "
-                  "standard error of the best's, simplest first); each is added (`additive`, then as a network "
-                  "`input` if that is not confirmed) and the nets retrained; of the confirmed ones the round keeps "
-                  "the one that shrinks the held-out RMS most (`chosen`).", "",
+                  "standard error of the best's, simplest first); each is added as a term (`additive`) and as a "
+                  "network `input` (with the default `augment = \"auto\"`), the nets retrained each time; of the "
+                  "confirmed tries the round keeps the one that shrinks the held-out RMS most (`chosen`).", "",
                   _md(res.rounds[["round", "name", "augment", "p_value", "cv_gain", "rms_before_g", "rms_after_g",
                                   "median_shrink", "confirmed", "chosen"]]), "",
                   "Runners-up of each proposal (held-out gain):", ""]
         lines += [f"- round {r.round}, {r.name} ({r.cv_gain:.3f}): {r.runners_up}"
-                  for r in res.rounds.drop_duplicates(["round", "candidate"]).itertuples()]
+                  for r in res.rounds.drop_duplicates(["round", "name"]).itertuples()]
         lines += [""]
     loc = res.localized["maneuver"].reset_index().rename(columns={"key": "maneuver"})
     lines += ["## Residual by maneuver (baseline)", "", _md(loc), ""]
