@@ -513,12 +513,22 @@ def _augment(ctx: _Ctx, model: Model, c: Candidate, how: str) -> Model:
     return model._replace(params=params, terms=model.terms + ((c, refit),))
 
 
-def _confirm(ctx: _Ctx, current: Model, trial: Model, where: str, d) -> tuple[bool, dict]:
+def _active_kinds(win: _Windows, c: Candidate, full) -> list[str]:
+    """The maneuver kinds where a candidate is active: its mean squared deviation from its
+    median over the (full) windows of the kind is at least that over all windows."""
+    v = win.values(c)[full]
+    dev = pd.Series((v - np.median(v)) ** 2, index=win.table.maneuver.to_numpy()[full])
+    by_kind = dev.groupby(level=0).mean()
+    return sorted(by_kind.index[by_kind >= dev.mean()])
+
+
+def _confirm(ctx: _Ctx, current: Model, trial: Model, c: Candidate, where: str, d) -> tuple[bool, dict]:
     """Whether a trial model confirms its effect: the held-out RMS drops by `min_shrink`
     where the effect acts (median over seeds) and does not rise over all windows. Where it
-    acts: the maneuver kind it was found in, or, for an effect found over all windows, the
-    kinds that hold most of the change it makes (`_region`), so that an effect of a few
-    maneuver kinds is not diluted among all windows.
+    acts: the maneuver kind it was found in; for an effect found over all windows, the kinds
+    where the candidate is active (`_active_kinds`; for a lag, the kinds that hold most of
+    the change it makes), so that an effect of a few maneuver kinds is not diluted among all
+    windows.
 
     Returns:
         (confirmed, dict of the trial's predictions, metrics, median shrinks and region).
@@ -528,12 +538,18 @@ def _confirm(ctx: _Ctx, current: Model, trial: Model, where: str, d) -> tuple[bo
     prev = predictions(ctx, current, twin)  # the current model on the same windows
     tfull = twin.table.weight.to_numpy() >= 0.999
     region = _region(twin, tfull, prev, tpred)
-    kinds = [where] if where != "all" else region["where"].split(", ")
+    if where != "all":
+        kinds = [where]
+    elif c.operator == "lag":
+        kinds = region["where"].split(", ")
+    else:
+        kinds = _active_kinds(twin, c, tfull)
     local_rows = tfull & np.isin(twin.table.maneuver.to_numpy(), kinds)
     shrink = float(np.median(1.0 - _rms_by_seed(tpred, twin, tfull) / _rms_by_seed(prev, twin, tfull)))
     local = float(np.median(1.0 - _rms_by_seed(tpred, twin, local_rows) / _rms_by_seed(prev, twin, local_rows)))
     ok = local >= d.min_shrink and shrink > 0.0
-    return ok, dict(pred=tpred, metrics=metrics(tpred, twin), shrink=shrink, local=local, region=region)
+    return ok, dict(pred=tpred, metrics=metrics(tpred, twin), shrink=shrink, local=local, region=region,
+                    judged_in=", ".join(kinds))
 
 
 def _lag_candidates(yhat, win: _Windows, taus) -> tuple[list[Candidate], np.ndarray]:
@@ -763,7 +779,7 @@ def discover(campaign: Campaign, cfg: ExperimentConfig = ExperimentConfig(), *, 
                     if trial.terms and trial.terms[-1][0] is c:
                         c = replace(c, parameters={**c.parameters,
                                                    "coefficient": float(np.median(trial.terms[-1][1][:, 1]))})
-                ok, conf = _confirm(ctx, current, trial, where, d)
+                ok, conf = _confirm(ctx, current, trial, c, where, d)
                 t_confirm += time.perf_counter() - t0
                 t0 = time.perf_counter()
                 alts = "; ".join(f"{lib[a].name} ({g:.3f})" for a, g in s.alternatives)
@@ -771,11 +787,12 @@ def discover(campaign: Campaign, cfg: ExperimentConfig = ExperimentConfig(), *, 
                                    channels=",".join(c.channels), augment=mode, p_value=s.p_value, cv_gain=s.gain,
                                    runners_up=alts, explained_fraction=s.explained_fraction,
                                    rms_before_g=cur_metrics["rms_g"], rms_after_g=conf["metrics"]["rms_g"],
-                                   median_shrink=conf["shrink"], region_shrink=conf["local"], confirmed=ok,
+                                   median_shrink=conf["shrink"], judged_in=conf["judged_in"],
+                                   region_shrink=conf["local"], confirmed=ok,
                                    chosen=False))
                 log(f"  {c.name} ({mode}): held-out RMS {cur_metrics['rms_g']:.4f} -> {conf['metrics']['rms_g']:.4f} "
                     f"g, median shrink over seeds {conf['shrink']:+.1%} (all), {conf['local']:+.1%} "
-                    f"({where if where != 'all' else conf['region']['where']}): "
+                    f"({conf['judged_in']}): "
                     f"{'confirmed' if ok else 'not confirmed'}")
                 if ok:  # "auto" tries both ways and keeps the better
                     confirmed.append((conf["shrink"], where, s, c, trial, conf))
