@@ -21,7 +21,7 @@ from pvvjax.cli import enable_compilation_cache, resolve_campaign
 from pvvjax.config import load_config
 from pvvjax.io import markdown_table, write_table
 from pvvjax.paper import PAPER_REPLAY, PULLUP, pullup_replays
-from pvvjax.replay_tables import load_replay_set, select_counters
+from pvvjax.replay_tables import load_replay_set, select_counters, take_counters
 
 
 def main():
@@ -44,7 +44,7 @@ def main():
 
     common = studies.one_offset(info, batch, recs, models, cc)
     i = counters.index(PULLUP)
-    own = studies.one_offset(info.loc[[PULLUP]], batch, *studies.take_counters((recs, models), [i]), cc)
+    own = studies.one_offset(info.loc[[PULLUP]], batch, *take_counters((recs, models), [i]), cc)
     fig1314, figs = pullup_replays(campaign, info, batch, recs, models, common.offset_s.to_dict(), fig_dir,
                                    {"optimized, 11022 alone": own.offset_s.to_dict()})
     write_table(fig1314, out / "figs13_14", cfg)

@@ -769,6 +769,7 @@ def discover(campaign: Campaign, cfg: ExperimentConfig = ExperimentConfig(), *, 
             refined = _refine(lib[j], resid[full], win.at(lib[j].parameters.get("offset_s", win.offset))[full])
             modes = ("lag",) if refined.operator == "lag" else (
                 ("additive", "input") if d.augment == "auto" else (d.augment,))
+            alts = "; ".join(f"{lib[a].name} ({g:.3f})" for a, g in s.alternatives)
             for mode in modes:
                 c = refined
                 if mode == "lag":
@@ -782,7 +783,6 @@ def discover(campaign: Campaign, cfg: ExperimentConfig = ExperimentConfig(), *, 
                 ok, conf = _confirm(ctx, current, trial, c, where, d)
                 t_confirm += time.perf_counter() - t0
                 t0 = time.perf_counter()
-                alts = "; ".join(f"{lib[a].name} ({g:.3f})" for a, g in s.alternatives)
                 rounds.append(dict(round=rnd + 1, where=where, candidate=c.key, name=c.name, operator=c.operator,
                                    channels=",".join(c.channels), augment=mode, p_value=s.p_value, cv_gain=s.gain,
                                    runners_up=alts, explained_fraction=s.explained_fraction,
@@ -795,19 +795,19 @@ def discover(campaign: Campaign, cfg: ExperimentConfig = ExperimentConfig(), *, 
                     f"({conf['judged_in']}): "
                     f"{'confirmed' if ok else 'not confirmed'}")
                 if ok:  # "auto" tries both ways and keeps the better
-                    confirmed.append((conf["shrink"], where, s, c, trial, conf))
+                    confirmed.append((conf["shrink"], len(rounds) - 1, where, s, c, trial, conf))
             used.add(lib[j].key)
         if not confirmed:
             break
         # Of the confirmed proposals (the candidates the selection could not tell apart, or
         # the best of several subsets), the one whose retrained model closes most of the gap
         # over all windows (the same windows for every proposal).
-        _, where, s, c, trial, conf = max(confirmed, key=lambda t: t[0])
+        _, row, where, s, c, trial, conf = max(confirmed, key=lambda t: t[0])
         effects.append(dict(rank=len(effects) + 1, name=c.name, operator=c.operator,
                             channels=list(c.channels) or list(current.inputs), parameters=_public_parameters(c),
                             explained_fraction=s.explained_fraction, p_value=s.p_value, region=conf["region"],
                             key=c.key, candidate=c, found_in=where))
-        rounds[-1 - [r["candidate"] for r in reversed(rounds)].index(c.key)]["chosen"] = True
+        rounds[row]["chosen"] = True
         current, pred, cur_metrics = trial, conf["pred"], conf["metrics"]
     sec["explain"], sec["confirm"] = t_explain, t_confirm
 

@@ -98,15 +98,11 @@ def pullup_replays(campaign, info, batch, recs, models: dict, tau_all: dict, fig
     Returns:
         (peak summary per offset and database, figure paths).
     """
-    import jax
-
     from . import plots
-    from .replay_tables import peak_summary, replay_windows, settings_at
+    from .replay_tables import peak_summary, replay_windows, settings_at, take_counters
 
-    counters = list(info.index)
-    i = counters.index(PULLUP)
-    take = lambda tree: jax.tree.map(lambda a: a[np.asarray([i])], tree)  # noqa: E731
-    one, rec1, models1 = info.loc[[PULLUP]], take(recs), {db: take(m) for db, m in models.items()}
+    i = [list(info.index).index(PULLUP)]
+    one, rec1, models1 = info.loc[[PULLUP]], take_counters(recs, i), take_counters(models, i)
     half = 4.0 / (float(campaign.records[PULLUP].rotor_rpm.mean()) / 60.0)  # half of an 8-rev segment, s
     variants = {"zero offset": {db: 0.0 for db in models}, f"half segment ({half:.2f} s)": {db: half for db in models},
                 "optimized, all maneuvers": dict(tau_all), **(extra or {})}

@@ -34,6 +34,7 @@ __all__ = [
     "replay_windows",
     "select_counters",
     "settings_at",
+    "take_counters",
 ]
 
 
@@ -64,6 +65,12 @@ def load_replay_set(campaign: Campaign, counters, sweep_dir, databases, architec
     recs = prepare(batch)
     models = {db: heldout_models(Path(sweep_dir), db, list(info.condition), architecture or None) for db in databases}
     return info, batch, recs, models
+
+
+def take_counters(tree, idx):
+    """The counters `idx` of a replay set's arrays (records, models: any PyTree with the
+    counter as leading axis)."""
+    return jax.tree.map(lambda a: a[np.asarray(idx)], tree)
 
 
 def cost_weights(cfg: CalibrationConfig) -> CostWeights:

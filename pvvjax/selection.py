@@ -97,15 +97,21 @@ class _Design:
             e0 = y[te] - A[te] @ (W @ (Q.T @ y[~te]))
             self.folds.append((~te, te, Q, W, A[te], y_tr, e0))
 
-    def scores(self, C) -> np.ndarray:
-        """Held-out SSE of y ~ 1 + X + c_k for every column c_k of C (see `_scores`)."""
-        sse = np.zeros(C.shape[1])
+    def _fits(self, C):
+        """Per fold: (test rows, e0, β, D): the held-out residual with column k of C added is
+        e0 − β_k D[:, k] (β the coefficient of c_k's part orthogonal to the covariates on the
+        training rows, D the test rows of c_k minus their covariate prediction)."""
         for tr, te, Q, W, A_te, y_tr, e0 in self.folds:
             C_tr = C[tr]
             QC = Q.T @ C_tr
             cc = np.einsum("ij,ij->j", C_tr, C_tr) - np.einsum("ij,ij->j", QC, QC)  # |c_tr − Q Qᵀ c_tr|²
             beta = np.where(cc > 1e-12 * self.n, (C_tr.T @ y_tr) / np.maximum(cc, 1e-300), 0.0)
-            D = C[te] - A_te @ (W @ QC)
+            yield te, e0, beta, C[te] - A_te @ (W @ QC)
+
+    def scores(self, C) -> np.ndarray:
+        """Held-out SSE of y ~ 1 + X + c_k for every column c_k of C (see `_scores`)."""
+        sse = np.zeros(C.shape[1])
+        for _, e0, beta, D in self._fits(C):
             sse += e0 @ e0 - 2.0 * beta * (D.T @ e0) + beta**2 * np.einsum("ij,ij->j", D, D)
         return sse
 
@@ -113,12 +119,8 @@ class _Design:
         """(n, K) held-out residual of every window (in its test fold) with each column of C
         added; `scores` is the column sums of their squares."""
         err = np.zeros((self.n, C.shape[1]))
-        for tr, te, Q, W, A_te, y_tr, e0 in self.folds:
-            C_tr = C[tr]
-            QC = Q.T @ C_tr
-            cc = np.einsum("ij,ij->j", C_tr, C_tr) - np.einsum("ij,ij->j", QC, QC)
-            beta = np.where(cc > 1e-12 * self.n, (C_tr.T @ y_tr) / np.maximum(cc, 1e-300), 0.0)
-            err[te] = e0[:, None] - (C[te] - A_te @ (W @ QC)) * beta
+        for te, e0, beta, D in self._fits(C):
+            err[te] = e0[:, None] - D * beta
         return err
 
 

@@ -14,7 +14,6 @@ import dataclasses
 import time
 from pathlib import Path
 
-import jax
 import numpy as np
 import pandas as pd
 
@@ -29,9 +28,10 @@ from .replay_tables import (
     peak_summary,
     replay_windows,
     settings_at,
+    take_counters,
 )
 
-__all__ = ["Study", "offset_per_kind", "one_offset", "stick_lag", "take_counters", "window_length"]
+__all__ = ["Study", "offset_per_kind", "one_offset", "stick_lag", "window_length"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -47,12 +47,6 @@ class Study:
     markdown: str
     figures: tuple[Path, ...]
     tables: dict
-
-
-def take_counters(tree, idx):
-    """The counters `idx` of a replay set's arrays (records, models: any PyTree with the
-    counter as leading axis)."""
-    return jax.tree.map(lambda a: a[np.asarray(idx)], tree)
 
 
 def _figure_links(figs) -> list[str]:
