@@ -121,3 +121,22 @@ def test_parsimony_names_the_simpler_of_two_equivalent_candidates():
     complexity = np.full(cands.shape[1], 3)
     complexity[10] = 1
     assert forward_select(y, cands, groups, complexity=complexity, parsimony=1.0, **kw)[0].index in (5, 9)
+
+
+def test_gain_is_what_forward_select_credits_its_first_pick_with():
+    from pvvjax.selection import gain
+
+    C, groups, noise = _data(seed=5)
+    rng = np.random.default_rng(6)
+    base = rng.standard_normal((len(groups), 3))
+    y = 0.03 * C[:, 4] + 0.02 * base[:, 0] + noise
+    first = forward_select(y, C, groups, base=base, permutations=19, alpha=0.1, seed=3)[0]
+    assert first.index == 4
+    assert gain(y, C[:, 4], groups, base=base, seed=3) == pytest.approx(first.gain, rel=1e-9)
+    # Independent reference: the held-out SSE of explicit least-squares fits, same folds.
+    from pvvjax.selection import _folds
+
+    fid = _folds(groups, 5, 3)
+    with_c = cv_sse(y, np.column_stack([base, C[:, 4]]), fid)
+    assert gain(y, C[:, 4], groups, base=base, seed=3) == pytest.approx(1 - with_c / cv_sse(y, base, fid), rel=1e-9)
+    assert gain(y, np.ones(len(y)), groups, base=base) == 0.0  # a constant explains nothing new
