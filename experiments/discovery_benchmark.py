@@ -24,7 +24,7 @@ import pandas as pd
 from pvvjax._strict import from_dict
 from pvvjax.campaign import campaign_from_frames
 from pvvjax.config import DiscoveryConfig, ExperimentConfig, load_toml
-from pvvjax.discovery import discover, summary
+from pvvjax.discovery import discover, selection_gain, summary
 from pvvjax.discovery_report import write_discovery
 from pvvjax.io import markdown_table, write_table
 from pvvjax.synth import SynthConfig, generate
@@ -78,6 +78,10 @@ def run_scenario(sc: dict, overrides: dict, out: Path, log=print):
                offset_s=res.baseline.offset_s, generate_s=t_gen, seconds=seconds)
     if truth:
         row["correct_first"] = bool(first and matches(first, truth["accept"]))
+        # The truth among the first round's confirmed tries (named or not).
+        tries = res.rounds[(res.rounds["round"] == 1) & res.rounds.confirmed] if len(res.rounds) else res.rounds
+        row["truth_confirmed"] = any(matches(dict(operator=t.operator, channels=t.channels.split(",")), truth["accept"])
+                                     for t in tries.itertuples())
         if "parameter" in truth and first and row["correct_first"]:
             row["parameter"] = truth["parameter"]
             row["true_value"] = float(truth["value"])
@@ -99,6 +103,31 @@ def _rms_in(res, kinds, column: str = "predicted_before_g") -> float:
     """Held-out RMS of a prediction column over the fully weighted windows of some maneuver kinds."""
     w = res.windows[(res.windows.weight >= 0.999) & res.windows.maneuver.isin(kinds)]
     return float(np.sqrt(np.mean((w.measured_g - w[column]) ** 2)))
+
+
+def identifiability(res, null) -> dict:
+    """Could the selection have named the hidden effect? The true effect per window (measured
+    PVV minus the same window of the same-seed world without it) scored as a candidate by
+    the first round's selection (`selection_gain`: same residual, floor and folds), beside
+    the candidate it named; and the share of the true effect the baseline already predicts
+    (least-squares slope of its prediction's change on the true effect): an effect of the
+    model's own inputs is learned from the peaks, and only its remainder is left to name."""
+    w = res.windows[["counter", "window", "measured_g", "predicted_before_g", "weight"]].merge(
+        null.windows[["counter", "window", "measured_g", "predicted_before_g"]], on=["counter", "window"], how="left",
+        suffixes=("", "_null"))
+    effect = (w.measured_g - w.measured_g_null).to_numpy()
+    full = (w.weight >= 0.999).to_numpy() & np.isfinite(effect)
+    out = dict(effect_rms_g=np.nan, truth_gain=np.nan, learned_share=np.nan, named_gain=np.nan)
+    if res.effects and res.residual is not None:
+        out["named_gain"] = selection_gain(res, res.windows["effect_1"])
+    if not np.any(np.abs(effect[full]) > 1e-6) or res.residual is None:  # same world (a model input taken away)
+        return out
+    e = np.where(np.isfinite(effect), effect, 0.0)
+    learned = (w.predicted_before_g - w.predicted_before_g_null).to_numpy()
+    ec = e[full] - e[full].mean()
+    out.update(effect_rms_g=float(np.sqrt(np.mean(e[full] ** 2))), truth_gain=selection_gain(res, e),
+               learned_share=float(ec @ (learned[full] - learned[full].mean()) / (ec @ ec)))
+    return out
 
 
 def attributable(df: pd.DataFrame, nulls: dict) -> pd.DataFrame:
@@ -155,9 +184,11 @@ def main():
     for sc in sorted(scenarios, key=lambda s: s["truth"] is not None):
         print(f"scenario {sc['name']} (seed {sc['seed']}, {sc['database']})", flush=True)
         r, res = run_scenario(sc, overrides, out)
-        rows.append(r)
         if sc["truth"] is None:
             nulls[sc["seed"]] = res
+        elif sc["seed"] in nulls:
+            r.update(identifiability(res, nulls[sc["seed"]]))
+        rows.append(r)
         print(f"  named: {r['named']}; correct: {r['correct_first']}; RMS {r['rms_before_g']:.4f} -> "
               f"{r['rms_after_g']:.4f} g; {r['seconds']:.0f} s", flush=True)
         pd.DataFrame(rows).to_csv(out / "partial.csv", index=False)
@@ -172,10 +203,12 @@ def main():
 def write_docs(df: pd.DataFrame, config: str):
     hidden = df[df.hidden != "none"]
     nulls = df[df.hidden == "none"]
-    cols = ["scenario", "seed", "database", "hidden", "named", "correct_first", "parameter", "true_value",
+    cols = ["scenario", "seed", "database", "hidden", "named", "correct_first", "truth_confirmed", "parameter",
+            "true_value",
             "fitted_value", "rms_null_g", "rms_before_g", "rms_after_g", "region", "region_null_g",
             "region_before_g", "region_after_g", "peak_before_g", "peak_after_g", "phase_before_s",
-            "phase_after_s", "gap_metric", "attributable_rms", "attributable_region", "attributable_shrink", "seconds"]
+            "phase_after_s", "gap_metric", "attributable_rms", "attributable_region", "attributable_shrink",
+            "effect_rms_g", "learned_share", "truth_gain", "named_gain", "seconds"]
     cols = [c for c in cols if c in df.columns]
     text = f"""# Discovery: hidden-effect benchmark
 
@@ -183,7 +216,9 @@ Command: `python experiments/discovery_benchmark.py {config} --docs`
 (2-core VM, {time.strftime('%Y-%m-%d')}; `seconds` is the wall time of each scenario:
 generation, training, offset, selection, retraining and replays).
 
-- Right effect ranked first: {int(hidden.correct_first.sum())} / {len(hidden)} hidden scenarios.
+- Right effect ranked first: {int(hidden.correct_first.sum())} / {len(hidden)} hidden scenarios; the right
+  effect among the first round's confirmed tries (`truth_confirmed`, named or not):
+  {int(hidden.truth_confirmed.sum())} / {len(hidden)}.
 - Nothing named: {int(nulls.correct_first.sum())} / {len(nulls)} null scenarios.
 - Attributable shrink (before − after) / (before − null of the same seed), on each
   scenario's gap metric: median {np.nanmedian(hidden.attributable_shrink):.2f},
@@ -193,6 +228,14 @@ generation, training, offset, selection, retraining and replays).
 - `peak_*`: mean abs peak error over counters (g); `phase_*`: mean abs peak-time error over
   the transient counters (s; 3–5 s already on the null worlds, where a flat counter's
   largest window wanders, so a noisy gauge).
+- Could the selection have named the truth? `effect_rms_g`: the true effect per window (the
+  measured PVV minus the same window of the same seed's null world). `learned_share`: how
+  much of it the baseline already predicts (slope of its prediction's change on the true
+  effect; an effect of the model's own inputs is learned from the peaks). `truth_gain`: the
+  gain the first round's selection credits the true effect itself with, as if it were a
+  candidate (same residual, floor covariates and folds); `named_gain`: the same for the
+  candidate it named. Where `truth_gain` ≤ `named_gain` the residual itself prefers the
+  named candidate: no selection on it could name the truth.
 
 {markdown_table(df[cols], "{:.3g}", nan="")}
 """

@@ -38,7 +38,7 @@ from pvvjax import plots
 from pvvjax._strict import from_dict
 from pvvjax.campaign import campaign_from_frames
 from pvvjax.config import DiscoveryConfig, ExperimentConfig
-from pvvjax.discovery import discover, summary
+from pvvjax.discovery import discover, selection_gain, summary
 from pvvjax.synth import SynthConfig, generate
 
 base = dict(seed=41, maneuvers=["level", "climb", "descent", "turn", "roll", "pushover", "pullup", "flare"],
@@ -77,7 +77,7 @@ res.localized["maneuver"].round(4)
 # of the gap is `chosen`.
 
 # %%
-res.rounds[["round", "name", "augment", "p_value", "cv_gain", "rms_before_g", "rms_after_g", "median_shrink",
+res.rounds[["round", "name", "augment", "p_value", "cv_gain", "rms_before_g", "rms_after_g", "shrink",
             "confirmed", "chosen"]]
 
 # %% [markdown]
@@ -126,6 +126,23 @@ without = discover(campaign_from_frames(c2, r2, source="without"),
 attributable = (res.before["rms_g"] - res.after["rms_g"]) / (res.before["rms_g"] - without.before["rms_g"])
 print(f"held-out RMS: without the effect {without.before['rms_g']:.4f} g; with it {res.before['rms_g']:.4f} g "
       f"before discovery, {res.after['rms_g']:.4f} g after; attributable shrink {attributable:.0%}")
+
+# %% [markdown]
+# Could the selection have preferred anything else? The true per-window effect (the measured
+# PVV with the effect minus the same window without it) is itself a candidate: the gain the
+# first round's selection would credit it with (`selection_gain`: same residual, floor
+# covariates and folds) beside the gain of the candidate it named. Where the truth gains
+# less than a proxy, no selection on this residual can name the truth: the baseline has
+# already learned the part of the effect its inputs explain.
+
+# %%
+both = res.windows[["counter", "window", "measured_g"]].merge(
+    without.windows[["counter", "window", "measured_g"]], on=["counter", "window"], how="left", suffixes=("", "_0"))
+true_effect = (both.measured_g - both.measured_g_0).to_numpy()
+named = res.rounds[res.rounds.chosen].iloc[0]
+print(f"selection gain: the true effect {selection_gain(res, true_effect):.3f}; the named candidate "
+      f"{selection_gain(res, res.windows['effect_1']):.3f} (the round's cv_gain: {named.cv_gain:.3f})")
+assert abs(selection_gain(res, res.windows["effect_1"]) - named.cv_gain) < 1e-9
 
 # %% [markdown]
 # ## 5. Open the ground truth

@@ -338,8 +338,8 @@ class DiscoveryConfig:
         parsimony: once the best candidate is significant, name the simplest candidate
             (fewest operators and fitted parameters) whose held-out error is within this many
             standard errors of the best's (0: always the best).
-        min_shrink: smallest median (over seeds) relative drop of the held-out RMS, where the
-            effect was found, that confirms it after retraining.
+        min_shrink: smallest relative drop of the held-out RMS of the ensemble's prediction
+            (median over seeds), where the effect acts, that confirms it after retraining.
         augment: how a candidate joins the model: "additive" (a term b·candidate fitted on the
             windows, cross-fitted by fold, the nets retrained on the peaks minus it),
             "input" (an extra network input: the nets learn its shape and its interactions),

@@ -13,8 +13,8 @@ it to the model and show the gap shrink (data-contract §3).
 4. **Add and confirm.** A candidate becomes an extra network input (each condition's
    database row gets the candidate at its peak window, and the nets are retrained with the
    same folds and seeds); a lag becomes a learned first-order lag of the replayed
-   prediction (offset and τ refitted). The effect is kept only if the held-out RMS, median
-   over seeds, drops by `min_shrink`: a candidate that only re-expresses the static map's
+   prediction (offset and τ refitted). The effect is kept only if the held-out RMS of the
+   ensemble's prediction (median over seeds) drops by `min_shrink`: a candidate that only re-expresses the static map's
    error floor, or retraining noise, gains nothing once the nets are retrained with it.
    Then the next round, until nothing significant confirms.
 
@@ -45,16 +45,19 @@ from .replay import FEATURES, input_index, make_settings, prepare
 from .replay_tables import _replay_all
 from .residuals import localize
 from .selection import forward_select
+from .selection import gain as _selection_gain
 from .sweep import _stack, train_nets
 
 __all__ = [
     "Discovery",
     "Model",
+    "Residual",
     "discover",
     "fit_ensemble",
     "floor_features",
     "knn_floor",
     "metrics",
+    "selection_gain",
     "summary",
 ]
 
@@ -412,6 +415,19 @@ def _refine(c: Candidate, residual, cands: pd.DataFrame) -> Candidate:
 # --------------------------------------------------------------------------- the workflow
 
 
+class Residual(NamedTuple):
+    """A round's selection design: the residual (measured − predicted, per window), the
+    windows that enter the selection, the floor covariates on those windows, the condition
+    of each window, and the folds and seed of the split."""
+
+    residual: np.ndarray
+    rows: np.ndarray
+    floor: np.ndarray
+    groups: np.ndarray
+    folds: int
+    seed: int
+
+
 @dataclass
 class Discovery:
     """The outcome of `discover` (`summary` turns it into data-contract §3).
@@ -425,6 +441,7 @@ class Discovery:
         localized: `residuals.localize` tables of the baseline.
         windows: the baseline replay windows with `predicted_before_g`, `predicted_after_g`.
         seconds: wall time per stage.
+        residual: the first round's selection design (`Residual`), for `selection_gain`.
     """
 
     campaign: str
@@ -438,6 +455,30 @@ class Discovery:
     localized: dict
     windows: pd.DataFrame
     seconds: dict
+    residual: Residual | None = None
+
+
+def selection_gain(res: Discovery, values) -> float:
+    """The held-out gain the first round's selection would credit a per-window column with
+    (`selection.gain`: the same residual, floor covariates, rows and folds): e.g. the true
+    per-window effect of a synthetic campaign, to ask whether the baseline's residual could
+    have named it at all, or a candidate, to compare with the one named.
+
+    Args:
+        res: a `Discovery` with at least one round (`max_effects` ≥ 1).
+        values: (n,) one value per row of `res.windows` (the baseline's windows).
+
+    Returns:
+        The relative drop of the held-out squared error.
+    """
+    e = res.residual
+    if e is None:
+        raise ValueError("selection_gain: the discovery ran no round (max_effects = 0)")
+    v = np.asarray(values, float)
+    if v.shape != e.residual.shape or not np.all(np.isfinite(v[e.rows])):
+        raise ValueError(f"selection_gain: values must be {e.residual.shape[0]} finite numbers, one per window "
+                         f"of res.windows; got shape {v.shape}")
+    return _selection_gain(e.residual[e.rows], v[e.rows], e.groups[e.rows], base=e.floor, folds=e.folds, seed=e.seed)
 
 
 def _context(campaign: Campaign, cfg: ExperimentConfig, log) -> _Ctx:
@@ -523,15 +564,20 @@ def _active_kinds(win: _Windows, c: Candidate, full) -> list[str]:
 
 
 def _confirm(ctx: _Ctx, current: Model, trial: Model, c: Candidate, where: str, d) -> tuple[bool, dict]:
-    """Whether a trial model confirms its effect: the held-out RMS drops by `min_shrink`
-    where the effect acts (median over seeds) and does not rise over all windows. Where it
-    acts: the maneuver kind it was found in; for an effect found over all windows, the kinds
-    where the candidate is active (`_active_kinds`; for a lag, the kinds that hold most of
-    the change it makes), so that an effect of a few maneuver kinds is not diluted among all
-    windows.
+    """Whether a trial model confirms its effect: the held-out RMS of the ensemble's
+    prediction (the median over seeds, whose residual the selection explained) drops by
+    `min_shrink` where the effect acts and does not rise over all windows. Where it acts: the
+    maneuver kind it was found in; for an effect found over all windows, the kinds where the
+    candidate is active (`_active_kinds`; for a lag, the kinds that hold most of the change
+    it makes), so that an effect of a few maneuver kinds is not diluted among all windows.
+
+    The ensemble, not each seed: one net retrained on ~200 peaks moves its held-out RMS by
+    ±8 % by itself (a seed's RMS is 0.045–0.052 g on the same world), so a median of per-seed
+    shrinks still swings by a few percent, where the median prediction averages that out
+    (a retrained placebo input moves it by < 2 %).
 
     Returns:
-        (confirmed, dict of the trial's predictions, metrics, median shrinks and region).
+        (confirmed, dict of the trial's predictions, metrics, shrinks and region).
     """
     twin = _replay(ctx, trial.offset_s)
     tpred = predictions(ctx, trial, twin)
@@ -545,8 +591,9 @@ def _confirm(ctx: _Ctx, current: Model, trial: Model, c: Candidate, where: str, 
     else:
         kinds = _active_kinds(twin, c, tfull)
     local_rows = tfull & np.isin(twin.table.maneuver.to_numpy(), kinds)
-    shrink = float(np.median(1.0 - _rms_by_seed(tpred, twin, tfull) / _rms_by_seed(prev, twin, tfull)))
-    local = float(np.median(1.0 - _rms_by_seed(tpred, twin, local_rows) / _rms_by_seed(prev, twin, local_rows)))
+    t_ens, p_ens = np.median(tpred, axis=0)[None], np.median(prev, axis=0)[None]
+    shrink = float(1.0 - _rms_by_seed(t_ens, twin, tfull)[0] / _rms_by_seed(p_ens, twin, tfull)[0])
+    local = float(1.0 - _rms_by_seed(t_ens, twin, local_rows)[0] / _rms_by_seed(p_ens, twin, local_rows)[0])
     ok = local >= d.min_shrink and shrink > 0.0
     return ok, dict(pred=tpred, metrics=metrics(tpred, twin), shrink=shrink, local=local, region=region,
                     judged_in=", ".join(kinds))
@@ -653,13 +700,14 @@ def _floor(win: _Windows, yhat, resid, rows, own, groups, min_conditions: int = 
     return np.column_stack([yhat[rows], knn])
 
 
-def _propose(win: _Windows, yhat, resid, C, rows, own, d, seed: int, complexity) -> list:
+def _propose(win: _Windows, yhat, resid, C, rows, own, d, seed: int, complexity, floor_all=None) -> list:
     """Significant candidates over all windows and, with `local_selection`, inside each
     maneuver kind where the residual concentrates (an effect of one kind is diluted among
     all windows) and that has `min_subset_conditions` conditions (with fewer, the floor
     covariates and the k-fold split cannot tell an effect from the floor). Bonferroni over
     the subsets; the permutations grow so that the corrected level can be reached.
-    `complexity` (one per column of C) is for the selection's parsimony rule.
+    `complexity` (one per column of C) is for the selection's parsimony rule; `floor_all`:
+    the floor covariates of all the rows (`_floor`), if already computed.
 
     Returns:
         list of (where, candidate column, `Selected`), most residual² explained first and,
@@ -683,7 +731,7 @@ def _propose(win: _Windows, yhat, resid, C, rows, own, d, seed: int, complexity)
     for where, sub in subsets:
         Cs = C[sub]
         keep = np.flatnonzero(np.ptp(Cs, axis=0) > 0)
-        floor = _floor(win, yhat, resid, sub, own, groups)
+        floor = floor_all if (where == "all" and floor_all is not None) else _floor(win, yhat, resid, sub, own, groups)
         for s in forward_select(resid[sub], Cs[:, keep], groups[sub], base=floor, folds=d.folds, max_effects=1,
                                 min_gain=d.min_gain, alpha=alpha, permutations=perms, seed=seed,
                                 complexity=complexity[keep], parsimony=d.parsimony):
@@ -745,7 +793,7 @@ def discover(campaign: Campaign, cfg: ExperimentConfig = ExperimentConfig(), *, 
         f"{k} {v:.0%}" for k, v in localized["maneuver"].share_sq.head(4).items()))
 
     baseline, current, pred, cur_metrics = model, model, pred0, before
-    effects, rounds, used = [], [], set()
+    effects, rounds, used, first = [], [], set(), None
     t_explain = t_confirm = 0.0
     for rnd in range(d.max_effects):
         t0 = time.perf_counter()
@@ -755,8 +803,12 @@ def discover(campaign: Campaign, cfg: ExperimentConfig = ExperimentConfig(), *, 
         resid = win.table.measured_g.to_numpy() - yhat
         lib, C = _candidate_matrix(ctx, current, win, yhat, used)
         sel_rows = full & (win.table.k.to_numpy() % d.selection_stride == 0)
-        proposals = _propose(win, yhat, resid, C, sel_rows, floor_features(current.inputs), d, seed=cfg.seed + rnd,
-                             complexity=np.array([c.complexity for c in lib]))
+        own = floor_features(current.inputs)
+        floor = _floor(win, yhat, resid, sel_rows, own, win.table.condition.to_numpy())
+        if rnd == 0:
+            first = Residual(resid, sel_rows, floor, win.table.condition.to_numpy(), d.folds, cfg.seed)
+        proposals = _propose(win, yhat, resid, C, sel_rows, own, d, seed=cfg.seed + rnd,
+                             complexity=np.array([c.complexity for c in lib]), floor_all=floor)
         t_explain += time.perf_counter() - t0
         log(f"round {rnd + 1}: {len(lib)} candidates, {len(proposals)} proposed: "
             + (", ".join(f"{lib[j].name} in {where} (p={s.p_value:.4f}, gain {s.gain:.3f})"
@@ -764,9 +816,15 @@ def discover(campaign: Campaign, cfg: ExperimentConfig = ExperimentConfig(), *, 
             + "".join(f"; {len(s.equivalents)} equivalent to the best in {where}: "
                       + ", ".join(lib[a].name for a, _ in s.equivalents[:10]) for where, _, s in proposals[:1]))
         confirmed = []
+        tried = set()
         for where, j, s in proposals:
             t0 = time.perf_counter()
             refined = _refine(lib[j], resid[full], win.at(lib[j].parameters.get("offset_s", win.offset))[full])
+            used.add(lib[j].key)
+            if refined.key in tried:  # two grid knees refined to the same one: retrained already
+                log(f"  {lib[j].name}: refined to {refined.name}, tried already")
+                continue
+            tried.add(refined.key)
             modes = ("lag",) if refined.operator == "lag" else (
                 ("additive", "input") if d.augment == "auto" else (d.augment,))
             alts = "; ".join(f"{lib[a].name} ({g:.3f})" for a, g in s.alternatives)
@@ -787,16 +845,15 @@ def discover(campaign: Campaign, cfg: ExperimentConfig = ExperimentConfig(), *, 
                                    channels=",".join(c.channels), augment=mode, p_value=s.p_value, cv_gain=s.gain,
                                    runners_up=alts, explained_fraction=s.explained_fraction,
                                    rms_before_g=cur_metrics["rms_g"], rms_after_g=conf["metrics"]["rms_g"],
-                                   median_shrink=conf["shrink"], judged_in=conf["judged_in"],
+                                   shrink=conf["shrink"], judged_in=conf["judged_in"],
                                    region_shrink=conf["local"], confirmed=ok,
                                    chosen=False))
                 log(f"  {c.name} ({mode}): held-out RMS {cur_metrics['rms_g']:.4f} -> {conf['metrics']['rms_g']:.4f} "
-                    f"g, median shrink over seeds {conf['shrink']:+.1%} (all), {conf['local']:+.1%} "
+                    f"g, ensemble RMS shrink {conf['shrink']:+.1%} (all), {conf['local']:+.1%} "
                     f"({conf['judged_in']}): "
                     f"{'confirmed' if ok else 'not confirmed'}")
                 if ok:  # "auto" tries both ways and keeps the better
                     confirmed.append((conf["shrink"], len(rounds) - 1, where, s, c, trial, conf))
-            used.add(lib[j].key)
         if not confirmed:
             break
         # Of the confirmed proposals (the candidates the selection could not tell apart, or
@@ -829,7 +886,7 @@ def discover(campaign: Campaign, cfg: ExperimentConfig = ExperimentConfig(), *, 
             table[f"effect_{e['rank']}"] = base_win.values(c)
     log(f"final: {len(effects)} effect(s); held-out RMS {before['rms_g']:.4f} -> {after['rms_g']:.4f} g")
     return Discovery(name or str(campaign.source), d.database, baseline, current, before, after, effects,
-                     pd.DataFrame(rounds), localized, table, sec)
+                     pd.DataFrame(rounds), localized, table, sec, first)
 
 
 def summary(res: Discovery) -> dict:

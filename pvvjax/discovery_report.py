@@ -97,7 +97,7 @@ def write_discovery(res: Discovery, out, cfg=None, worst: int = 4) -> Path:
                   "network `input` (with the default `augment = \"auto\"`), the nets retrained each time; of the "
                   "confirmed tries the round keeps the one that shrinks the held-out RMS most (`chosen`).", "",
                   _md(res.rounds[["round", "name", "augment", "p_value", "cv_gain", "rms_before_g", "rms_after_g",
-                                  "median_shrink", "judged_in", "region_shrink", "confirmed", "chosen"]]), "",
+                                  "shrink", "judged_in", "region_shrink", "confirmed", "chosen"]]), "",
                   "Runners-up of each proposal (held-out gain):", ""]
         lines += [f"- round {r.round}, {r.name} ({r.cv_gain:.3f}): {r.runners_up}"
                   for r in res.rounds.drop_duplicates(["round", "name"]).itertuples()]

@@ -66,6 +66,24 @@ def test_knn_floor_against_brute_force():
         assert got[j] == pytest.approx(r[np.argsort(d)[:4]].mean())
 
 
+def test_selection_gain_scores_a_column_on_the_first_rounds_design():
+    from pvvjax.discovery import Discovery, Residual, selection_gain
+    from pvvjax.selection import gain
+
+    rng = np.random.default_rng(3)
+    n, groups = 400, np.repeat(np.arange(40), 10)
+    floor, effect = rng.standard_normal((n, 2)), rng.standard_normal(n)
+    resid = 0.5 * floor[:, 0] + 0.3 * effect + 0.1 * rng.standard_normal(n)
+    rows = np.arange(n) % 2 == 0  # the selection's stride
+    res = Discovery("w", "db1", None, None, {}, {}, [], pd.DataFrame(), {}, pd.DataFrame(), {},
+                    Residual(resid, rows, floor[rows], groups, 5, 7))
+    assert selection_gain(res, effect) == pytest.approx(gain(resid[rows], effect[rows], groups[rows], base=floor[rows],
+                                                              seed=7))
+    assert selection_gain(res, effect) > 0.5 > selection_gain(res, rng.standard_normal(n))
+    with pytest.raises(ValueError, match="one per window"):
+        selection_gain(res, effect[:10])
+
+
 def test_floor_features_are_what_the_inputs_determine():
     from pvvjax.databases import DB_INPUTS
 
