@@ -71,11 +71,22 @@ _DERIVED_FROM = {
 }
 
 
+# Campaign channels that the model's inputs determine exactly (airspeed = μ·ΩR).
+_DETERMINED_BY = {"airspeed_kt": ("advance_ratio", "rotor_rpm")}
+
+
 def floor_features(inputs) -> tuple[str, ...]:
     """The model's inputs and the derived features computed from them alone: a static map
     on these can express anything built from them, so a misfit in them is the map's error
     floor (too few peaks to learn it), not a missing effect."""
     return tuple(inputs) + tuple(k for k, src in _DERIVED_FROM.items() if k not in inputs and set(src) <= set(inputs))
+
+
+def _determined(inputs) -> tuple[str, ...]:
+    """`floor_features` and the campaign channels the inputs determine exactly: a knee of
+    airspeed is a knee of the advance ratio at the rotor speed, which the map has."""
+    own = floor_features(inputs)
+    return own + tuple(k for k, src in _DETERMINED_BY.items() if k not in own and set(src) <= set(own))
 
 
 # --------------------------------------------------------------------------- networks
@@ -647,7 +658,7 @@ def knn_floor(features, residual, groups, k: int = 30, chunk: int = 1024) -> np.
 
 def _candidate_matrix(ctx: _Ctx, model: Model, win: _Windows, yhat, used_keys) -> tuple[list[Candidate], np.ndarray]:
     d = ctx.cfg.discovery
-    own = floor_features(model.inputs)
+    own = _determined(model.inputs)
     taken = tuple(model.inputs) + tuple(c.channels[0] for c in model.extra if c.operator == "input")
     # Candidates share the model's offset, recorded as their alignment: a term keeps it if a
     # later round moves the model's offset (`_Windows.values`).

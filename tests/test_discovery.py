@@ -91,6 +91,24 @@ def test_floor_features_are_what_the_inputs_determine():
     assert "thrust_coefficient" not in floor_features(DB_INPUTS["db3"])  # db3 has no weight
 
 
+def test_airspeed_is_determined_by_advance_ratio_and_rotor_speed():
+    from pvvjax.constants import KT_TO_FT_S, RPM_TO_RAD_S
+    from pvvjax.databases import DB_INPUTS
+    from pvvjax.discovery import _determined
+    from pvvjax.features import advance_ratio
+
+    rng = np.random.default_rng(0)
+    v, rpm = rng.uniform(0, 160, 50), rng.uniform(240, 275, 50)
+    mu = np.asarray(advance_ratio(v, rpm))
+    # Airspeed back from (μ, Ω) alone: a knee of airspeed is one of the map's own inputs.
+    from pvvjax.features import UH60A
+
+    np.testing.assert_allclose(mu * rpm * RPM_TO_RAD_S * UH60A.rotor_radius_ft / KT_TO_FT_S, v, rtol=1e-5)
+    for db in ("db1", "db3"):
+        assert "airspeed_kt" in _determined(DB_INPUTS[db]) and "airspeed_kt" not in floor_features(DB_INPUTS[db])
+    assert "airspeed_kt" not in _determined(("gross_weight_lb", "rotor_rpm"))
+
+
 # --------------------------------------------------------------------------- end to end
 # The hidden-effect case runs in notebooks/discovery.py (a hidden sideslip effect named
 # first, attributable shrink >= 0.5, asserted there); the null case here, through the CLI.
@@ -118,3 +136,13 @@ def test_cli_on_a_world_without_hidden_effects_names_nothing(tmp_path):
     assert set(js["baseline"]["metrics"]) == {"rms_g", "peak_error_g", "phase_error_s"}
     report = (tmp_path / "out" / "report.md").read_text()
     assert "figures/residual_map.png" in report and (tmp_path / "out" / "figures" / "residual_map.png").exists()
+
+
+def test_report_lists_the_other_confirmed_tries_of_an_effects_round():
+    from pvvjax.discovery_report import _also_confirmed
+
+    rounds = pd.DataFrame(dict(round=[1, 1, 1, 1, 2], name=["a", "b", "b", "c", "d"],
+                               augment=["additive", "additive", "input", "input", "input"],
+                               shrink=[0.20, 0.15, 0.18, 0.30, 0.1], confirmed=[True, True, True, False, True]))
+    assert _also_confirmed(rounds, 1, "a") == "b (input, 18.0%)"  # the better try of b; c did not confirm
+    assert _also_confirmed(rounds, 2, "d") == "none"
