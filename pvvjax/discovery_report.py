@@ -25,6 +25,13 @@ def _metrics_row(label, m):
                 rms_by_seed=", ".join(f"{v:.4f}" for v in m["rms_by_seed"]))
 
 
+def _also_confirmed(rounds: pd.DataFrame, rnd: int, name: str) -> str:
+    """The confirmed tries of a round other than the named effect, best first."""
+    t = rounds[(rounds["round"] == rnd) & rounds["confirmed"] & (rounds["name"] != name)]
+    t = t.sort_values("shrink", ascending=False).drop_duplicates("name")
+    return "; ".join(f"{r.name} ({r.augment}, {r.shrink:.1%})" for r in t.itertuples()) or "none"
+
+
 def write_discovery(res: Discovery, out, cfg=None, worst: int = 4) -> Path:
     """Write a discovery's outputs to `out`.
 
@@ -85,8 +92,13 @@ def write_discovery(res: Discovery, out, cfg=None, worst: int = 4) -> Path:
                                  channels=", ".join(e["channels"]), parameters=json.dumps(e["parameters"]),
                                  explained_fraction=e["explained_fraction"], p_value=e["p_value"],
                                  region=e["region"]["where"], region_before_rms_g=e["region"]["before_rms_g"],
-                                 region_after_rms_g=e["region"]["after_rms_g"]) for e in js["effects"]])
-        lines += [_md(eff), ""]
+                                 region_after_rms_g=e["region"]["after_rms_g"],
+                                 also_confirmed=_also_confirmed(res.rounds, e["rank"], e["name"]))
+                            for e in js["effects"]])
+        lines += [_md(eff), "",
+                  "`also_confirmed`: the other tries of the same round that confirmed, with the drop of the held-out "
+                  "RMS over all windows each gave: the data may not tell them from the named effect (e.g. a "
+                  "collective knee and a shaft-power knee, when power follows collective).", ""]
     else:
         lines += ["No candidate was both significant and confirmed by retraining: the model explains this "
                   "campaign as well as its error floor allows.", ""]
