@@ -7,9 +7,11 @@ the effect ranked first, its fitted parameter, and the attributable shrink
 (before − after) / (before − before of the null scenario with the same seed).
 
     python experiments/discovery_benchmark.py experiments/configs/discovery/benchmark.toml [--only a,b] [--docs]
+        [--seed-offsets 0,1]   # and again with every seed shifted by 1 (a replication)
 
 Writes runs/discovery-benchmark/ (results table, each scenario's discovery.json and
-report); with --docs also docs/discovery-benchmark.md.
+report; seed offset N in runs/discovery-benchmark/seed+N/); with --docs also
+docs/discovery-benchmark.md.
 """
 
 from __future__ import annotations
@@ -32,8 +34,9 @@ from pvvjax.synth import SynthConfig, generate
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def scenario_configs(path) -> tuple[list[dict], dict]:
-    """Scenarios of a benchmark config, each with its `SynthConfig`; and the discovery overrides."""
+def scenario_configs(path, seed_offset: int = 0) -> tuple[list[dict], dict]:
+    """Scenarios of a benchmark config, each with its `SynthConfig` (seeds shifted by
+    `seed_offset`, for a replication on other worlds); and the discovery overrides."""
     raw = load_toml(path)
     base = dict(raw.get("base", {}))
     base_effects = base.pop("effects", {})
@@ -42,8 +45,9 @@ def scenario_configs(path) -> tuple[list[dict], dict]:
         effects = {k: dict(v) for k, v in base_effects.items()}
         for k, v in sc.get("effects", {}).items():
             effects[k] = {**effects.get(k, {}), **v}
-        synth = from_dict(SynthConfig, {**base, "name": f"bench-{sc['name']}", "seed": sc["seed"], "effects": effects})
-        out.append(dict(name=sc["name"], seed=sc["seed"], database=sc.get("database", "db1"), truth=sc.get("truth"),
+        seed = sc["seed"] + seed_offset
+        synth = from_dict(SynthConfig, {**base, "name": f"bench-{sc['name']}", "seed": seed, "effects": effects})
+        out.append(dict(name=sc["name"], seed=seed, database=sc.get("database", "db1"), truth=sc.get("truth"),
                         synth=synth))
     return out, raw.get("discovery", {})
 
@@ -162,25 +166,11 @@ def attributable(df: pd.DataFrame, nulls: dict) -> pd.DataFrame:
     return df
 
 
-def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("config")
-    ap.add_argument("--only", default="", help="comma-separated scenario names")
-    ap.add_argument("--out", default="runs/discovery-benchmark")
-    ap.add_argument("--docs", action="store_true", help="also write docs/discovery-benchmark.md")
-    ap.add_argument("--exclude", nargs="+", default=[], metavar="CHANNEL",
-                    help="channels left out of the candidates (added to [discovery] exclude_channels)")
-    args = ap.parse_args()
-    scenarios, overrides = scenario_configs(args.config)
-    if args.exclude:
-        overrides = {**overrides, "exclude_channels": [*overrides.get("exclude_channels", []), *args.exclude]}
-    if args.only:
-        keep = set(args.only.split(","))
-        scenarios = [s for s in scenarios if s["name"] in keep]
-    out = Path(args.out)
+def run_all(scenarios, overrides, out: Path) -> pd.DataFrame:
+    """Every scenario (the null ones first: they are the references of the hidden ones with
+    the same seed), scored; writes `out/results.*` and each scenario's folder."""
     out.mkdir(parents=True, exist_ok=True)
     rows, nulls = [], {}
-    # Null scenarios first: they are the references of the hidden ones with the same seed.
     for sc in sorted(scenarios, key=lambda s: s["truth"] is not None):
         print(f"scenario {sc['name']} (seed {sc['seed']}, {sc['database']})", flush=True)
         r, res = run_scenario(sc, overrides, out)
@@ -195,36 +185,91 @@ def main():
     df = attributable(pd.DataFrame(rows), nulls)
     write_table(df, out / "results", ExperimentConfig(discovery=from_dict(DiscoveryConfig, overrides)))
     print(df.drop(columns=["generate_s"]).to_string())
-    if args.docs:
-        write_docs(df, args.config)
     print(f"results: {out / 'results.csv'}")
+    return df
 
 
-def write_docs(df: pd.DataFrame, config: str):
-    hidden = df[df.hidden != "none"]
-    nulls = df[df.hidden == "none"]
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("config")
+    ap.add_argument("--only", default="", help="comma-separated scenario names")
+    ap.add_argument("--out", default="runs/discovery-benchmark")
+    ap.add_argument("--docs", action="store_true", help="also write docs/discovery-benchmark.md")
+    ap.add_argument("--exclude", nargs="+", default=[], metavar="CHANNEL",
+                    help="channels left out of the candidates (added to [discovery] exclude_channels)")
+    ap.add_argument("--seed-offsets", default="0",
+                    help="comma-separated: the benchmark once per offset, every scenario's seed shifted by it (a "
+                         "replication on other worlds; offset N writes to OUT/seed+N)")
+    args = ap.parse_args()
+    offsets = [int(v) for v in args.seed_offsets.split(",")]
+    tables = {}
+    for off in offsets:
+        scenarios, overrides = scenario_configs(args.config, off)
+        if args.exclude:
+            overrides = {**overrides, "exclude_channels": [*overrides.get("exclude_channels", []), *args.exclude]}
+        if args.only:
+            keep = set(args.only.split(","))
+            scenarios = [s for s in scenarios if s["name"] in keep]
+        tables[off] = run_all(scenarios, overrides, Path(args.out) / (f"seed+{off}" if off else ""))
+    if args.docs:
+        write_docs(tables, args.config, args.seed_offsets)
+
+
+def _summary(df: pd.DataFrame) -> dict:
+    hidden, nulls = df[df.hidden != "none"], df[df.hidden == "none"]
+    return dict(right_first=f"{int(hidden.correct_first.sum())} / {len(hidden)}",
+                truth_confirmed=f"{int(hidden.truth_confirmed.sum())} / {len(hidden)}",
+                nulls_clean=f"{int(nulls.correct_first.sum())} / {len(nulls)}",
+                attributable_median=float(np.nanmedian(hidden.attributable_shrink)),
+                attributable_at_least_half=f"{int((hidden.attributable_shrink >= 0.5).sum())} / {len(hidden)}",
+                seconds=f"{df.seconds.min():.0f}-{df.seconds.max():.0f}")
+
+
+def _blank(t: pd.DataFrame) -> pd.DataFrame:
+    """Missing values (a null scenario has no truth to confirm) as empty cells."""
+    return t.astype(object).where(t.notna(), np.nan)
+
+
+def write_docs(tables: dict, config: str, offsets: str):
+    tables = {off: _blank(t) for off, t in tables.items()}
+    df = tables[min(tables)]
     cols = ["scenario", "seed", "database", "hidden", "named", "correct_first", "truth_confirmed", "parameter",
-            "true_value",
-            "fitted_value", "rms_null_g", "rms_before_g", "rms_after_g", "region", "region_null_g",
+            "true_value", "fitted_value", "rms_null_g", "rms_before_g", "rms_after_g", "region", "region_null_g",
             "region_before_g", "region_after_g", "peak_before_g", "peak_after_g", "phase_before_s",
             "phase_after_s", "gap_metric", "attributable_rms", "attributable_region", "attributable_shrink",
             "effect_rms_g", "learned_share", "truth_gain", "named_gain", "seconds"]
     cols = [c for c in cols if c in df.columns]
+    s = _summary(df)
+    summary = pd.DataFrame([dict(seeds=f"config + {off}", **_summary(t)) for off, t in tables.items()])
+    reps = {off: t for off, t in tables.items() if off != min(tables)}
+    rep_cols = ["scenario", "seed", "named", "correct_first", "truth_confirmed", "attributable_shrink", "truth_gain",
+                "named_gain", "seconds"]
+    replication = "".join(f"""
+### Seeds + {off}
+
+{markdown_table(t[[c for c in rep_cols if c in t.columns]], "{:.3g}", nan="")}
+""" for off, t in reps.items())
     text = f"""# Discovery: hidden-effect benchmark
 
-Command: `python experiments/discovery_benchmark.py {config} --docs`
+Command: `python experiments/discovery_benchmark.py {config} --seed-offsets {offsets} --docs`
 (2-core VM, {time.strftime('%Y-%m-%d')}; `seconds` is the wall time of each scenario:
 generation, training, offset, selection, retraining and replays).
 
-- Right effect ranked first: {int(hidden.correct_first.sum())} / {len(hidden)} hidden scenarios; the right
-  effect among the first round's confirmed tries (`truth_confirmed`, named or not):
-  {int(hidden.truth_confirmed.sum())} / {len(hidden)}.
-- Nothing named: {int(nulls.correct_first.sum())} / {len(nulls)} null scenarios.
+| seeds | right first | truth confirmed | nulls clean | attributable ≥ 0.5 | median attributable | seconds |
+|---|---|---|---|---|---|---|
+""" + "".join(f"| {r.seeds} | {r.right_first} | {r.truth_confirmed} | {r.nulls_clean} | "
+               f"{r.attributable_at_least_half} | {r.attributable_median:.2f} | {r.seconds} |\n"
+               for r in summary.itertuples()) + f"""
+On the config's seeds:
+
+- Right effect ranked first: {s['right_first']} hidden scenarios; the right effect among the
+  first round's confirmed tries (`truth_confirmed`, named or not): {s['truth_confirmed']}.
+- Nothing named: {s['nulls_clean']} null scenarios.
 - Attributable shrink (before − after) / (before − null of the same seed), on each
-  scenario's gap metric: median {np.nanmedian(hidden.attributable_shrink):.2f},
-  ≥ 0.5 in {int((hidden.attributable_shrink >= 0.5).sum())} / {len(hidden)} scenarios. `attributable_rms` is
-  over all windows, `attributable_region` over the named effect's region (the maneuver
-  kinds where it acts), both against the null scenario's baseline on the same windows.
+  scenario's gap metric: median {s['attributable_median']:.2f}, ≥ 0.5 in {s['attributable_at_least_half']}
+  scenarios. `attributable_rms` is over all windows, `attributable_region` over the named
+  effect's region (the maneuver kinds where it acts), both against the null scenario's
+  baseline on the same windows.
 - `peak_*`: mean abs peak error over counters (g); `phase_*`: mean abs peak-time error over
   the transient counters (s; 3–5 s already on the null worlds, where a flat counter's
   largest window wanders, so a noisy gauge).
@@ -238,7 +283,12 @@ generation, training, offset, selection, retraining and replays).
   named candidate: no selection on it could name the truth.
 
 {markdown_table(df[cols], "{:.3g}", nan="")}
-"""
+""" + (f"""
+## Replication on other seeds
+
+The same scenarios, every seed shifted (other conditions, pilot inputs and scatter; the
+same physics and discovery settings).
+{replication}""" if reps else "")
     (ROOT / "docs" / "discovery-benchmark.md").write_text(text)
     print(f"wrote {ROOT / 'docs' / 'discovery-benchmark.md'}")
 
