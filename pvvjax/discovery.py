@@ -588,7 +588,8 @@ def _confirm(ctx: _Ctx, current: Model, trial: Model, c: Candidate, where: str, 
     (a retrained placebo input moves it by < 2 %).
 
     Returns:
-        (confirmed, dict of the trial's predictions, metrics, shrinks and region).
+        (confirmed, dict of the trial's predictions, metrics, shrinks, region and the
+        ensemble's RMS over all windows before and after).
     """
     twin = _replay(ctx, trial.offset_s)
     tpred = predictions(ctx, trial, twin)
@@ -603,11 +604,12 @@ def _confirm(ctx: _Ctx, current: Model, trial: Model, c: Candidate, where: str, 
         kinds = _active_kinds(twin, c, tfull)
     local_rows = tfull & np.isin(twin.table.maneuver.to_numpy(), kinds)
     t_ens, p_ens = np.median(tpred, axis=0)[None], np.median(prev, axis=0)[None]
-    shrink = float(1.0 - _rms_by_seed(t_ens, twin, tfull)[0] / _rms_by_seed(p_ens, twin, tfull)[0])
+    ens = (float(_rms_by_seed(p_ens, twin, tfull)[0]), float(_rms_by_seed(t_ens, twin, tfull)[0]))
+    shrink = 1.0 - ens[1] / ens[0]
     local = float(1.0 - _rms_by_seed(t_ens, twin, local_rows)[0] / _rms_by_seed(p_ens, twin, local_rows)[0])
     ok = local >= d.min_shrink and shrink > 0.0
     return ok, dict(pred=tpred, metrics=metrics(tpred, twin), shrink=shrink, local=local, region=region,
-                    judged_in=", ".join(kinds))
+                    judged_in=", ".join(kinds), ensemble=ens)
 
 
 def _lag_candidates(yhat, win: _Windows, taus) -> tuple[list[Candidate], np.ndarray]:
@@ -856,11 +858,13 @@ def discover(campaign: Campaign, cfg: ExperimentConfig = ExperimentConfig(), *, 
                                    channels=",".join(c.channels), augment=mode, p_value=s.p_value, cv_gain=s.gain,
                                    runners_up=alts, explained_fraction=s.explained_fraction,
                                    rms_before_g=cur_metrics["rms_g"], rms_after_g=conf["metrics"]["rms_g"],
+                                   ensemble_rms_before_g=conf["ensemble"][0], ensemble_rms_after_g=conf["ensemble"][1],
                                    shrink=conf["shrink"], judged_in=conf["judged_in"],
                                    region_shrink=conf["local"], confirmed=ok,
                                    chosen=False))
                 log(f"  {c.name} ({mode}): held-out RMS {cur_metrics['rms_g']:.4f} -> {conf['metrics']['rms_g']:.4f} "
-                    f"g, ensemble RMS shrink {conf['shrink']:+.1%} (all), {conf['local']:+.1%} "
+                    f"g (median over seeds); ensemble's {conf['ensemble'][0]:.4f} -> {conf['ensemble'][1]:.4f} g, "
+                    f"shrink {conf['shrink']:+.1%} (all), {conf['local']:+.1%} "
                     f"({conf['judged_in']}): "
                     f"{'confirmed' if ok else 'not confirmed'}")
                 if ok:  # "auto" tries both ways and keeps the better

@@ -108,8 +108,12 @@ def write_discovery(res: Discovery, out, cfg=None, worst: int = 4) -> Path:
                   "standard error of the best's, simplest first); each is added as a term (`additive`) and as a "
                   "network `input` (with the default `augment = \"auto\"`), the nets retrained each time; of the "
                   "confirmed tries the round keeps the one that shrinks the held-out RMS most (`chosen`).", "",
+                  "`rms_*`: held-out RMS, median over seeds (as the metrics above); `ensemble_rms_*`: the RMS of "
+                  "the ensemble's prediction (the median over seeds), whose change `shrink` (all windows) and "
+                  "`region_shrink` (where the effect acts, `judged_in`) decide the confirmation.", "",
                   _md(res.rounds[["round", "name", "augment", "p_value", "cv_gain", "rms_before_g", "rms_after_g",
-                                  "shrink", "judged_in", "region_shrink", "confirmed", "chosen"]]), "",
+                                  "ensemble_rms_before_g", "ensemble_rms_after_g", "shrink", "judged_in",
+                                  "region_shrink", "confirmed", "chosen"]]), "",
                   "Runners-up of each proposal (held-out gain):", ""]
         lines += [f"- round {r.round}, {r.name} ({r.cv_gain:.3f}): {r.runners_up}"
                   for r in res.rounds.drop_duplicates(["round", "name"]).itertuples()]
