@@ -239,8 +239,9 @@ def write_docs(tables: dict, config: str, offsets: str):
             "phase_after_s", "gap_metric", "attributable_rms", "attributable_region", "attributable_shrink",
             "effect_rms_g", "learned_share", "truth_gain", "named_gain", "seconds"]
     cols = [c for c in cols if c in df.columns]
-    s = _summary(df)
-    summary = pd.DataFrame([dict(seeds=f"config + {off}", **_summary(t)) for off, t in tables.items()])
+    summaries = {off: _summary(t) for off, t in tables.items()}
+    s = summaries[min(tables)]
+    summary = pd.DataFrame([dict(seeds=f"config + {off}", **v) for off, v in summaries.items()])
     reps = {off: t for off, t in tables.items() if off != min(tables)}
     rep_cols = ["scenario", "seed", "named", "correct_first", "truth_confirmed", "attributable_shrink", "truth_gain",
                 "named_gain", "seconds"]

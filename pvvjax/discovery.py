@@ -713,14 +713,14 @@ def _floor(win: _Windows, yhat, resid, rows, own, groups, min_conditions: int = 
     return np.column_stack([yhat[rows], knn])
 
 
-def _propose(win: _Windows, yhat, resid, C, rows, own, d, seed: int, complexity, floor_all=None) -> list:
+def _propose(win: _Windows, yhat, resid, C, rows, own, floor_all, d, seed: int, complexity) -> list:
     """Significant candidates over all windows and, with `local_selection`, inside each
     maneuver kind where the residual concentrates (an effect of one kind is diluted among
     all windows) and that has `min_subset_conditions` conditions (with fewer, the floor
     covariates and the k-fold split cannot tell an effect from the floor). Bonferroni over
     the subsets; the permutations grow so that the corrected level can be reached.
-    `complexity` (one per column of C) is for the selection's parsimony rule; `floor_all`:
-    the floor covariates of all the rows (`_floor`), if already computed.
+    `floor_all`: the floor covariates of all the rows (`_floor`; a subset's are computed
+    here). `complexity` (one per column of C) is for the selection's parsimony rule.
 
     Returns:
         list of (where, candidate column, `Selected`), most residual² explained first and,
@@ -744,7 +744,7 @@ def _propose(win: _Windows, yhat, resid, C, rows, own, d, seed: int, complexity,
     for where, sub in subsets:
         Cs = C[sub]
         keep = np.flatnonzero(np.ptp(Cs, axis=0) > 0)
-        floor = floor_all if (where == "all" and floor_all is not None) else _floor(win, yhat, resid, sub, own, groups)
+        floor = floor_all if where == "all" else _floor(win, yhat, resid, sub, own, groups)
         for s in forward_select(resid[sub], Cs[:, keep], groups[sub], base=floor, folds=d.folds, max_effects=1,
                                 min_gain=d.min_gain, alpha=alpha, permutations=perms, seed=seed,
                                 complexity=complexity[keep], parsimony=d.parsimony):
@@ -820,8 +820,8 @@ def discover(campaign: Campaign, cfg: ExperimentConfig = ExperimentConfig(), *, 
         floor = _floor(win, yhat, resid, sel_rows, own, win.table.condition.to_numpy())
         if rnd == 0:
             first = Residual(resid, sel_rows, floor, win.table.condition.to_numpy(), d.folds, cfg.seed)
-        proposals = _propose(win, yhat, resid, C, sel_rows, own, d, seed=cfg.seed + rnd,
-                             complexity=np.array([c.complexity for c in lib]), floor_all=floor)
+        proposals = _propose(win, yhat, resid, C, sel_rows, own, floor, d, seed=cfg.seed + rnd,
+                             complexity=np.array([c.complexity for c in lib]))
         t_explain += time.perf_counter() - t0
         log(f"round {rnd + 1}: {len(lib)} candidates, {len(proposals)} proposed: "
             + (", ".join(f"{lib[j].name} in {where} (p={s.p_value:.4f}, gain {s.gain:.3f})"

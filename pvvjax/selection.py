@@ -165,6 +165,11 @@ def _standardise(A):
     return ((A - A.mean(axis=0)) / np.where(sd > 0, sd, 1.0))[:, sd > 0]
 
 
+def _base(base, n: int) -> np.ndarray:
+    """The base covariates (n, B), standardised; (n, 0) if none."""
+    return np.empty((n, 0)) if base is None else _standardise(np.asarray(base, float).reshape(n, -1))
+
+
 def gain(residual, column, groups, *, base=None, folds: int = 5, seed: int = 0) -> float:
     """The held-out gain `forward_select` credits one column with as its first effect:
     1 − (held-out SSE with the base covariates and the column) / (with the base only), with
@@ -179,7 +184,7 @@ def gain(residual, column, groups, *, base=None, folds: int = 5, seed: int = 0) 
         The relative drop of the held-out squared error.
     """
     y = np.asarray(residual, float)
-    B = np.empty((len(y), 0)) if base is None else _standardise(np.asarray(base, float).reshape(len(y), -1))
+    B = _base(base, len(y))
     c = np.asarray(column, float).reshape(len(y), 1)
     if not c.std() > 0:
         return 0.0
@@ -234,7 +239,7 @@ def forward_select(residual, candidates, groups, *, base=None, folds: int = 5, m
     usable = sd > 0
     fid = _folds(groups, folds, seed)
     rng = np.random.default_rng(seed + 1)
-    B = np.empty((len(y), 0)) if base is None else _standardise(np.asarray(base, float).reshape(len(y), -1))
+    B = _base(base, len(y))
     start = cv_sse(y, B, fid)
     chosen: list[Selected] = []
     current = start
