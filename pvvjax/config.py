@@ -344,7 +344,7 @@ class DiscoveryConfig:
             windows, cross-fitted by fold, the nets retrained on the peaks minus it),
             "input" (an extra network input: the nets learn its shape and its interactions),
             or "auto" (both; the one that lowers the held-out RMS more). A lag is always a
-            learned lag of the replay.
+            learned lag of the replay, a resonance a learned gain on the nets' output.
         selection_stride: every n-th window of a counter enters the selection.
         local_selection: also run the selection inside each maneuver kind where the residual
             concentrates (Bonferroni over the subsets). Off by default: on the benchmark's

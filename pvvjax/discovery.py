@@ -13,7 +13,9 @@ it to the model and show the gap shrink (data-contract §3).
 4. **Add and confirm.** A candidate becomes an extra network input (each condition's
    database row gets the candidate at its peak window, and the nets are retrained with the
    same folds and seeds); a lag becomes a learned first-order lag of the replayed
-   prediction (offset and τ refitted). The effect is kept only if the held-out RMS of the
+   prediction (offset and τ refitted); a resonance becomes a gain on the nets' output,
+   1 + a·band(rotor speed), with a trained jointly with the nets (`gain_apply`: a structural
+   mode magnifies the whole 4P response). The effect is kept only if the held-out RMS of the
    ensemble's prediction (median over seeds) drops by `min_shrink`: a candidate that only re-expresses the static map's
    error floor, or retraining noise, gains nothing once the nets are retrained with it.
    Then the next round, until nothing significant confirms.
@@ -55,6 +57,7 @@ __all__ = [
     "discover",
     "fit_ensemble",
     "floor_features",
+    "gain_apply",
     "knn_floor",
     "metrics",
     "selection_gain",
@@ -92,13 +95,24 @@ def _determined(inputs) -> tuple[str, ...]:
 # --------------------------------------------------------------------------- networks
 
 
-def fit_ensemble(x, y, folds, *, k: int, seeds: int, hidden, train_cfg, seed: int = 0) -> dict:
+def gain_apply(params: dict, x):
+    """A net whose output is multiplied by a learned gain, 1 + Σ_j gain_j·x_j, over the last
+    `len(params["gain"])` columns of x (e.g. a rotor-speed resonance band): the nets learn the
+    response, the gain its magnification, jointly (a structural mode amplifies every 4P
+    load, which a map of ~200 peaks cannot learn as an interaction of its inputs)."""
+    g = params["gain"]
+    n = g.shape[-1]
+    return mlp_apply(params, x[..., :-n]) * (1.0 + x[..., -n:] @ g)
+
+
+def fit_ensemble(x, y, folds, *, k: int, seeds: int, hidden, train_cfg, seed: int = 0, n_gain: int = 0) -> dict:
     """Nets trained k-fold by condition over seeds (validation: the next fold).
 
     Args:
         x: (n, d) inputs. y: (n,) peak PVV, or (k, n) a target per fold. folds: (n,) fold of
             each row (by condition).
         k, seeds: folds and seeds. hidden: hidden widths. train_cfg: `TrainConfig`.
+        n_gain: the last `n_gain` columns of x are gain columns (`gain_apply`), not inputs.
 
     Returns:
         Parameters stacked (k, seeds, ...): entry (f, s) never saw fold f.
@@ -110,25 +124,29 @@ def fit_ensemble(x, y, folds, *, k: int, seeds: int, hidden, train_cfg, seed: in
     n_va = max(int(v.sum()) for _, v, _ in splits)
     data = [_train.make_data(x, y[f], w, v, n_tr, n_va) for f, (w, v, _) in enumerate(splits)]
     params = []
+    n_in = x.shape[1] - n_gain
+    gain = {"gain": jnp.zeros(n_gain)} if n_gain else {}
     for f, (w, _, _) in enumerate(splits):
-        sc = scaling(x[w > 0], y[f][w > 0])
-        params += [mlp_init(jax.random.key(seed + s), x.shape[1], tuple(hidden), scale=sc) for s in range(seeds)]
-    fits = train_nets(_stack(params), _stack(data), np.repeat(np.arange(k), seeds), train_cfg)
+        sc = scaling(x[w > 0][:, :n_in], y[f][w > 0])
+        params += [{**mlp_init(jax.random.key(seed + s), n_in, tuple(hidden), scale=sc), **gain} for s in range(seeds)]
+    fits = train_nets(_stack(params), _stack(data), np.repeat(np.arange(k), seeds), train_cfg,
+                      apply=gain_apply if n_gain else mlp_apply)
     if np.any(np.asarray(fits.failed_step) >= 0):
         raise _train.TrainingError("discovery: a net diverged; lower train.learning_rate")
     return jax.tree.map(lambda a: np.asarray(a).reshape((k, seeds) + a.shape[1:]), fits.params)
 
 
-_apply_seeds = jax.jit(jax.vmap(mlp_apply, in_axes=(0, None)))
+_apply_seeds = {f: jax.jit(jax.vmap(f, in_axes=(0, None))) for f in (mlp_apply, gain_apply)}
 
 
 def _predict(params, fold, x) -> np.ndarray:
     """(S, n) predictions of each seed's net that held out each row's fold."""
     S = jax.tree.leaves(params)[0].shape[1]
+    apply = _apply_seeds[gain_apply if "gain" in params else mlp_apply]
     out = np.zeros((S, len(fold)), np.float64)
     for f in np.unique(fold):
         rows = fold == f
-        out[:, rows] = np.asarray(_apply_seeds(jax.tree.map(lambda a: a[f], params), jnp.asarray(x[rows], jnp.float32)))
+        out[:, rows] = np.asarray(apply(jax.tree.map(lambda a: a[f], params), jnp.asarray(x[rows], jnp.float32)))
     return out
 
 
@@ -136,13 +154,15 @@ def _predict(params, fold, x) -> np.ndarray:
 
 
 class Model(NamedTuple):
-    """A model under discovery: nets, extra inputs, additive effect terms, offset and an
-    optional learned lag.
+    """A model under discovery: nets, extra inputs, additive effect terms, gains, offset
+    and an optional learned lag.
 
     Attributes:
         params: nets (k, seeds, ...). inputs: database inputs. extra: candidates added as
         network inputs. terms: (candidate, (k, 2) intercept and coefficient per fold)
         added to the nets' output (the nets are trained on the peaks minus the terms).
+        gains: candidates whose learned gain multiplies the nets' output (`gain_apply`; the
+        coefficients are in `params["gain"]`).
         offset_s: input-to-vibration offset, s. lag_tau_s: first-order lag of the replayed
         prediction, s (0: none).
     """
@@ -153,6 +173,7 @@ class Model(NamedTuple):
     offset_s: float = 0.0
     lag_tau_s: float = 0.0
     terms: tuple = ()
+    gains: tuple = ()
 
 
 @dataclass
@@ -284,9 +305,10 @@ _lag_grid = jax.jit(jax.vmap(_lag, in_axes=(0, 0, None)))
 
 
 def _inputs(model: Model, win: _Windows) -> np.ndarray:
+    """The nets' columns: database inputs, extra inputs, then the gains' candidates."""
     x = win.table[list(model.inputs)].to_numpy(np.float64)
-    if model.extra:
-        x = np.column_stack([x] + [win.values(c) for c in model.extra])
+    if model.extra or model.gains:
+        x = np.column_stack([x] + [win.values(c) for c in model.extra + model.gains])
     return x
 
 
@@ -391,20 +413,22 @@ def _fit_offset(ctx: _Ctx, model: Model, with_lag: bool) -> Model:
     return model._replace(offset_s=best[1], lag_tau_s=tau)
 
 
-def _refine(c: Candidate, residual, cands: pd.DataFrame) -> Candidate:
+def _refine(c: Candidate, residual, cands: pd.DataFrame, prediction) -> Candidate:
     """Refine a knee, or a resonance's centre and width, by variable-projection least
-    squares: residual ≈ b0 + b·candidate(θ), (b0, b) solved inside, θ by LM."""
+    squares: residual ≈ b0 + b·candidate(θ) (for a resonance, a gain: b·prediction·band(θ)),
+    (b0, b) solved inside, θ by LM."""
     if c.operator not in ("threshold", "resonance"):
         return c
     x = jnp.asarray(cands[f"x:{c.channels[0]}"].to_numpy())
     r = jnp.asarray(residual)
+    yhat = jnp.asarray(prediction)
     p = c.parameters
 
     def column(theta):
         if c.operator == "threshold":
             u = (x - theta[0]) if p["above"] else (theta[0] - x)
             return p["softness"] * jax.nn.softplus(u / p["softness"])
-        return jnp.exp(-0.5 * ((x - theta[0]) / jnp.exp(theta[1])) ** 2)
+        return yhat * jnp.exp(-0.5 * ((x - theta[0]) / jnp.exp(theta[1])) ** 2)
 
     def resid(theta, _):
         A = jnp.stack([jnp.ones_like(x), column(theta)], axis=1)
@@ -450,7 +474,9 @@ class Discovery:
         effects: one dict per confirmed effect, ranked (see `summary`).
         rounds: every tried proposal (a table).
         localized: `residuals.localize` tables of the baseline.
-        windows: the baseline replay windows with `predicted_before_g`, `predicted_after_g`.
+        windows: the baseline replay windows with `predicted_before_g`, `predicted_after_g` and
+            `effect_<rank>`, each effect's column as the selection saw it (a resonance times
+            the prediction, a lag as the lagged minus the plain prediction).
         seconds: wall time per stage.
         residual: the first round's selection design (`Residual`), for `selection_gain`.
     """
@@ -523,19 +549,19 @@ def _context(campaign: Campaign, cfg: ExperimentConfig, log) -> _Ctx:
                 window_table(campaign, train_iv, d.exclude_channels), replay_params={})
 
 
-def _train_model(ctx: _Ctx, extra: tuple[Candidate, ...], terms: tuple = ()) -> dict:
-    """Nets on the database inputs and the extra inputs, trained on the peaks minus the
-    model's additive terms (per fold: each fold's terms were fitted without it)."""
+def _train_model(ctx: _Ctx, model: Model) -> dict:
+    """Nets on the database inputs and the model's extra inputs, with its gains, trained on
+    the peaks minus its additive terms (per fold: each fold's terms were fitted without it)."""
     d = ctx.cfg.discovery
     x = ctx.x_db
-    if extra:
-        x = np.column_stack([x] + [values(c, ctx.train_table) for c in extra])
+    if model.extra or model.gains:
+        x = np.column_stack([x] + [values(c, ctx.train_table) for c in model.extra + model.gains])
     y = ctx.db[OUTPUT].to_numpy(np.float64)
-    if terms:
-        y = np.stack([y - _terms(Model({}, (), terms=terms), lambda c: values(c, ctx.train_table), np.full(len(y), f))
+    if model.terms:
+        y = np.stack([y - _terms(model, lambda c: values(c, ctx.train_table), np.full(len(y), f))
                       for f in range(d.folds)])
     return fit_ensemble(x, y, ctx.folds, k=d.folds, seeds=d.seeds, hidden=d.hidden, train_cfg=ctx.cfg.train,
-                        seed=ctx.cfg.seed)
+                        seed=ctx.cfg.seed, n_gain=len(model.gains))
 
 
 def _fit_term(ctx: _Ctx, model: Model, c: Candidate, win: _Windows) -> np.ndarray:
@@ -553,14 +579,15 @@ def _fit_term(ctx: _Ctx, model: Model, c: Candidate, win: _Windows) -> np.ndarra
 
 
 def _augment(ctx: _Ctx, model: Model, c: Candidate, how: str) -> Model:
-    """The model with one more effect: an extra network input, or an additive term (fitted
-    on the windows, the nets retrained on the corrected peaks, the term refitted)."""
-    if how == "input":
-        extra = model.extra + (c,)
-        return model._replace(params=_train_model(ctx, extra, model.terms), extra=extra)
+    """The model with one more effect: an extra network input, a learned gain on the nets'
+    output (`gain_apply`), or an additive term (fitted on the windows, the nets retrained on
+    the corrected peaks, the term refitted)."""
+    if how in ("input", "gain"):
+        trial = model._replace(**({"extra": model.extra + (c,)} if how == "input" else {"gains": model.gains + (c,)}))
+        return trial._replace(params=_train_model(ctx, trial))
     win = _replay(ctx, model.offset_s)
     first = model._replace(terms=model.terms + ((c, _fit_term(ctx, model, c, win)),))
-    params = _train_model(ctx, model.extra, first.terms)
+    params = _train_model(ctx, first)
     refit = _fit_term(ctx, model._replace(params=params), c, win)
     return model._replace(params=params, terms=model.terms + ((c, refit),))
 
@@ -672,7 +699,8 @@ def _candidate_matrix(ctx: _Ctx, model: Model, win: _Windows, yhat, used_keys) -
         if c.key in used_keys or (c.operator in ("input", "threshold", "product") and set(c.channels) <= set(own)):
             continue
         lib.append(c)
-        cols.append(values(c, win.cands))
+        # A resonance magnifies the response: its residual is a·prediction·band (`gain_apply`).
+        cols.append(values(c, win.cands) * (yhat if c.operator == "resonance" else 1.0))
     C = np.column_stack(cols)
     if model.lag_tau_s <= 0:
         lc, LC = _lag_candidates(yhat, win, d.lag_taus)
@@ -713,6 +741,15 @@ def _floor(win: _Windows, yhat, resid, rows, own, groups, min_conditions: int = 
     return np.column_stack([yhat[rows], knn])
 
 
+def _try_order(same) -> list:
+    """The order in which to retrain the candidates a selection cannot tell apart ((column,
+    gain), simplest first): the simplest (the one it names), then the one that explains
+    most (a gain on the prediction, a resonance, can be a whole mode while simpler channels
+    share its shadow; the retraining decides between them), then the others."""
+    best = max(range(len(same)), key=lambda i: same[i][1])
+    return [same[i] for i in [0] + ([best] if best else []) + [i for i in range(1, len(same)) if i != best]]
+
+
 def _propose(win: _Windows, yhat, resid, C, rows, own, floor_all, d, seed: int, complexity) -> list:
     """Significant candidates over all windows and, with `local_selection`, inside each
     maneuver kind where the residual concentrates (an effect of one kind is diluted among
@@ -724,7 +761,7 @@ def _propose(win: _Windows, yhat, resid, C, rows, own, floor_all, d, seed: int, 
 
     Returns:
         list of (where, candidate column, `Selected`), most residual² explained first and,
-        inside a selection, the candidates it cannot tell apart (simplest first); at most
+        inside a selection, the candidates it cannot tell apart (`_try_order`); at most
         `d.proposals`, one per candidate.
     """
     groups = win.table.condition.to_numpy()
@@ -755,7 +792,7 @@ def _propose(win: _Windows, yhat, resid, C, rows, own, floor_all, d, seed: int, 
             found.append((amount, where, s))
     out, seen = [], set()
     for _, where, s in sorted(found, key=lambda f: -f[0]):
-        for j, g in s.equivalents or ((s.index, s.gain),):  # the candidates it cannot tell apart
+        for j, g in _try_order(s.equivalents or ((s.index, s.gain),)):
             if j not in seen:
                 seen.add(j)
                 out.append((where, j, s._replace(index=j, gain=g)))
@@ -788,7 +825,7 @@ def discover(campaign: Campaign, cfg: ExperimentConfig = ExperimentConfig(), *, 
     sec["prepare"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    params = _train_model(ctx, ())
+    params = _train_model(ctx, Model({}, tuple(DB_INPUTS[d.database])))
     ctx.replay_params = params
     sec["train_baseline"] = time.perf_counter() - t0
     t0 = time.perf_counter()
@@ -832,14 +869,15 @@ def discover(campaign: Campaign, cfg: ExperimentConfig = ExperimentConfig(), *, 
         tried = set()
         for where, j, s in proposals:
             t0 = time.perf_counter()
-            refined = _refine(lib[j], resid[full], win.at(lib[j].parameters.get("offset_s", win.offset))[full])
+            refined = _refine(lib[j], resid[full], win.at(lib[j].parameters.get("offset_s", win.offset))[full],
+                              yhat[full])
             used.add(lib[j].key)
             if refined.key in tried:  # two grid knees refined to the same one: retrained already
                 log(f"  {lib[j].name}: refined to {refined.name}, tried already")
                 continue
             tried.add(refined.key)
-            modes = ("lag",) if refined.operator == "lag" else (
-                ("additive", "input") if d.augment == "auto" else (d.augment,))
+            modes = {"lag": ("lag",), "resonance": ("gain",)}.get(
+                refined.operator, ("additive", "input") if d.augment == "auto" else (d.augment,))
             alts = "; ".join(f"{lib[a].name} ({g:.3f})" for a, g in s.alternatives)
             for mode in modes:
                 c = refined
@@ -851,6 +889,9 @@ def discover(campaign: Campaign, cfg: ExperimentConfig = ExperimentConfig(), *, 
                     if trial.terms and trial.terms[-1][0] is c:
                         c = replace(c, parameters={**c.parameters,
                                                    "coefficient": float(np.median(trial.terms[-1][1][:, 1]))})
+                    if mode == "gain":
+                        c = replace(c, parameters={**c.parameters,
+                                                   "gain": float(np.median(trial.params["gain"][..., -1]))})
                 ok, conf = _confirm(ctx, current, trial, c, where, d)
                 t_confirm += time.perf_counter() - t0
                 t0 = time.perf_counter()
@@ -892,13 +933,13 @@ def discover(campaign: Campaign, cfg: ExperimentConfig = ExperimentConfig(), *, 
     table = base_win.table.assign(predicted_before_g=np.median(pred0, axis=0))
     table = table.merge(win.table[["counter", "window"]].assign(predicted_after_g=np.median(final_pred, axis=0)),
                         on=["counter", "window"], how="left")
-    for e in effects:  # each effect's value per window, for its partial-dependence plot
+    yb = np.median(pred0, axis=0)
+    for e in effects:  # each effect's column as the selection saw it, for its partial-dependence plot
         c = e["candidate"]
         if c.operator == "lag":
-            yb = np.median(pred0, axis=0)
             table[f"effect_{e['rank']}"] = _lag_windows(yb[None], base_win, c.parameters["tau_s"])[0] - yb
         else:
-            table[f"effect_{e['rank']}"] = base_win.values(c)
+            table[f"effect_{e['rank']}"] = base_win.values(c) * (yb if c.operator == "resonance" else 1.0)
     log(f"final: {len(effects)} effect(s); held-out RMS {before['rms_g']:.4f} -> {after['rms_g']:.4f} g")
     return Discovery(name or str(campaign.source), d.database, baseline, current, before, after, effects,
                      pd.DataFrame(rounds), localized, table, sec, first)

@@ -65,7 +65,8 @@ def write_discovery(res: Discovery, out, cfg=None, worst: int = 4) -> Path:
         ok = w.predicted_after_g.notna()
         fig = plots.partial_dependence(w[col][ok], (w.measured_g - w.predicted_before_g)[ok],
                                        (w.predicted_after_g - w.predicted_before_g)[ok],
-                                       f"effect {e['rank']}: {e['name']}", f"{e['name']} (window value)")
+                                       f"effect {e['rank']}: {e['name']}",
+                                       f"{e['name']} (window value{' × prediction, g' if e['operator'] == 'resonance' else ''})")
         figs.append((f"Partial dependence of effect {e['rank']}",
                      plots.save(fig, out / "figures" / f"effect_{e['rank']}.png")))
     rms = w.groupby("counter").apply(lambda g: float(np.sqrt(np.mean((g.measured_g - g.predicted_before_g) ** 2))),
@@ -105,8 +106,9 @@ def write_discovery(res: Discovery, out, cfg=None, worst: int = 4) -> Path:
     if not res.rounds.empty:
         lines += ["## Every proposal tried", "",
                   "A round proposes the candidates the selection cannot tell apart (held-out errors within one "
-                  "standard error of the best's, simplest first); each is added as a term (`additive`) and as a "
-                  "network `input` (with the default `augment = \"auto\"`), the nets retrained each time; of the "
+                  "standard error of the best's: the simplest, the one that explains most, then the others); each is "
+                  "added as a term (`additive`) and as a network `input` (with the default `augment = \"auto\"`), "
+                  "a resonance as a learned `gain` on the nets' output, the nets retrained each time; of the "
                   "confirmed tries the round keeps the one that shrinks the held-out RMS most (`chosen`).", "",
                   "`rms_*`: held-out RMS, median over seeds (as the metrics above); `ensemble_rms_*`: the RMS of "
                   "the ensemble's prediction (the median over seeds), whose change `shrink` (all windows) and "
