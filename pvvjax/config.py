@@ -351,7 +351,8 @@ class DiscoveryConfig:
             null worlds it names floor structure of single kinds (a collective knee in
             descents), see docs/discovery-benchmark.md.
         min_subset_conditions: conditions a maneuver kind needs for a selection of its own.
-        lag_taus: time constants of the lag candidates, s (the chosen one is refined).
+        lag_taus: time constants of the lag candidates, s (the chosen one is refined; a lag
+            fitted at the largest is a smoother, not confirmed).
         knee_quantiles: quantiles of a channel where threshold candidates put their knee.
         exclude_channels: channels never used as candidates.
     """

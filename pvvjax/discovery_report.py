@@ -112,10 +112,11 @@ def write_discovery(res: Discovery, out, cfg=None, worst: int = 4) -> Path:
                   "confirmed tries the round keeps the one that shrinks the held-out RMS most (`chosen`).", "",
                   "`rms_*`: held-out RMS, median over seeds (as the metrics above); `ensemble_rms_*`: the RMS of "
                   "the ensemble's prediction (the median over seeds), whose change `shrink` (all windows) and "
-                  "`region_shrink` (where the effect acts, `judged_in`) decide the confirmation.", "",
+                  "`region_shrink` (where the effect acts, `judged_in`) decide the confirmation; `why_not`: "
+                  "why a try is not confirmed.", "",
                   _md(res.rounds[["round", "name", "augment", "p_value", "cv_gain", "rms_before_g", "rms_after_g",
                                   "ensemble_rms_before_g", "ensemble_rms_after_g", "shrink", "judged_in",
-                                  "region_shrink", "confirmed", "chosen"]]), "",
+                                  "region_shrink", "confirmed", "why_not", "chosen"]]), "",
                   "Runners-up of each proposal (held-out gain):", ""]
         lines += [f"- round {r.round}, {r.name} ({r.cv_gain:.3f}): {r.runners_up}"
                   for r in res.rounds.drop_duplicates(["round", "name"]).itertuples()]

@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pvvjax.discovery import _lag_windows, _Windows, floor_features, knn_floor, metrics
+from pvvjax.discovery import _fit_tau, _lag_identified, _lag_windows, _Windows, floor_features, knn_floor, metrics
 
 
 def _windows(n_counters=3, W=12, seed=0):
@@ -179,3 +179,22 @@ def test_report_lists_the_other_confirmed_tries_of_an_effects_round():
                                shrink=[0.20, 0.15, 0.18, 0.30, 0.1], confirmed=[True, True, True, False, True]))
     assert _also_confirmed(rounds, 1, "a") == "b (input, 18.0%)"  # the better try of b; c did not confirm
     assert _also_confirmed(rounds, 2, "d") == "none"
+
+
+def test_a_lag_fit_measures_a_lag_and_runs_to_the_grid_end_on_prediction_noise():
+    # Steady counters, half with a step: a measurement that lags the prediction by 1 s gives a
+    # time constant of 1 s. Steady counters measured without a lag, against a noisy
+    # prediction, give the grid's largest (smoothing only removes noise), which is not a lag.
+    win = _windows(n_counters=8, W=80, seed=4)
+    rng = np.random.default_rng(5)
+    level = rng.uniform(0.05, 0.15, 8)[win.table.i.to_numpy()]
+    signal = level + 0.08 * ((win.table.k.to_numpy() >= 30) & (win.table.i.to_numpy() % 2 == 1))
+    full = np.ones(len(signal), bool)
+    taus = (0.25, 0.5, 1.0, 1.5, 2.0, 3.0)
+    lagged = _lag_windows(signal[None], win, 1.0)[0]
+    tau, sse = _fit_tau(signal, lagged, win, full, taus)
+    assert tau == pytest.approx(1.0, rel=1e-3) and sse < 1e-10
+    assert _lag_identified(tau, taus)
+    noisy = level + 0.03 * rng.standard_normal(len(level))
+    tau, _ = _fit_tau(noisy, level, win, full, taus)
+    assert tau == max(taus) and not _lag_identified(tau, taus)
