@@ -698,6 +698,13 @@ def knn_floor(features, residual, groups, k: int = 30, chunk: int = 1024) -> np.
     return out
 
 
+def _selection_column(c: Candidate, v, yhat) -> np.ndarray:
+    """A candidate's column in the selection, from its values `v` per window: the values,
+    for a resonance times the prediction `yhat` (a mode magnifies the response, so its
+    residual is a·prediction·band: `gain_apply`)."""
+    return v * yhat if c.operator == "resonance" else v
+
+
 def _candidate_matrix(ctx: _Ctx, model: Model, win: _Windows, yhat, used_keys) -> tuple[list[Candidate], np.ndarray]:
     d = ctx.cfg.discovery
     own = _determined(model.inputs)
@@ -712,8 +719,7 @@ def _candidate_matrix(ctx: _Ctx, model: Model, win: _Windows, yhat, used_keys) -
         if c.key in used_keys or (c.operator in ("input", "threshold", "product") and set(c.channels) <= set(own)):
             continue
         lib.append(c)
-        # A resonance magnifies the response: its residual is a·prediction·band (`gain_apply`).
-        cols.append(values(c, win.cands) * (yhat if c.operator == "resonance" else 1.0))
+        cols.append(_selection_column(c, values(c, win.cands), yhat))
     C = np.column_stack(cols)
     if model.lag_tau_s <= 0:
         lc, LC = _lag_candidates(yhat, win, d.lag_taus)
@@ -952,7 +958,7 @@ def discover(campaign: Campaign, cfg: ExperimentConfig = ExperimentConfig(), *, 
         if c.operator == "lag":
             table[f"effect_{e['rank']}"] = _lag_windows(yb[None], base_win, c.parameters["tau_s"])[0] - yb
         else:
-            table[f"effect_{e['rank']}"] = base_win.values(c) * (yb if c.operator == "resonance" else 1.0)
+            table[f"effect_{e['rank']}"] = _selection_column(c, base_win.values(c), yb)
     log(f"final: {len(effects)} effect(s); held-out RMS {before['rms_g']:.4f} -> {after['rms_g']:.4f} g")
     return Discovery(name or str(campaign.source), d.database, baseline, current, before, after, effects,
                      pd.DataFrame(rounds), localized, table, sec, first)
