@@ -8,6 +8,7 @@ the effect ranked first, its fitted parameter, and the attributable shrink
 
     python experiments/discovery_benchmark.py experiments/configs/discovery/benchmark.toml [--only a,b] [--docs]
         [--seed-offsets 0,1]   # and again with every seed shifted by 1 (a replication)
+        [--set KEY=VALUE ...]  # [discovery] settings over the config's (a sensitivity run)
 
 Writes runs/discovery-benchmark/ (results table, each scenario's discovery.json and
 report; seed offset N in runs/discovery-benchmark/seed+N/); with --docs also
@@ -18,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import time
+import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -197,6 +199,9 @@ def main():
     ap.add_argument("--docs", action="store_true", help="also write docs/discovery-benchmark.md")
     ap.add_argument("--exclude", nargs="+", default=[], metavar="CHANNEL",
                     help="channels left out of the candidates (added to [discovery] exclude_channels)")
+    ap.add_argument("--set", nargs="+", default=[], metavar="KEY=VALUE", dest="settings",
+                    help="[discovery] settings over the config's (a TOML value; a bare word is a string), "
+                         "e.g. --set train_rows=windows: a sensitivity run (use another --out)")
     ap.add_argument("--seed-offsets", default="0",
                     help="comma-separated: the benchmark once per offset, every scenario's seed shifted by it (a "
                          "replication on other worlds; offset N writes to OUT/seed+N)")
@@ -207,12 +212,27 @@ def main():
         scenarios, overrides = scenario_configs(args.config, off)
         if args.exclude:
             overrides = {**overrides, "exclude_channels": [*overrides.get("exclude_channels", []), *args.exclude]}
+        overrides = {**overrides, **_settings(args.settings)}
         if args.only:
             keep = set(args.only.split(","))
             scenarios = [s for s in scenarios if s["name"] in keep]
         tables[off] = run_all(scenarios, overrides, Path(args.out) / (f"seed+{off}" if off else ""))
     if args.docs:
         write_docs(tables, args.config, args.seed_offsets)
+
+
+def _settings(items) -> dict:
+    """KEY=VALUE strings as [discovery] overrides: VALUE read as TOML, else as a string."""
+    out = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or not key:
+            raise SystemExit(f"--set: expected KEY=VALUE, got {item!r}")
+        try:
+            out[key] = tomllib.loads(f"v = {value}")["v"]
+        except tomllib.TOMLDecodeError:
+            out[key] = value
+    return out
 
 
 def _summary(df: pd.DataFrame) -> dict:

@@ -355,6 +355,11 @@ class DiscoveryConfig:
             fitted at the largest is a smoother, not confirmed).
         knee_quantiles: quantiles of a channel where threshold candidates put their knee.
         exclude_channels: channels never used as candidates.
+        train_rows: what the nets train on: "peaks" (each condition's peak row of the
+            database, the paper's map) or "windows" (every `train_stride`-th fully weighted
+            replay window of each counter, at the model's offset: the map of the whole
+            maneuvers, a lower error floor).
+        train_stride: see `train_rows`.
     """
 
     database: str = "db1"
@@ -381,6 +386,8 @@ class DiscoveryConfig:
     lag_taus: tuple[float, ...] = (0.25, 0.5, 1.0, 1.5, 2.0, 3.0)
     knee_quantiles: tuple[float, ...] = (0.05, 0.1, 0.25, 0.5, 0.75, 0.9, 0.95)
     exclude_channels: tuple[str, ...] = ()
+    train_rows: Literal["peaks", "windows"] = "peaks"
+    train_stride: int = 4
 
     def __post_init__(self):
         _check_databases("discovery", (self.database,))
@@ -395,7 +402,7 @@ class DiscoveryConfig:
         if self.min_subset_conditions < self.folds:
             raise ValueError(f"discovery.min_subset_conditions must be >= folds ({self.folds}), "
                              f"got {self.min_subset_conditions}")
-        for name in ("seeds", "proposals", "selection_stride", "permutations"):
+        for name in ("seeds", "proposals", "selection_stride", "permutations", "train_stride"):
             if getattr(self, name) < 1:
                 raise ValueError(f"discovery.{name} must be >= 1, got {getattr(self, name)}")
         if self.folds < 3:

@@ -2,8 +2,9 @@
 it to the model and show the gap shrink (data-contract §3).
 
 1. **Baseline.** Nets of one database, trained k-fold by condition over several seeds
-   (`fit_ensemble`). Every counter is replayed by the nets that held its condition out; the
-   input-to-vibration offset is fitted on the held-out windows.
+   (`fit_ensemble`) on its peak rows. Every counter is replayed by the nets that held its
+   condition out; the input-to-vibration offset is fitted on the held-out windows. (With
+   `train_rows = "windows"` the nets are then retrained on the replay windows at that offset.)
 2. **Localize.** Window residuals (measured − predicted, median over seeds) by maneuver
    kind, flight regime and position inside the maneuvers (`residuals.localize`).
 3. **Explain.** The candidate library (`candidates`) and lags of the model's own
@@ -557,8 +558,20 @@ def _context(campaign: Campaign, cfg: ExperimentConfig, log) -> _Ctx:
 
 def _train_model(ctx: _Ctx, model: Model) -> dict:
     """Nets on the database inputs and the model's extra inputs, with its gains, trained on
-    the peaks minus its additive terms (per fold: each fold's terms were fitted without it)."""
+    the peaks (or the windows: `train_rows`) minus its additive terms (per fold: each fold's
+    terms were fitted without it)."""
     d = ctx.cfg.discovery
+    if d.train_rows == "windows" and ctx.replay_params:  # the first nets (on the peaks) calibrate the replay
+        win = _replay(ctx, model.offset_s)
+        rows = (win.table.weight.to_numpy() >= 0.999) & (win.table.k.to_numpy() % d.train_stride == 0)
+        fold = ctx.counter_fold[win.table.i.to_numpy()]
+        y = win.table.measured_g.to_numpy()
+        if model.terms:
+            y = np.stack([y - _terms(model, win.values, np.full(len(y), f)) for f in range(d.folds)])[:, rows]
+        else:
+            y = y[rows]
+        return fit_ensemble(_inputs(model, win)[rows], y, fold[rows], k=d.folds, seeds=d.seeds, hidden=d.hidden,
+                            train_cfg=ctx.cfg.train, seed=ctx.cfg.seed, n_gain=len(model.gains))
     x = ctx.x_db
     if model.extra or model.gains:
         x = np.column_stack([x] + [values(c, ctx.train_table) for c in model.extra + model.gains])
@@ -849,6 +862,10 @@ def discover(campaign: Campaign, cfg: ExperimentConfig = ExperimentConfig(), *, 
     sec["train_baseline"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     model = _fit_offset(ctx, Model(params, tuple(DB_INPUTS[d.database])), with_lag=False)
+    if d.train_rows == "windows":  # on the windows at the offset the peak nets calibrated
+        t1 = time.perf_counter()
+        model = model._replace(params=_train_model(ctx, model))
+        sec["train_baseline"] += time.perf_counter() - t1
     win = _replay(ctx, model.offset_s)
     full = win.table.weight.to_numpy() >= 0.999
     pred0 = predictions(ctx, model, win)

@@ -45,6 +45,8 @@ def test_full_config_round_trip(tmp_path):
     ("[campaign.columns.V]\nto = 'airspeed_kt'\nunit = 'deg'", "cannot be converted"),
     ("[campaign.columns.V]\nto = 'airspeed_kt'\nunit = 'furlong/fortnight'", "unknown unit"),
     ("seed = true", "seed: expected an integer"),
+    ("[discovery]\ntrain_rows = 'window'", "discovery.train_rows: 'window' is not one of 'peaks', 'windows'"),
+    ("[discovery]\ntrain_stride = 0", "discovery.train_stride must be >= 1"),
     ("name = ", "not valid TOML"),
 ])
 def test_config_errors_name_file_and_key(tmp_path, text, needle):
