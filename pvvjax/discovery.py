@@ -556,30 +556,24 @@ def _context(campaign: Campaign, cfg: ExperimentConfig, log) -> _Ctx:
                 window_table(campaign, train_iv, d.exclude_channels), replay_params={})
 
 
-def _train_model(ctx: _Ctx, model: Model) -> dict:
+def _train_model(ctx: _Ctx, model: Model, rows: str = "") -> dict:
     """Nets on the database inputs and the model's extra inputs, with its gains, trained on
-    the peaks (or the windows: `train_rows`) minus its additive terms (per fold: each fold's
-    terms were fitted without it)."""
+    the peaks or the windows (`rows`, default the config's `train_rows`) minus its additive
+    terms (per fold: each fold's terms were fitted without it)."""
     d = ctx.cfg.discovery
-    if d.train_rows == "windows" and ctx.replay_params:  # the first nets (on the peaks) calibrate the replay
+    if (rows or d.train_rows) == "windows":  # every train_stride-th full window at the model's offset
         win = _replay(ctx, model.offset_s)
-        rows = (win.table.weight.to_numpy() >= 0.999) & (win.table.k.to_numpy() % d.train_stride == 0)
-        fold = ctx.counter_fold[win.table.i.to_numpy()]
-        y = win.table.measured_g.to_numpy()
-        if model.terms:
-            y = np.stack([y - _terms(model, win.values, np.full(len(y), f)) for f in range(d.folds)])[:, rows]
-        else:
-            y = y[rows]
-        return fit_ensemble(_inputs(model, win)[rows], y, fold[rows], k=d.folds, seeds=d.seeds, hidden=d.hidden,
-                            train_cfg=ctx.cfg.train, seed=ctx.cfg.seed, n_gain=len(model.gains))
-    x = ctx.x_db
-    if model.extra or model.gains:
-        x = np.column_stack([x] + [values(c, ctx.train_table) for c in model.extra + model.gains])
-    y = ctx.db[OUTPUT].to_numpy(np.float64)
+        sel = (win.table.weight.to_numpy() >= 0.999) & (win.table.k.to_numpy() % d.train_stride == 0)
+        x, value = _inputs(model, win)[sel], lambda c: win.values(c)[sel]
+        y, folds = win.table.measured_g.to_numpy()[sel], ctx.counter_fold[win.table.i.to_numpy()[sel]]
+    else:
+        value = lambda c: values(c, ctx.train_table)  # noqa: E731
+        x, y, folds = ctx.x_db, ctx.db[OUTPUT].to_numpy(np.float64), ctx.folds
+        if model.extra or model.gains:
+            x = np.column_stack([x] + [value(c) for c in model.extra + model.gains])
     if model.terms:
-        y = np.stack([y - _terms(model, lambda c: values(c, ctx.train_table), np.full(len(y), f))
-                      for f in range(d.folds)])
-    return fit_ensemble(x, y, ctx.folds, k=d.folds, seeds=d.seeds, hidden=d.hidden, train_cfg=ctx.cfg.train,
+        y = np.stack([y - _terms(model, value, np.full(len(y), f)) for f in range(d.folds)])
+    return fit_ensemble(x, y, folds, k=d.folds, seeds=d.seeds, hidden=d.hidden, train_cfg=ctx.cfg.train,
                         seed=ctx.cfg.seed, n_gain=len(model.gains))
 
 
@@ -857,7 +851,7 @@ def discover(campaign: Campaign, cfg: ExperimentConfig = ExperimentConfig(), *, 
     sec["prepare"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    params = _train_model(ctx, Model({}, tuple(DB_INPUTS[d.database])))
+    params = _train_model(ctx, Model({}, tuple(DB_INPUTS[d.database])), rows="peaks")  # they calibrate the replay
     ctx.replay_params = params
     sec["train_baseline"] = time.perf_counter() - t0
     t0 = time.perf_counter()

@@ -226,7 +226,7 @@ def test_nets_trained_on_the_windows_see_every_strided_window_and_lower_the_floo
     assert len(calls) == 3  # peaks; peaks (to calibrate the offset), then windows
     x, y, folds = calls[2]
     ctx = D._context(camp, ExperimentConfig(discovery=d), lambda m: None)
-    ctx.replay_params = res["windows"].baseline.params
+    ctx.replay_params = res["windows"].baseline.params  # any nets: the windows do not depend on them
     win = D._replay(ctx, res["windows"].baseline.offset_s)
     rows = (win.table.weight.to_numpy() >= 0.999) & (win.table.k.to_numpy() % 8 == 0)
     assert len(y) == rows.sum() > 10 * len(calls[0][1])
