@@ -25,6 +25,7 @@ _EXPORTS = {
     "discovery_report": ["write_discovery"],
     "features": ["advance_ratio", "blade_loading", "derive_features", "maneuver_load_factor", "thrust_coefficient"],
     "harmonics": ["Windows", "analyze", "harmonic_windows", "plan_windows"],
+    "lag_study": ["delag", "lag_study"],
     "networks": ["mlp_apply", "mlp_init", "rbf_apply", "rbf_fit"],
     "npnet": ["NumpyNet"],
     "replay": ["CostWeights", "Replay", "make_settings", "prepare", "replay_cost"],  # the function: pvvjax.replay.replay

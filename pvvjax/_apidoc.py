@@ -9,8 +9,8 @@ import re
 # Pipeline order: data, analysis, networks, replay, studies, discovery, real time, shell.
 MODULES = ["campaign", "units", "batch", "constants", "features", "harmonics", "databases", "networks", "train",
            "sweep", "evaluation", "npnet", "replay", "calibration", "replay_tables", "studies", "residuals",
-           "candidates", "selection", "discovery", "discovery_report", "effects", "realtime", "rtelement", "synth",
-           "config", "io", "plots", "paper", "cli"]
+           "candidates", "selection", "discovery", "lag_study", "discovery_report", "effects", "realtime", "rtelement",
+           "synth", "config", "io", "plots", "paper", "cli"]
 
 
 def _signature(name: str, obj) -> str:

@@ -395,7 +395,7 @@ def _lag_identified(tau: float, taus) -> bool:
 def _fit_offset(ctx: _Ctx, model: Model, with_lag: bool) -> Model:
     """The offset (grid over `offset_bounds`) and, with `with_lag`, the lag time constant
     (grid, then refined by LM at the best offset) that minimise the held-out window SSE of
-    the ensemble median."""
+    the ensemble median (without `with_lag`, of the model with its own lag)."""
     d = ctx.cfg.discovery
     if not d.calibrate_offset:
         offsets = np.array([d.offset_s])
@@ -406,11 +406,11 @@ def _fit_offset(ctx: _Ctx, model: Model, with_lag: bool) -> Model:
         win = _replay(ctx, float(off))
         full = win.table.weight.to_numpy() >= 0.999
         meas = win.table.measured_g.to_numpy()
-        yhat = np.median(predictions(ctx, model._replace(lag_tau_s=0.0), win), axis=0)
+        yhat = np.median(predictions(ctx, model._replace(lag_tau_s=0.0) if with_lag else model, win), axis=0)
         if with_lag:
             tau, sse = _fit_tau(yhat, meas, win, full, d.lag_taus, refine=False)
         else:
-            tau, sse = 0.0, float(np.sum((yhat[full] - meas[full]) ** 2))
+            tau, sse = model.lag_tau_s, float(np.sum((yhat[full] - meas[full]) ** 2))
         if sse < best[0]:
             best = (sse, float(off), tau, yhat, meas, full)
     tau = best[2]
