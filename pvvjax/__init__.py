@@ -21,11 +21,11 @@ _EXPORTS = {
                "ExperimentConfig", "ReplayConfig", "SweepConfig", "TrainConfig", "load_config"],
     "constants": ["UH60A", "Aircraft"],
     "databases": ["DB_INPUTS", "OUTPUT", "build_databases", "condition_peaks", "peak_table"],
-    "discovery": ["Discovery", "discover", "summary"],
+    "discovery": ["Discovery", "delag", "discover", "summary"],
     "discovery_report": ["write_discovery"],
     "features": ["advance_ratio", "blade_loading", "derive_features", "maneuver_load_factor", "thrust_coefficient"],
     "harmonics": ["Windows", "analyze", "harmonic_windows", "plan_windows"],
-    "lag_study": ["delag", "lag_study"],
+    "lag_study": ["lag_study"],
     "networks": ["mlp_apply", "mlp_init", "rbf_apply", "rbf_fit"],
     "npnet": ["NumpyNet"],
     "replay": ["CostWeights", "Replay", "make_settings", "prepare", "replay_cost"],  # the function: pvvjax.replay.replay

@@ -55,6 +55,7 @@ __all__ = [
     "Discovery",
     "Model",
     "Residual",
+    "delag",
     "discover",
     "fit_ensemble",
     "floor_features",
@@ -303,6 +304,34 @@ def _lag_windows(pred, win: _Windows, tau: float) -> np.ndarray:
 
 
 _lag_grid = jax.jit(jax.vmap(_lag, in_axes=(0, 0, None)))
+
+
+def delag(y, time_s, counter, tau_s: float, span: int = 4) -> np.ndarray:
+    """The input of a first-order lag whose output is `y`: u = y + τ·dy/dt per counter.
+
+    dy/dt is a central difference over ±`span` windows (one-sided at a counter's ends): an
+    8-revolution window series is smooth over that span, and a shorter difference would
+    amplify the harmonic analysis' noise by τ/Δt.
+
+    Args:
+        y, time_s, counter: (n,) window values, their times, s, and the counter of each
+            (windows of one counter in any order). tau_s: time constant, s (0: `y` itself).
+        span: half-width of the difference, windows.
+
+    Returns:
+        (n,) the de-lagged series.
+    """
+    y, t = np.asarray(y, float), np.asarray(time_s, float)
+    if tau_s <= 0:
+        return y.copy()
+    out = np.empty_like(y)
+    for idx in pd.Series(np.arange(len(y))).groupby(np.asarray(counter)).indices.values():
+        idx = idx[np.argsort(t[idx], kind="stable")]
+        n = np.arange(len(idx))
+        lo, hi = idx[np.maximum(n - span, 0)], idx[np.minimum(n + span, len(idx) - 1)]
+        dt = t[hi] - t[lo]
+        out[idx] = y[idx] + tau_s * np.divide(y[hi] - y[lo], dt, out=np.zeros(len(idx)), where=dt > 0)
+    return out
 
 
 def _inputs(model: Model, win: _Windows) -> np.ndarray:
@@ -556,16 +585,21 @@ def _context(campaign: Campaign, cfg: ExperimentConfig, log) -> _Ctx:
                 window_table(campaign, train_iv, d.exclude_channels), replay_params={})
 
 
-def _train_model(ctx: _Ctx, model: Model, rows: str = "") -> dict:
+def _train_model(ctx: _Ctx, model: Model, rows: str = "", through_lag: bool = False) -> dict:
     """Nets on the database inputs and the model's extra inputs, with its gains, trained on
     the peaks or the windows (`rows`, default the config's `train_rows`) minus its additive
-    terms (per fold: each fold's terms were fitted without it)."""
+    terms (per fold: each fold's terms were fitted without it). With `through_lag` (windows
+    only), the targets are the measured windows with the model's lag undone (`delag`)."""
     d = ctx.cfg.discovery
     if (rows or d.train_rows) == "windows":  # every train_stride-th full window at the model's offset
         win = _replay(ctx, model.offset_s)
-        sel = (win.table.weight.to_numpy() >= 0.999) & (win.table.k.to_numpy() % d.train_stride == 0)
+        t = win.table
+        sel = (t.weight.to_numpy() >= 0.999) & (t.k.to_numpy() % d.train_stride == 0)
         x, value = _inputs(model, win)[sel], lambda c: win.values(c)[sel]
-        y, folds = win.table.measured_g.to_numpy()[sel], ctx.counter_fold[win.table.i.to_numpy()[sel]]
+        y = t.measured_g.to_numpy()
+        if through_lag:
+            y = delag(y, t.time_s.to_numpy(), t.i.to_numpy(), model.lag_tau_s)
+        y, folds = y[sel], ctx.counter_fold[t.i.to_numpy()[sel]]
     else:
         value = lambda c: values(c, ctx.train_table)  # noqa: E731
         x, y, folds = ctx.x_db, ctx.db[OUTPUT].to_numpy(np.float64), ctx.folds
