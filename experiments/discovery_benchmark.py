@@ -81,11 +81,12 @@ def run_scenario(sc: dict, overrides: dict, out: Path, log=print):
                named=" > ".join(e["name"] for e in js["effects"]) or "none",
                operator=first["operator"] if first else "", channels=",".join(first["channels"]) if first else "",
                rms_before_g=res.before["rms_g"], rms_after_g=res.after["rms_g"],
-               offset_s=res.baseline.offset_s, generate_s=t_gen, seconds=seconds)
+               offset_s=res.baseline.offset_s, lag_baseline=res.baseline.through_lag, generate_s=t_gen,
+               seconds=seconds)
     if truth:
         row["correct_first"] = bool(first and matches(first, truth["accept"]))
-        # The truth among the first round's confirmed tries (named or not).
-        tries = res.rounds[(res.rounds["round"] == 1) & res.rounds.confirmed] if len(res.rounds) else res.rounds
+        # The truth among the first round's confirmed tries (named or not; round 0 is the lag test).
+        tries = res.rounds[(res.rounds["round"] <= 1) & res.rounds.confirmed] if len(res.rounds) else res.rounds
         row["truth_confirmed"] = any(matches(dict(operator=t.operator, channels=t.channels.split(",")), truth["accept"])
                                      for t in tries.itertuples())
         if "parameter" in truth and first and row["correct_first"]:
@@ -124,10 +125,12 @@ def identifiability(res, null) -> dict:
     effect = (w.measured_g - w.measured_g_null).to_numpy()
     full = (w.weight >= 0.999).to_numpy() & np.isfinite(effect)
     out = dict(effect_rms_g=np.nan, truth_gain=np.nan, learned_share=np.nan, named_gain=np.nan)
-    if res.effects and res.residual is not None:
+    if res.effects and res.residual is not None and res.effects[0]["operator"] != "lag":
         out["named_gain"] = selection_gain(res, res.windows["effect_1"])
     if not np.any(np.abs(effect[full]) > 1e-6) or res.residual is None:  # same world (a model input taken away)
         return out
+    if res.baseline.through_lag != null.baseline.through_lag:  # baselines of another kind: no learned share
+        return out | dict(effect_rms_g=float(np.sqrt(np.mean(effect[full] ** 2))))
     e = np.where(np.isfinite(effect), effect, 0.0)
     learned = (w.predicted_before_g - w.predicted_before_g_null).to_numpy()
     ec = e[full] - e[full].mean()
@@ -148,11 +151,17 @@ def attributable(df: pd.DataFrame, nulls: dict) -> pd.DataFrame:
         null = nulls.get(r.seed)
         if r.hidden == "none" or null is None:
             continue
-        df.loc[i, "rms_null_g"] = null.before["rms_g"]
-        gap = r.rms_before_g - null.before["rms_g"]
+        null_before = null.before
+        if r.lag_baseline:  # a lag test's reference nets: the null world's reference of the same test
+            if null.lag_test is None:
+                continue
+            ref = null.lag_test[(null.lag_test.role == "reference") & null.lag_test.chosen].iloc[0]
+            null_before = {k: float(ref[k]) for k in ("rms_g", "peak_error_g", "phase_error_s")}
+        df.loc[i, "rms_null_g"] = null_before["rms_g"]
+        gap = r.rms_before_g - null_before["rms_g"]
         if gap > 0:
             df.loc[i, "attributable_rms"] = (r.rms_before_g - r.rms_after_g) / gap
-        if r.region:
+        if r.region and not r.lag_baseline:
             ref = _rms_in(null, r.region.split(", "))
             df.loc[i, "region_null_g"] = ref
             if r.region_before_g - ref > 0:
@@ -162,7 +171,7 @@ def attributable(df: pd.DataFrame, nulls: dict) -> pd.DataFrame:
         else:
             key = {"phase_error_s": ("phase_before_s", "phase_after_s"),
                    "peak_error_g": ("peak_before_g", "peak_after_g")}[r.gap_metric]
-            g = r[key[0]] - null.before[r.gap_metric]
+            g = r[key[0]] - null_before[r.gap_metric]
             if g > 0:
                 df.loc[i, "attributable_shrink"] = (r[key[0]] - r[key[1]]) / g
     return df

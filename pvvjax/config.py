@@ -360,6 +360,14 @@ class DiscoveryConfig:
             replay window of each counter, at the model's offset: the map of the whole
             maneuvers, a lower error floor).
         train_stride: see `train_rows`.
+        lag_test: before the first round, test for a lag slower than `lag_fast_s` with window
+            nets trained through it (`discovery._lag_test`; up to six window trainings). A
+            confirmed lag is the first effect, and every later model trains through it.
+        lag_test_taus: time constants the lag test tries, s (> 0; at least one above
+            `lag_fast_s`).
+        lag_fast_s: the fast dynamics every world has (rotor inflow and wake settle within
+            about a second): lags up to this count as the lag test's reference, not as a
+            discovery.
     """
 
     database: str = "db1"
@@ -388,9 +396,16 @@ class DiscoveryConfig:
     exclude_channels: tuple[str, ...] = ()
     train_rows: Literal["peaks", "windows"] = "peaks"
     train_stride: int = 4
+    lag_test: bool = False
+    lag_test_taus: tuple[float, ...] = (1.0, 2.0, 3.0)
+    lag_fast_s: float = 1.0
 
     def __post_init__(self):
         _check_databases("discovery", (self.database,))
+        if (min(self.lag_test_taus, default=0.0) <= 0 or max(self.lag_test_taus, default=0.0) <= self.lag_fast_s
+                or self.lag_fast_s < 0):
+            raise ValueError(f"discovery.lag_test_taus must be > 0 with at least one above discovery.lag_fast_s "
+                             f"({self.lag_fast_s}), got {list(self.lag_test_taus)}")
         _bounds("discovery.offset_bounds", self.offset_bounds)
         if not self.hidden or min(self.hidden) < 1:
             raise ValueError(f"discovery.hidden needs widths >= 1, got {list(self.hidden)}")

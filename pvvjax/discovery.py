@@ -5,6 +5,10 @@ it to the model and show the gap shrink (data-contract §3).
    (`fit_ensemble`) on its peak rows. Every counter is replayed by the nets that held its
    condition out; the input-to-vibration offset is fitted on the held-out windows. (With
    `train_rows = "windows"` the nets are then retrained on the replay windows at that offset.)
+   With `lag_test`, window nets trained *through* lags of several time constants (`delag`)
+   then ask whether the vibration lags the state more slowly than the fast dynamics the
+   offset stands for (`_lag_test`); a confirmed slow lag is the first effect, its reference
+   (the best nets without one) the baseline, and every later model trains through it.
 2. **Localize.** Window residuals (measured − predicted, median over seeds) by maneuver
    kind, flight regime and position inside the maneuvers (`residuals.localize`).
 3. **Explain.** The candidate library (`candidates`) and lags of the model's own
@@ -166,7 +170,9 @@ class Model(NamedTuple):
         gains: candidates whose learned gain multiplies the nets' output (`gain_apply`; the
         coefficients are in `params["gain"]`).
         offset_s: input-to-vibration offset, s. lag_tau_s: first-order lag of the replayed
-        prediction, s (0: none).
+        prediction, s (0: none). through_lag: the nets train on the replay windows with the
+        lag undone in their targets (`delag`), as the lag test trains them, whatever
+        `train_rows` says.
     """
 
     params: dict
@@ -176,6 +182,7 @@ class Model(NamedTuple):
     lag_tau_s: float = 0.0
     terms: tuple = ()
     gains: tuple = ()
+    through_lag: bool = False
 
 
 @dataclass
@@ -515,6 +522,9 @@ class Discovery:
             the prediction, a lag as the lagged minus the plain prediction).
         seconds: wall time per stage.
         residual: the first round's selection design (`Residual`), for `selection_gain`.
+        lag_test: with `lag_test`, one row per ensemble of the test (`_lag_test`): tau_s,
+            train_offset_s, offset_s (refitted), ensemble_rms_g, rms_g, peak_error_g,
+            phase_error_s, role (reference or slow), drop (against the reference), chosen.
     """
 
     campaign: str
@@ -529,6 +539,7 @@ class Discovery:
     windows: pd.DataFrame
     seconds: dict
     residual: Residual | None = None
+    lag_test: pd.DataFrame | None = None
 
 
 def selection_gain(res: Discovery, values) -> float:
@@ -585,19 +596,19 @@ def _context(campaign: Campaign, cfg: ExperimentConfig, log) -> _Ctx:
                 window_table(campaign, train_iv, d.exclude_channels), replay_params={})
 
 
-def _train_model(ctx: _Ctx, model: Model, rows: str = "", through_lag: bool = False) -> dict:
+def _train_model(ctx: _Ctx, model: Model, rows: str = "") -> dict:
     """Nets on the database inputs and the model's extra inputs, with its gains, trained on
     the peaks or the windows (`rows`, default the config's `train_rows`) minus its additive
-    terms (per fold: each fold's terms were fitted without it). With `through_lag` (windows
-    only), the targets are the measured windows with the model's lag undone (`delag`)."""
+    terms (per fold: each fold's terms were fitted without it). A model `through_lag` trains
+    on the windows, the measured ones with the model's lag undone (`delag`)."""
     d = ctx.cfg.discovery
-    if (rows or d.train_rows) == "windows":  # every train_stride-th full window at the model's offset
+    if model.through_lag or (rows or d.train_rows) == "windows":  # every train_stride-th full window at the offset
         win = _replay(ctx, model.offset_s)
         t = win.table
         sel = (t.weight.to_numpy() >= 0.999) & (t.k.to_numpy() % d.train_stride == 0)
         x, value = _inputs(model, win)[sel], lambda c: win.values(c)[sel]
         y = t.measured_g.to_numpy()
-        if through_lag:
+        if model.through_lag:
             y = delag(y, t.time_s.to_numpy(), t.i.to_numpy(), model.lag_tau_s)
         y, folds = y[sel], ctx.counter_fold[t.i.to_numpy()[sel]]
     else:
@@ -613,11 +624,12 @@ def _train_model(ctx: _Ctx, model: Model, rows: str = "", through_lag: bool = Fa
 
 def _fit_term(ctx: _Ctx, model: Model, c: Candidate, win: _Windows) -> np.ndarray:
     """Intercept and coefficient of an additive term on the residual of `model`, per fold,
-    each fitted on the windows of the other folds' conditions (cross-fitting). (k, 2)."""
+    each fitted on the windows of the other folds' conditions (cross-fitting). (k, 2). With
+    a lag in the model the term acts before it (`predictions`), so it is fitted lagged."""
     full = win.table.weight.to_numpy() >= 0.999
     fold = ctx.counter_fold[win.table.i.to_numpy()]
     r = win.table.measured_g.to_numpy() - np.median(predictions(ctx, model, win), axis=0)
-    A = np.column_stack([np.ones(len(r)), win.values(c)])
+    A = np.column_stack([np.ones(len(r)), _lag_windows(win.values(c)[None], win, model.lag_tau_s)[0]])
     out = np.zeros((ctx.cfg.discovery.folds, 2))
     for f in range(len(out)):
         rows = full & (fold != f)
@@ -691,6 +703,127 @@ def _confirm(ctx: _Ctx, current: Model, trial: Model, c: Candidate, where: str, 
         why = f"time constant at the grid's largest, {max(d.lag_taus):g} s: a smoother, not a lag"
     return not why, dict(pred=tpred, metrics=metrics(tpred, twin), shrink=shrink, local=local, region=region,
                          judged_in=", ".join(kinds), ensemble=ens, why=why)
+
+
+def _lag_trials(ctx: _Ctx, delta: float, taus, reference_offsets, log=print) -> list[dict]:
+    """Window nets trained through a lag of each τ, and without one (τ = 0), each replayed
+    with its lag and its offset refitted: a lag tested against a pure delay.
+
+    The reference (τ = 0) trains at the peak nets' offset δ and at each `reference_offsets`;
+    each τ at max(lo, δ − τ) (a lag delays by about τ). Every ensemble trains on every
+    `train_stride`-th full window (k-fold by condition × seeds) with its lag undone in the
+    targets (`delag`); its offset is then refitted on the held-out windows, so that a lag is
+    not credited with a better delay.
+
+    Returns:
+        One dict per ensemble: tau_s, train_offset_s, model (offset refitted), win, pred
+        (S, n), metrics (`metrics`) and ensemble_rms_g (held-out RMS of the median over
+        seeds, full windows).
+    """
+    lo = ctx.cfg.discovery.offset_bounds[0]
+    inputs = tuple(DB_INPUTS[ctx.cfg.discovery.database])
+    runs = [(0.0, float(o)) for o in sorted({*map(float, reference_offsets), float(delta)})]
+    runs += [(float(t), max(lo, round(delta - t, 6))) for t in taus]
+    out = []
+    for tau, off in runs:
+        params = _train_model(ctx, Model({}, inputs, offset_s=off, lag_tau_s=tau, through_lag=True))
+        model = _fit_offset(ctx, Model(params, inputs, lag_tau_s=tau, through_lag=True), with_lag=False)
+        win = _replay(ctx, model.offset_s)
+        pred = predictions(ctx, model, win)
+        full = win.table.weight.to_numpy() >= 0.999
+        ens = float(_rms_by_seed(np.median(pred, axis=0)[None], win, full)[0])
+        out.append(dict(tau_s=tau, train_offset_s=off, model=model, win=win, pred=pred, metrics=metrics(pred, win),
+                        ensemble_rms_g=ens))
+        log(f"  lag test: τ {tau:.2f} s trained at {off:.2f} s, refitted offset {model.offset_s:.2f} s: "
+            f"ensemble RMS {ens:.4f} g")
+    return out
+
+
+# Training offsets of the lag test's reference nets besides the peak nets' offset, s.
+_LAG_REFERENCE_OFFSETS = (0.0, 0.5)
+
+
+def _paired_sign_flip(a: dict, b: dict, permutations: int, seed: int) -> tuple[float, float]:
+    """Whether trial `b`'s ensemble predicts the measured windows better than `a`'s, on the
+    windows both hold in full: per condition, the sum of the difference of their squared
+    errors; their total against random sign flips (conditions are the independent units,
+    windows of one condition are not).
+
+    Returns:
+        (one-sided p-value, 1 − b's squared error / a's).
+    """
+    def table(t):
+        full = t["win"].table.weight.to_numpy() >= 0.999
+        e2 = (np.median(t["pred"], axis=0) - t["win"].table.measured_g.to_numpy()) ** 2
+        return t["win"].table.loc[full, ["counter", "window", "condition"]].assign(e2=e2[full])
+    both = table(a).merge(table(b), on=["counter", "window", "condition"], suffixes=("_a", "_b"))
+    dc = (both.e2_a - both.e2_b).groupby(both.condition).sum().to_numpy()
+    signs = np.random.default_rng(seed).choice([-1.0, 1.0], size=(permutations, len(dc)))
+    p = (1 + np.sum(signs @ dc >= dc.sum())) / (permutations + 1)
+    return float(p), float(1.0 - both.e2_b.sum() / both.e2_a.sum())
+
+
+# Sign flips of the lag test's p-value (one comparison: cheap).
+_LAG_PERMUTATIONS = 9999
+
+
+def _lag_test(ctx: _Ctx, delta: float, log) -> dict:
+    """Is there a lag slower than the fast dynamics the offset stands for? `_lag_trials` at
+    `lag_test_taus`; the reference is the best ensemble without a lag or with one of at
+    most `lag_fast_s` (rotor inflow and wake settle within about a second: the base
+    dynamics of every world, which nets trained through a lag find as well); the slow lag
+    is the best ensemble above it. Confirmed, as every effect is (`_confirm`), if the slow
+    lag lowers the reference's held-out ensemble RMS by `min_shrink`. The p-value of a
+    sign-flip test by condition (`_paired_sign_flip`) is reported, not required: the gain
+    of a lag sits in the transients, a third of the conditions, while the rest carry the
+    two retrainings' noise (a 2 s lag's 11 % drop gives p ≈ 0.05 on a small test world).
+
+    Returns:
+        dict: table (one row per ensemble), reference and slow (their `_lag_trials` dicts),
+        drop, p_value, explained_fraction (1 − the slow lag's squared error / the
+        reference's, full windows of both), confirmed, why (empty if confirmed).
+    """
+    d = ctx.cfg.discovery
+    trials = _lag_trials(ctx, delta, d.lag_test_taus, _LAG_REFERENCE_OFFSETS, log)
+    ref = min((t for t in trials if t["tau_s"] <= d.lag_fast_s), key=lambda t: t["ensemble_rms_g"])
+    slow = min((t for t in trials if t["tau_s"] > d.lag_fast_s), key=lambda t: t["ensemble_rms_g"])
+    drop = 1.0 - slow["ensemble_rms_g"] / ref["ensemble_rms_g"]
+    p, explained = _paired_sign_flip(ref, slow, _LAG_PERMUTATIONS, ctx.cfg.seed)
+    why = ("" if drop >= d.min_shrink else
+           f"the slow lag lowers the reference's ensemble RMS {drop:+.1%}, less than min_shrink {d.min_shrink:.0%}")
+    table = pd.DataFrame([{k: t[k] for k in ("tau_s", "train_offset_s", "ensemble_rms_g")}
+                          | {"offset_s": t["model"].offset_s} | {k: t["metrics"][k] for k in
+                                                                  ("rms_g", "peak_error_g", "phase_error_s")}
+                          for t in trials])
+    table = table.assign(role=np.where(table.tau_s <= d.lag_fast_s, "reference", "slow"),
+                         drop=1.0 - table.ensemble_rms_g / ref["ensemble_rms_g"],
+                         chosen=[t is ref or t is slow for t in trials])
+    log(f"lag test: slow lag τ {slow['tau_s']:g} s against the reference (τ {ref['tau_s']:g} s): ensemble RMS "
+        f"{ref['ensemble_rms_g']:.4f} -> {slow['ensemble_rms_g']:.4f} g ({-drop:+.1%}), p = {p:.3f}: "
+        + ("confirmed" if not why else "not confirmed"))
+    return dict(table=table, reference=ref, slow=slow, drop=drop, p_value=p, explained_fraction=explained,
+                confirmed=not why, why=why)
+
+
+def _lag_round(ctx: _Ctx, lag: dict, inputs) -> tuple[dict, dict | None]:
+    """The lag test (`_lag_test`) as round 0 of the rounds table and, if confirmed, the first
+    effect (its region on the slow lag's windows, the reference re-predicted there)."""
+    slow, ref = lag["slow"], lag["reference"]
+    c = Candidate("lag", (), {"tau_s": slow["tau_s"]})
+    swin = slow["win"]
+    region = _region(swin, swin.table.weight.to_numpy() >= 0.999, predictions(ctx, ref["model"], swin), slow["pred"])
+    row = dict(round=0, where="all", candidate=c.key, name=c.name, operator="lag", channels="",
+               augment="trained through", p_value=lag["p_value"], cv_gain=np.nan,
+               runners_up=f"reference: τ {ref['tau_s']:g} s", explained_fraction=lag["explained_fraction"],
+               rms_before_g=ref["metrics"]["rms_g"], rms_after_g=slow["metrics"]["rms_g"],
+               ensemble_rms_before_g=ref["ensemble_rms_g"], ensemble_rms_after_g=slow["ensemble_rms_g"],
+               shrink=lag["drop"], judged_in="all", region_shrink=1.0 - region["after_rms_g"] / region["before_rms_g"],
+               confirmed=lag["confirmed"], why_not=lag["why"], chosen=lag["confirmed"])
+    if not lag["confirmed"]:
+        return row, None
+    return row, dict(rank=1, round=0, name=c.name, operator="lag", channels=list(inputs),
+                     parameters={"tau_s": slow["tau_s"]}, explained_fraction=lag["explained_fraction"],
+                     p_value=lag["p_value"], region=region, key=c.key, candidate=c, found_in="all")
 
 
 def _lag_candidates(yhat, win: _Windows, taus) -> tuple[list[Candidate], np.ndarray]:
@@ -894,6 +1027,13 @@ def discover(campaign: Campaign, cfg: ExperimentConfig = ExperimentConfig(), *, 
         t1 = time.perf_counter()
         model = model._replace(params=_train_model(ctx, model))
         sec["train_baseline"] += time.perf_counter() - t1
+    lag = None
+    if d.lag_test and d.max_effects > 0:
+        t1 = time.perf_counter()
+        lag = _lag_test(ctx, model.offset_s, log)
+        sec["lag_test"] = time.perf_counter() - t1
+        if lag["confirmed"]:  # the baseline is then the test's reference: before/after measures the lag
+            model = lag["reference"]["model"]
     win = _replay(ctx, model.offset_s)
     full = win.table.weight.to_numpy() >= 0.999
     pred0 = predictions(ctx, model, win)
@@ -909,7 +1049,13 @@ def discover(campaign: Campaign, cfg: ExperimentConfig = ExperimentConfig(), *, 
     baseline, current, pred, cur_metrics = model, model, pred0, before
     effects, rounds, used, first = [], [], set(), None
     t_explain = t_confirm = 0.0
-    for rnd in range(d.max_effects):
+    if lag is not None:
+        row, effect = _lag_round(ctx, lag, current.inputs)
+        rounds.append(row)
+        if effect is not None:
+            effects.append(effect)
+            current, pred, cur_metrics = lag["slow"]["model"], lag["slow"]["pred"], lag["slow"]["metrics"]
+    for rnd in range(d.max_effects - len(effects)):
         t0 = time.perf_counter()
         win = _replay(ctx, current.offset_s)
         full = win.table.weight.to_numpy() >= 0.999
@@ -980,7 +1126,7 @@ def discover(campaign: Campaign, cfg: ExperimentConfig = ExperimentConfig(), *, 
         # the best of several subsets), the one whose retrained model closes most of the gap
         # over all windows (the same windows for every proposal).
         _, row, where, s, c, trial, conf = max(confirmed, key=lambda t: t[0])
-        effects.append(dict(rank=len(effects) + 1, name=c.name, operator=c.operator,
+        effects.append(dict(rank=len(effects) + 1, round=rnd + 1, name=c.name, operator=c.operator,
                             channels=list(c.channels) or list(current.inputs), parameters=_public_parameters(c),
                             explained_fraction=s.explained_fraction, p_value=s.p_value, region=conf["region"],
                             key=c.key, candidate=c, found_in=where))
@@ -1006,7 +1152,7 @@ def discover(campaign: Campaign, cfg: ExperimentConfig = ExperimentConfig(), *, 
             table[f"effect_{e['rank']}"] = _selection_column(c, base_win.values(c), yb)
     log(f"final: {len(effects)} effect(s); held-out RMS {before['rms_g']:.4f} -> {after['rms_g']:.4f} g")
     return Discovery(name or str(campaign.source), d.database, baseline, current, before, after, effects,
-                     pd.DataFrame(rounds), localized, table, sec, first)
+                     pd.DataFrame(rounds), localized, table, sec, first, None if lag is None else lag["table"])
 
 
 def summary(res: Discovery) -> dict:

@@ -37,7 +37,7 @@ def write_discovery(res: Discovery, out, cfg=None, worst: int = 4) -> Path:
 
     Files: discovery.json, report.md, figures/*.png, windows.{parquet,csv} (held-out
     windows with predictions before and after), rounds.csv (every proposal tried),
-    localize_<table>.csv, config.toml (if `cfg` is given).
+    lag_test.csv (with `lag_test`), localize_<table>.csv, config.toml (if `cfg` is given).
 
     Returns:
         The path of report.md.
@@ -48,6 +48,8 @@ def write_discovery(res: Discovery, out, cfg=None, worst: int = 4) -> Path:
     (out / "discovery.json").write_text(json.dumps(js, indent=2))
     write_table(res.windows, out / "windows", cfg)
     res.rounds.to_csv(out / "rounds.csv", index=False)
+    if res.lag_test is not None:
+        res.lag_test.to_csv(out / "lag_test.csv", index=False)
     for k, t in res.localized.items():
         t.to_csv(out / f"localize_{k.replace(':', '_')}.csv")
     if cfg is not None:
@@ -83,7 +85,11 @@ def write_discovery(res: Discovery, out, cfg=None, worst: int = 4) -> Path:
         "# Discovery report", "",
         f"Campaign: `{res.campaign}`. Model: {res.database} nets, held-out by condition, median over seeds. "
         f"Offset {res.baseline.offset_s:.2f} s (baseline) and {res.final.offset_s:.2f} s (augmented)."
-        + (f" Learned lag τ = {res.final.lag_tau_s:.2f} s." if res.final.lag_tau_s > 0 else ""), "",
+        + (f" Learned lag τ = {res.final.lag_tau_s:.2f} s." if res.final.lag_tau_s > 0 else "")
+        + (" The baseline is the lag test's reference: window nets"
+           + (f" trained through a {res.baseline.lag_tau_s:g} s lag" if res.baseline.lag_tau_s > 0 else "")
+           + ", so that before and after measure the lag, not the training rows." if res.baseline.through_lag else ""),
+        "",
         "## Metrics (held-out counters, medians over seeds)", "", _md(metrics), "",
         f"Gap shrink 1 − after/before RMS: **{js['gap_shrink']:.1%}**.", "",
         "## Effects", "",
@@ -94,8 +100,8 @@ def write_discovery(res: Discovery, out, cfg=None, worst: int = 4) -> Path:
                                  explained_fraction=e["explained_fraction"], p_value=e["p_value"],
                                  region=e["region"]["where"], region_before_rms_g=e["region"]["before_rms_g"],
                                  region_after_rms_g=e["region"]["after_rms_g"],
-                                 also_confirmed=_also_confirmed(res.rounds, e["rank"], e["name"]))
-                            for e in js["effects"]])
+                                 also_confirmed=_also_confirmed(res.rounds, r["round"], e["name"]))
+                            for e, r in zip(js["effects"], res.effects)])
         lines += [_md(eff), "",
                   "`also_confirmed`: the other tries of the same round that confirmed, with the drop of the held-out "
                   "RMS over all windows each gave: the data may not tell them from the named effect (e.g. a "
@@ -103,6 +109,13 @@ def write_discovery(res: Discovery, out, cfg=None, worst: int = 4) -> Path:
     else:
         lines += ["No candidate was both significant and confirmed by retraining: the model explains this "
                   "campaign as well as its error floor allows.", ""]
+    if res.lag_test is not None:
+        lines += ["## Lag test (round 0)", "",
+                  "Window nets trained through a lag of each τ (the targets de-lagged), replayed with it, their "
+                  "offset refitted. The reference is the best without a lag or with one of at most `lag_fast_s` "
+                  "(the fast dynamics of inflow and wake); a slower lag is named if it lowers the reference's "
+                  "held-out ensemble RMS by `min_shrink` (round 0 below; its p-value: a sign-flip test by "
+                  "condition).", "", _md(res.lag_test), ""]
     if not res.rounds.empty:
         lines += ["## Every proposal tried", "",
                   "A round proposes the candidates the selection cannot tell apart (held-out errors within one "

@@ -7,18 +7,18 @@ undone in their targets (`discovery.delag`: the static vibration a first-order l
 measured one), their lagged replay is compared with nets trained without a lag, and both
 get the same freedom of offset: a fair test of a lag against a pure delay.
 
-The study (`lag_study`) is a measurement, not yet a step of `discover`.
+With `[discovery] lag_test = true`, `discover` runs the same trainings as its first step
+and decides on them (a lag slower than `lag_fast_s`); `lag_study` reports them all.
 """
 
 from __future__ import annotations
 
-import numpy as np
 import pandas as pd
 
 from .campaign import Campaign
 from .config import ExperimentConfig
 from .databases import DB_INPUTS
-from .discovery import Model, _context, _fit_offset, _replay, _rms_by_seed, _train_model, metrics, predictions
+from .discovery import Model, _context, _fit_offset, _lag_trials, _train_model
 
 __all__ = ["lag_study"]
 
@@ -32,7 +32,8 @@ def lag_study(campaign: Campaign, cfg: ExperimentConfig, taus=(1.0, 2.0, 3.0), r
     Every ensemble is trained like `train_rows = "windows"` (every `train_stride`-th full
     window, k-fold by condition × seeds), on the de-lagged windows (`discovery.delag`), and replayed
     with its lag; then its offset is refitted on the held-out windows (the `offset_bounds`
-    grid), so that a lag is not credited with a better delay.
+    grid), so that a lag is not credited with a better delay. The same trainings as the lag
+    test of `discover` (`discovery.lag_test`), every row reported.
 
     Args:
         campaign: any campaign. cfg: its `discovery` and `train` sections are used.
@@ -57,20 +58,9 @@ def lag_study(campaign: Campaign, cfg: ExperimentConfig, taus=(1.0, 2.0, 3.0), r
     ctx.replay_params = _train_model(ctx, Model({}, inputs), rows="peaks")
     delta = _fit_offset(ctx, Model(ctx.replay_params, inputs), with_lag=False).offset_s
     log(f"lag study: peak nets' offset {delta:.2f} s")
-    runs = [(0.0, float(o)) for o in sorted({*map(float, reference_offsets), delta})]
-    runs += [(float(t), max(lo, round(delta - t, 6))) for t in taus]
-    rows = []
-    for tau, off in runs:
-        params = _train_model(ctx, Model({}, inputs, offset_s=off, lag_tau_s=tau), rows="windows", through_lag=True)
-        model = _fit_offset(ctx, Model(params, inputs, lag_tau_s=tau), with_lag=False)
-        win = _replay(ctx, model.offset_s)
-        pred = predictions(ctx, model, win)
-        m = metrics(pred, win)
-        ens = _rms_by_seed(np.median(pred, axis=0)[None], win, win.table.weight.to_numpy() >= 0.999)[0]
-        rows.append(dict(tau_s=tau, train_offset_s=off, offset_s=model.offset_s, ensemble_rms_g=float(ens),
-                         rms_g=m["rms_g"], peak_error_g=m["peak_error_g"]))
-        log(f"  τ {tau:.2f} s trained at {off:.2f} s, refitted offset {model.offset_s:.2f} s: "
-            f"ensemble RMS {rows[-1]['ensemble_rms_g']:.4f} g")
-    out = pd.DataFrame(rows)
+    out = pd.DataFrame([dict(tau_s=t["tau_s"], train_offset_s=t["train_offset_s"], offset_s=t["model"].offset_s,
+                             ensemble_rms_g=t["ensemble_rms_g"], rms_g=t["metrics"]["rms_g"],
+                             peak_error_g=t["metrics"]["peak_error_g"])
+                        for t in _lag_trials(ctx, delta, taus, reference_offsets, log)])
     ref = out.ensemble_rms_g[out.tau_s == 0].min()
     return out.assign(drop=1.0 - out.ensemble_rms_g / ref)

@@ -47,6 +47,9 @@ def test_full_config_round_trip(tmp_path):
     ("seed = true", "seed: expected an integer"),
     ("[discovery]\ntrain_rows = 'window'", "discovery.train_rows: 'window' is not one of 'peaks', 'windows'"),
     ("[discovery]\ntrain_stride = 0", "discovery.train_stride must be >= 1"),
+    ("[discovery]\nlag_test_taus = [0.5, 1.0]", "discovery.lag_test_taus must be > 0 with at least one above "
+                                               "discovery.lag_fast_s (1.0), got [0.5, 1.0]"),
+    ("[discovery]\nlag_test = 'yes'", "discovery.lag_test: expected"),
     ("name = ", "not valid TOML"),
 ])
 def test_config_errors_name_file_and_key(tmp_path, text, needle):
