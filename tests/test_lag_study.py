@@ -51,7 +51,7 @@ def test_a_world_without_a_hidden_lag_gains_nothing_from_nets_trained_through_on
     monkeypatch.setattr(D, "fit_ensemble", recorded)
     replays, replay = {}, D._replay
     monkeypatch.setattr(D, "_replay", lambda ctx, off: replays.setdefault(off, replay(ctx, off)))
-    cfg = ExperimentConfig(discovery=from_dict(DiscoveryConfig, {**_FAST, "train_stride": 16}))
+    cfg = ExperimentConfig(discovery=from_dict(DiscoveryConfig, {**_FAST, "train_stride": 32}))
     with pytest.raises(ValueError, match="reference_offsets inside discovery.offset_bounds"):
         lag_study(camp, cfg, reference_offsets=(5.0,))
     t = lag_study(camp, cfg, taus=(2.0,), reference_offsets=(), log=lambda m: None)
@@ -60,7 +60,7 @@ def test_a_world_without_a_hidden_lag_gains_nothing_from_nets_trained_through_on
     assert t.train_offset_s[1] == max(lo, round(t.train_offset_s[0] - 2.0, 6))
     assert t.offset_s.between(lo, hi).all() and t["drop"][0] == 0.0
     win = replays[t.train_offset_s[1]].table
-    rows = (win.weight.to_numpy() >= 0.999) & (win.k.to_numpy() % 16 == 0)
+    rows = (win.weight.to_numpy() >= 0.999) & (win.k.to_numpy() % 32 == 0)
     want = delag(win.measured_g.to_numpy(), win.time_s.to_numpy(), win.i.to_numpy(), 2.0)[rows]
     np.testing.assert_allclose(calls[2], want, rtol=1e-5)
     assert t["drop"][1] < 0.05, t
@@ -148,7 +148,7 @@ def test_discover_names_a_long_lag_first_with_nets_trained_through_it(monkeypatc
     camp = campaign_from_frames(*generate(from_dict(SynthConfig, {**_BASE, "effects": effects, "name": "lag",
                                                                   "seed": 31}))[:2])
     monkeypatch.setattr(D, "_LAG_REFERENCE_OFFSETS", ())
-    cfg = ExperimentConfig(discovery=from_dict(DiscoveryConfig, {**_FAST, "train_stride": 16, "lag_test": True,
+    cfg = ExperimentConfig(discovery=from_dict(DiscoveryConfig, {**_FAST, "train_stride": 32, "lag_test": True,
                                                                  "lag_test_taus": [2.0]}))
     res = D.discover(camp, cfg, log=lambda m: None)
     js = D.summary(res)
