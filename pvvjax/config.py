@@ -368,6 +368,11 @@ class DiscoveryConfig:
         lag_fast_s: the fast dynamics every world has (rotor inflow and wake settle within
             about a second): lags up to this count as the lag test's reference, not as a
             discovery.
+        candidate_offsets_s: further alignments (input-to-vibration offsets, s, >= 0) of the
+            candidates without a fitted parameter (a channel, its rate, its spread), beside
+            the model's own offset: the static map's offset matches the slow, quasi-static
+            changes, and a transient effect reaches the vibration through the faster rotor
+            response (about 0.5 s).
     """
 
     database: str = "db1"
@@ -399,6 +404,7 @@ class DiscoveryConfig:
     lag_test: bool = False
     lag_test_taus: tuple[float, ...] = (1.0, 2.0, 3.0)
     lag_fast_s: float = 1.0
+    candidate_offsets_s: tuple[float, ...] = (0.5,)
 
     def __post_init__(self):
         _check_databases("discovery", (self.database,))
@@ -407,6 +413,8 @@ class DiscoveryConfig:
             raise ValueError(f"discovery.lag_test_taus must be > 0 with at least one above discovery.lag_fast_s "
                              f"({self.lag_fast_s}), got {list(self.lag_test_taus)}")
         _bounds("discovery.offset_bounds", self.offset_bounds)
+        if any(not v >= 0 for v in self.candidate_offsets_s):
+            raise ValueError(f"discovery.candidate_offsets_s must be >= 0 s, got {list(self.candidate_offsets_s)}")
         if not self.hidden or min(self.hidden) < 1:
             raise ValueError(f"discovery.hidden needs widths >= 1, got {list(self.hidden)}")
         if self.parsimony < 0:

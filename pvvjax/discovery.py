@@ -880,21 +880,37 @@ def _selection_column(c: Candidate, v, yhat) -> np.ndarray:
     return v * yhat if c.operator == "resonance" else v
 
 
+# Operators tried at `candidate_offsets_s` besides the model's offset: no fitted parameter.
+_ALIGNED = ("input", "rate", "abs_rate", "window")
+
+
+def _unaligned_key(c: Candidate) -> str:
+    """A candidate's key without its alignment: one effect, whatever offset it was tried at."""
+    return replace(c, parameters={k: v for k, v in c.parameters.items() if k != "offset_s"}).key
+
+
 def _candidate_matrix(ctx: _Ctx, model: Model, win: _Windows, yhat, used_keys) -> tuple[list[Candidate], np.ndarray]:
     d = ctx.cfg.discovery
     own = _determined(model.inputs)
     taken = tuple(model.inputs) + tuple(c.channels[0] for c in model.extra if c.operator == "input")
-    # Candidates share the model's offset, recorded as their alignment: a term keeps it if a
-    # later round moves the model's offset (`_Windows.values`).
+    # Candidates take the model's offset, recorded as their alignment: a term keeps it if a
+    # later round moves the model's offset (`_Windows.values`). Those without a fitted
+    # parameter are also tried at `candidate_offsets_s` (a transient's faster response).
     lib, cols = [], []
-    for c in library(win.cands, model_inputs=taken, knee_quantiles=d.knee_quantiles):
-        c = replace(c, parameters={**c.parameters, "offset_s": model.offset_s})
-        # Static refinements of the model's own inputs (their knees and products) are the
-        # floor's business (see `_floor_basis`), not discoveries.
-        if c.key in used_keys or (c.operator in ("input", "threshold", "product") and set(c.channels) <= set(own)):
-            continue
-        lib.append(c)
-        cols.append(_selection_column(c, values(c, win.cands), yhat))
+    extra = sorted({round(float(o), 6) for o in d.candidate_offsets_s} - {round(float(model.offset_s), 6)})
+    for off in [model.offset_s, *extra]:
+        table = win.cands if off == model.offset_s else win.at(off)
+        for c in library(table, model_inputs=taken, knee_quantiles=d.knee_quantiles):
+            if off != model.offset_s and c.operator not in _ALIGNED:
+                continue
+            c = replace(c, parameters={**c.parameters, "offset_s": off})
+            # Static refinements of the model's own inputs (their knees and products) are the
+            # floor's business (see `_floor_basis`), not discoveries.
+            if (_unaligned_key(c) in used_keys
+                    or (c.operator in ("input", "threshold", "product") and set(c.channels) <= set(own))):
+                continue
+            lib.append(c)
+            cols.append(_selection_column(c, values(c, table), yhat))
     C = np.column_stack(cols)
     if model.lag_tau_s <= 0:
         lc, LC = _lag_candidates(yhat, win, d.lag_taus)
@@ -944,14 +960,16 @@ def _try_order(same) -> list:
     return [same[i] for i in [0] + ([best] if best else []) + [i for i in range(1, len(same)) if i != best]]
 
 
-def _propose(win: _Windows, yhat, resid, C, rows, own, floor_all, d, seed: int, complexity) -> list:
+def _propose(win: _Windows, yhat, resid, C, rows, own, floor_all, d, seed: int, complexity, keys=None) -> list:
     """Significant candidates over all windows and, with `local_selection`, inside each
     maneuver kind where the residual concentrates (an effect of one kind is diluted among
     all windows) and that has `min_subset_conditions` conditions (with fewer, the floor
     covariates and the k-fold split cannot tell an effect from the floor). Bonferroni over
     the subsets; the permutations grow so that the corrected level can be reached.
     `floor_all`: the floor covariates of all the rows (`_floor`; a subset's are computed
-    here). `complexity` (one per column of C) is for the selection's parsimony rule.
+    here). `complexity` (one per column of C) is for the selection's parsimony rule; `keys`
+    (one per column) names the effect of each, so that one effect at two alignments is
+    proposed once (at the better).
 
     Returns:
         list of (where, candidate column, `Selected`), most residual² explained first and,
@@ -985,10 +1003,11 @@ def _propose(win: _Windows, yhat, resid, C, rows, own, floor_all, d, seed: int, 
                            equivalents=tuple((int(keep[a]), g) for a, g in s.equivalents))
             found.append((amount, where, s))
     out, seen = [], set()
+    keys = list(range(C.shape[1])) if keys is None else keys
     for _, where, s in sorted(found, key=lambda f: -f[0]):
         for j, g in _try_order(s.equivalents or ((s.index, s.gain),)):
-            if j not in seen:
-                seen.add(j)
+            if keys[j] not in seen:
+                seen.add(keys[j])
                 out.append((where, j, s._replace(index=j, gain=g)))
     return out[: d.proposals]
 
@@ -1069,7 +1088,8 @@ def discover(campaign: Campaign, cfg: ExperimentConfig = ExperimentConfig(), *, 
         if rnd == 0:
             first = Residual(resid, sel_rows, floor, win.table.condition.to_numpy(), d.folds, cfg.seed)
         proposals = _propose(win, yhat, resid, C, sel_rows, own, floor, d, seed=cfg.seed + rnd,
-                             complexity=np.array([c.complexity for c in lib]))
+                             complexity=np.array([c.complexity for c in lib]),
+                             keys=[_unaligned_key(c) for c in lib])
         t_explain += time.perf_counter() - t0
         log(f"round {rnd + 1}: {len(lib)} candidates, {len(proposals)} proposed: "
             + (", ".join(f"{lib[j].name} in {where} (p={s.p_value:.4f}, gain {s.gain:.3f})"
@@ -1082,7 +1102,7 @@ def discover(campaign: Campaign, cfg: ExperimentConfig = ExperimentConfig(), *, 
             t0 = time.perf_counter()
             refined = _refine(lib[j], resid[full], win.at(lib[j].parameters.get("offset_s", win.offset))[full],
                               yhat[full])
-            used.add(lib[j].key)
+            used.add(_unaligned_key(lib[j]))
             if refined.key in tried:  # two grid knees refined to the same one: retrained already
                 log(f"  {lib[j].name}: refined to {refined.name}, tried already")
                 continue

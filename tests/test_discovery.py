@@ -234,3 +234,49 @@ def test_nets_trained_on_the_windows_see_every_strided_window_and_lower_the_floo
     np.testing.assert_allclose(x, win.table.loc[rows, list(res["windows"].baseline.inputs)].to_numpy(), rtol=1e-5)
     np.testing.assert_array_equal(folds, ctx.counter_fold[win.table.i.to_numpy()[rows]])
     assert res["windows"].before["rms_g"] < 0.9 * res["peaks"].before["rms_g"]
+
+
+def test_parameter_free_candidates_are_also_tried_at_the_candidate_offsets():
+    # A transient effect reaches the vibration through the rotor's fast response, not at the
+    # static map's offset: channels, rates and spreads are also offered at each of
+    # `candidate_offsets_s` (their windows that much before the measured ones), knees only
+    # at the model's offset; an effect named at one alignment is not offered again at another.
+    from types import SimpleNamespace
+
+    from conftest import tiny_records
+
+    from pvvjax._strict import from_dict
+    from pvvjax.campaign import campaign_from_frames
+    from pvvjax.candidates import window_table
+    from pvvjax.config import DiscoveryConfig, ExperimentConfig
+    from pvvjax.discovery import Model, _candidate_matrix, _unaligned_key
+
+    counters, recs = tiny_records(seconds=10.0)
+    for j, r in enumerate(recs.values()):
+        t = r.time_s.to_numpy()
+        r["longitudinal_pct"] = 55.0 + 3.0 * np.sin(1.3 * t + j) + 2.0 * np.sin(0.4 * t)
+        r["collective_pct"] = 50.0 + 2.0 * np.cos(0.7 * t + j)
+    camp = campaign_from_frames(counters, recs)
+    win = _windows(n_counters=2, W=10)
+    win.table["t0"], win.table["t1"] = 3.0 + 0.5 * win.table.k, 4.0 + 0.5 * win.table.k
+    win.table["counter"] = [f"C{i + 1}" for i in win.table.i]
+    win.campaign, win.offset = camp, 1.3
+    d = from_dict(DiscoveryConfig, {"candidate_offsets_s": [0.5, 1.3]})
+    ctx = SimpleNamespace(cfg=ExperimentConfig(discovery=d))
+    model = Model({}, ("advance_ratio",), offset_s=1.3)
+    yhat = np.linspace(0.05, 0.1, len(win.table))
+    lib, C = _candidate_matrix(ctx, model, win, yhat, set())
+    assert {c.parameters["offset_s"] for c in lib if c.operator == "threshold"} == {1.3}
+    assert {c.parameters["offset_s"] for c in lib if c.operator == "abs_rate"} == {0.5, 1.3}
+    aligned = [c.key for c in lib if c.operator in ("input", "rate", "abs_rate", "window")]
+    assert len(set(aligned)) == len(aligned)  # 1.3 s, the model's own, is not repeated
+    # The 0.5 s column: the candidate's window means 0.8 s later than at the model's offset.
+    shifted = window_table(camp, win.table[["counter"]].assign(t0=win.table.t0 + 0.8, t1=win.table.t1 + 0.8))
+    j = next(i for i, c in enumerate(lib) if c.operator == "abs_rate" and c.channels == ("longitudinal_pct",)
+             and c.parameters["offset_s"] == 0.5)
+    np.testing.assert_allclose(C[:, j], shifted["abs_rate:longitudinal_pct"].to_numpy())
+    assert np.ptp(C[:, j] - window_table(camp, win.table[["counter", "t0", "t1"]])["abs_rate:longitudinal_pct"]) > 0
+    # Named once (at either alignment): gone at both.
+    lib2, _ = _candidate_matrix(ctx, model, win, yhat, {_unaligned_key(lib[j])})
+    assert not any(c.operator == "abs_rate" and c.channels == ("longitudinal_pct",) for c in lib2)
+    assert len(lib2) == len(lib) - 2
