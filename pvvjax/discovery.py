@@ -960,7 +960,7 @@ def _try_order(same) -> list:
     return [same[i] for i in [0] + ([best] if best else []) + [i for i in range(1, len(same)) if i != best]]
 
 
-def _propose(win: _Windows, yhat, resid, C, rows, own, floor_all, d, seed: int, complexity, keys=None) -> list:
+def _propose(win: _Windows, yhat, resid, C, rows, own, floor_all, d, seed: int, complexity, keys) -> list:
     """Significant candidates over all windows and, with `local_selection`, inside each
     maneuver kind where the residual concentrates (an effect of one kind is diluted among
     all windows) and that has `min_subset_conditions` conditions (with fewer, the floor
@@ -1003,7 +1003,6 @@ def _propose(win: _Windows, yhat, resid, C, rows, own, floor_all, d, seed: int, 
                            equivalents=tuple((int(keep[a]), g) for a, g in s.equivalents))
             found.append((amount, where, s))
     out, seen = [], set()
-    keys = list(range(C.shape[1])) if keys is None else keys
     for _, where, s in sorted(found, key=lambda f: -f[0]):
         for j, g in _try_order(s.equivalents or ((s.index, s.gain),)):
             if keys[j] not in seen:
