@@ -340,6 +340,9 @@ class DiscoveryConfig:
             standard errors of the best's (0: always the best).
         min_shrink: smallest relative drop of the held-out RMS of the ensemble's prediction
             (median over seeds), where the effect acts, that confirms it after retraining.
+        shrink_noise: confirmed tries of a round whose shrinks (over all windows) are within
+            this of the best are tied, and the one the selection credits with the largest
+            gain is named (`discovery._choose`; 0: the largest shrink always).
         augment: how a candidate joins the model: "additive" (a term b·candidate fitted on the
             windows, cross-fitted by fold, the nets retrained on the peaks minus it),
             "input" (an extra network input: the nets learn its shape and its interactions),
@@ -359,7 +362,9 @@ class DiscoveryConfig:
             database, the paper's map) or "windows" (every `train_stride`-th fully weighted
             replay window of each counter, at the model's offset: the map of the whole
             maneuvers, a lower error floor).
-        train_stride: see `train_rows`.
+        train_stride: see `train_rows` (8: adjacent windows of 8 revolutions at a hop of 1,
+            which overlap by nothing and carry the whole measured series at that resolution;
+            the lag test's trainings use it too).
         lag_test: before the first round, test for a lag slower than `lag_fast_s` with window
             nets trained through it (`discovery._lag_test`; up to six window trainings). A
             confirmed lag is the first effect, and every later model trains through it.
@@ -392,6 +397,7 @@ class DiscoveryConfig:
     min_gain: float = 0.02
     parsimony: float = 1.0
     min_shrink: float = 0.05
+    shrink_noise: float = 0.02
     augment: Literal["additive", "input", "auto"] = "auto"
     selection_stride: int = 4
     local_selection: bool = False
@@ -400,7 +406,7 @@ class DiscoveryConfig:
     knee_quantiles: tuple[float, ...] = (0.05, 0.1, 0.25, 0.5, 0.75, 0.9, 0.95)
     exclude_channels: tuple[str, ...] = ()
     train_rows: Literal["peaks", "windows"] = "peaks"
-    train_stride: int = 4
+    train_stride: int = 8
     lag_test: bool = False
     lag_test_taus: tuple[float, ...] = (1.0, 2.0, 3.0)
     lag_fast_s: float = 1.0
@@ -433,8 +439,9 @@ class DiscoveryConfig:
         for name in ("hop_revs", "offset_step_s", "alpha"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"discovery.{name} must be > 0, got {getattr(self, name)}")
-        if not 0 <= self.min_gain < 1 or not 0 <= self.min_shrink < 1:
-            raise ValueError("discovery.min_gain and discovery.min_shrink must lie in [0, 1)")
+        for name in ("min_gain", "min_shrink", "shrink_noise"):
+            if not 0 <= getattr(self, name) < 1:
+                raise ValueError(f"discovery.{name} must lie in [0, 1), got {getattr(self, name)}")
         if not self.lag_taus or min(self.lag_taus) <= 0:
             raise ValueError(f"discovery.lag_taus must be > 0, got {list(self.lag_taus)}")
         if any(not 0 < q < 1 for q in self.knee_quantiles):
