@@ -1011,6 +1011,20 @@ def _propose(win: _Windows, yhat, resid, C, rows, own, floor_all, d, seed: int, 
     return out[: d.proposals]
 
 
+def _choose(tries, noise: float) -> int:
+    """Which confirmed try of a round is named. tries: (shrink, selection gain) of each.
+
+    The retraining decides first: the try that lowers the ensemble's RMS over all windows most
+    (the same windows for every try). Tries within `noise` of that shrink are tied (a retrained
+    placebo input moves the ensemble's RMS by < 2 %), and of those the one the selection
+    credits with the largest held-out gain is named: one column against the same residual on
+    every window is the finer comparison of two retrainings' noise (then the larger shrink).
+    """
+    best = max(sh for sh, _ in tries)
+    tied = [i for i, (sh, _) in enumerate(tries) if sh >= best - noise]
+    return max(tied, key=lambda i: (tries[i][1], tries[i][0]))
+
+
 def _public_parameters(c: Candidate) -> dict:
     p = dict(c.parameters)
     p.pop("softness", None)
@@ -1142,10 +1156,7 @@ def discover(campaign: Campaign, cfg: ExperimentConfig = ExperimentConfig(), *, 
                     confirmed.append((conf["shrink"], len(rounds) - 1, where, s, c, trial, conf))
         if not confirmed:
             break
-        # Of the confirmed proposals (the candidates the selection could not tell apart, or
-        # the best of several subsets), the one whose retrained model closes most of the gap
-        # over all windows (the same windows for every proposal).
-        _, row, where, s, c, trial, conf = max(confirmed, key=lambda t: t[0])
+        _, row, where, s, c, trial, conf = confirmed[_choose([(t[0], t[3].gain) for t in confirmed], d.shrink_noise)]
         effects.append(dict(rank=len(effects) + 1, round=rnd + 1, name=c.name, operator=c.operator,
                             channels=list(c.channels) or list(current.inputs), parameters=_public_parameters(c),
                             explained_fraction=s.explained_fraction, p_value=s.p_value, region=conf["region"],

@@ -142,6 +142,18 @@ def test_candidates_the_selection_cannot_tell_apart_are_retrained_simplest_then_
     assert _try_order([(7, 0.1)]) == [(7, 0.1)]
 
 
+def test_confirmed_tries_within_the_retraining_noise_are_told_apart_by_the_selection():
+    from pvvjax.discovery import _choose
+
+    # (shrink over all windows, selection gain) per confirmed try.
+    tries = [(0.026, 0.050), (0.021, 0.053), (0.004, 0.090)]
+    assert _choose(tries, 0.02) == 1  # the first two tie; the third is retrained out of it
+    assert _choose(tries, 0.0) == 0  # no noise: the largest shrink
+    assert _choose(tries, 0.5) == 2  # everything ties: the selection's best
+    assert _choose([(0.15, 0.1), (0.10, 0.1)], 0.1) == 0  # the same gain: the larger shrink
+    assert _choose([(0.05, 0.2)], 0.02) == 0
+
+
 # --------------------------------------------------------------------------- end to end
 # The hidden-effect case runs in notebooks/discovery.py (a hidden sideslip effect named
 # first, attributable shrink >= 0.5, asserted there); the null case here, through the CLI.
