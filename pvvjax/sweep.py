@@ -20,9 +20,9 @@ from __future__ import annotations
 
 import hashlib
 import json
-from functools import partial
 import math
 import time
+from functools import partial
 from pathlib import Path
 
 import jax
@@ -34,8 +34,8 @@ from . import train as _train
 from ._strict import to_dict
 from .config import ExperimentConfig, config_hash
 from .databases import DB_INPUTS, OUTPUT
-from .npnet import read_npz
 from .networks import architecture_name, mlp_apply, mlp_init, n_weights, rbf_apply, rbf_fit, scaling
+from .npnet import read_npz
 
 __all__ = [
     "N_INPUTS",
@@ -353,7 +353,8 @@ def _net_row(r, p, pred, seconds, best_step, steps, data, dbs, cfg, out, chash) 
     hidden = [int(v) for v in r.hidden.split("-")]
     row.update(best_step=best_step, steps=steps, wall_s=seconds, config_hash=chash, n_inputs=n_in,
                n_weights=n_weights(n_in, hidden) if r.family == "mlp" else hidden[0] * (n_in + 2) + 1,
-               predictions=json.dumps(np.round(pred, 6).tolist()), conditions=json.dumps(dbs[r.database].condition.tolist()),
+               predictions=json.dumps(np.round(pred, 6).tolist()),
+               conditions=json.dumps(dbs[r.database].condition.tolist()),
                split=json.dumps(np.where(w_te > 0, "test", np.where(w_va > 0, "val", "train")).tolist()))
     meta = dict(net_id=r.net_id, database=r.database, architecture=r.architecture, family=r.family,
                 inputs=list(DB_INPUTS[r.database]), seed=int(r.seed), test_fold=int(r.test_fold))
