@@ -899,7 +899,7 @@ def _candidate_matrix(ctx: _Ctx, model: Model, win: _Windows, yhat, used_keys) -
     lib, cols = [], []
     extra = sorted({round(float(o), 6) for o in d.candidate_offsets_s} - {round(float(model.offset_s), 6)})
     for off in [model.offset_s, *extra]:
-        table = win.cands if off == model.offset_s else win.at(off)
+        table = win.at(off)  # `win.cands` at the model's own offset (`win` is its replay)
         for c in library(table, model_inputs=taken, knee_quantiles=d.knee_quantiles):
             if off != model.offset_s and c.operator not in _ALIGNED:
                 continue
