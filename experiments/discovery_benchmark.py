@@ -208,7 +208,7 @@ def main():
     ap.add_argument("--docs", action="store_true", help="also write docs/discovery-benchmark.md")
     ap.add_argument("--exclude", nargs="+", default=[], metavar="CHANNEL",
                     help="channels left out of the candidates (added to [discovery] exclude_channels)")
-    ap.add_argument("--set", nargs="+", default=[], metavar="KEY=VALUE", dest="settings",
+    ap.add_argument("--set", nargs="+", action="extend", default=[], metavar="KEY=VALUE", dest="settings",
                     help="[discovery] settings over the config's (a TOML value; a bare word is a string), "
                          "e.g. --set train_rows=windows: a sensitivity run (use another --out)")
     ap.add_argument("--seed-offsets", default="0",

@@ -343,6 +343,11 @@ class DiscoveryConfig:
         shrink_noise: confirmed tries of a round whose shrinks (over all windows) are within
             this of the best are tied, and the one the selection credits with the largest
             gain is named (`discovery._choose`; 0: the largest shrink always).
+        floor_refinements: knees and products of the model's own inputs that join each
+            selection's floor covariates before any candidate is asked, the best first while it
+            gains `min_gain` (`discovery._propose`): the map's floor where ~200 peaks did not
+            teach the nets a knee of their own inputs, which a channel that follows them (a
+            stick, the shaft power) would otherwise be named for. 0: the fixed floor only.
         augment: how a candidate joins the model: "additive" (a term b·candidate fitted on the
             windows, cross-fitted by fold, the nets retrained on the peaks minus it),
             "input" (an extra network input: the nets learn its shape and its interactions),
@@ -398,6 +403,7 @@ class DiscoveryConfig:
     parsimony: float = 1.0
     min_shrink: float = 0.05
     shrink_noise: float = 0.02
+    floor_refinements: int = 4
     augment: Literal["additive", "input", "auto"] = "auto"
     selection_stride: int = 4
     local_selection: bool = False
@@ -425,6 +431,8 @@ class DiscoveryConfig:
             raise ValueError(f"discovery.hidden needs widths >= 1, got {list(self.hidden)}")
         if self.parsimony < 0:
             raise ValueError(f"discovery.parsimony must be >= 0 (standard errors), got {self.parsimony}")
+        if self.floor_refinements < 0:
+            raise ValueError(f"discovery.floor_refinements must be >= 0, got {self.floor_refinements}")
         if self.max_effects < 0:
             raise ValueError(f"discovery.max_effects must be >= 0 (0: baseline and residual map only), "
                              f"got {self.max_effects}")

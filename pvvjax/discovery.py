@@ -51,7 +51,7 @@ from .networks import mlp_apply, mlp_init, scaling
 from .replay import FEATURES, input_index, make_settings, prepare
 from .replay_tables import _replay_all
 from .residuals import localize
-from .selection import forward_select
+from .selection import forward_select, gains
 from .selection import gain as _selection_gain
 from .sweep import _stack, train_nets
 
@@ -922,6 +922,23 @@ def _candidate_matrix(ctx: _Ctx, model: Model, win: _Windows, yhat, used_keys) -
     return [lib[j] for j in keep], C[:, keep]
 
 
+def _floor_matrix(model: Model, win: _Windows, knee_quantiles) -> tuple[list[Candidate], np.ndarray]:
+    """The refinements of the model's own inputs the candidate library leaves out (their
+    knees and products, at the model's offset), for the selection's floor (`_propose`)."""
+    own = set(_determined(model.inputs))
+    table = win.cands
+    lib, cols = [], []
+    for c in library(table, model_inputs=tuple(own), knee_quantiles=knee_quantiles):
+        if c.operator in ("threshold", "product") and set(c.channels) <= own:
+            lib.append(replace(c, parameters={**c.parameters, "offset_s": model.offset_s}))
+            cols.append(values(c, table))
+    if not cols:
+        return [], np.empty((len(table), 0))
+    F = np.column_stack(cols)
+    ok = np.flatnonzero(np.all(np.isfinite(F), axis=0) & (np.ptp(F, axis=0) > 0))
+    return [lib[j] for j in ok], F[:, ok]
+
+
 def _region(win: _Windows, full, before, after) -> dict:
     """The maneuver kinds that hold ≥ 80 % of the squared change the effect made, with the
     RMS there before and after (medians over seeds)."""
@@ -960,7 +977,8 @@ def _try_order(same) -> list:
     return [same[i] for i in [0] + ([best] if best else []) + [i for i in range(1, len(same)) if i != best]]
 
 
-def _propose(win: _Windows, yhat, resid, C, rows, own, floor_all, d, seed: int, complexity, keys) -> list:
+def _propose(win: _Windows, yhat, resid, C, rows, own, floor_all, d, seed: int, complexity, keys,
+             is_floor=None) -> tuple[list, list]:
     """Significant candidates over all windows and, with `local_selection`, inside each
     maneuver kind where the residual concentrates (an effect of one kind is diluted among
     all windows) and that has `min_subset_conditions` conditions (with fewer, the floor
@@ -971,13 +989,23 @@ def _propose(win: _Windows, yhat, resid, C, rows, own, floor_all, d, seed: int, 
     (one per column) names the effect of each, so that one effect at two alignments is
     proposed once (at the better).
 
+    `is_floor` marks the columns that refine the model's own inputs (`_floor_matrix`): before
+    any candidate is asked, the one with the largest held-out gain joins the floor
+    covariates, while it gains `min_gain`, at most `floor_refinements` of them. A knee of the
+    map's own inputs that ~200 peaks did not teach the nets is the map's floor, not a
+    missing effect; left out, a channel that follows it (a stick, the shaft power) is named
+    in its place. Never tested, never proposed: covariates (their permutations in the test's
+    null would only inflate it).
+
     Returns:
-        list of (where, candidate column, `Selected`), most residual² explained first and,
-        inside a selection, the candidates it cannot tell apart (`_try_order`); at most
-        `d.proposals`, one per candidate.
+        (proposals, absorbed). proposals: list of (where, candidate column, `Selected`),
+        most residual² explained first and, inside a selection, the candidates it cannot tell
+        apart (`_try_order`); at most `d.proposals`, one per candidate. absorbed: list of
+        (where, column, gain) of the floor columns that joined the floor.
     """
     groups = win.table.condition.to_numpy()
     kinds = win.table.maneuver.to_numpy()
+    is_floor = np.zeros(C.shape[1], bool) if is_floor is None else np.asarray(is_floor, bool)
     subsets = [("all", rows)]
     r2 = resid[rows] ** 2
     for kind in sorted(set(kinds[rows])) if d.local_selection else ():
@@ -989,11 +1017,26 @@ def _propose(win: _Windows, yhat, resid, C, rows, own, floor_all, d, seed: int, 
             subsets.append((kind, sub))
     alpha = d.alpha / len(subsets)
     perms = max(d.permutations, int(np.ceil(1.0 / alpha)) - 1)
-    found = []
+    found, absorbed = [], []
     for where, sub in subsets:
         Cs = C[sub]
         keep = np.flatnonzero(np.ptp(Cs, axis=0) > 0)
         floor = floor_all if where == "all" else _floor(win, yhat, resid, sub, own, groups)
+        # The floor first: the static map of the model's own inputs is the null model, so
+        # its refinements (the one with the largest held-out gain, while it gains `min_gain`)
+        # join the floor covariates before any candidate is asked (never tested: covariates).
+        for _ in range(d.floor_refinements):
+            own_cols = keep[is_floor[keep]]
+            if not len(own_cols):
+                break
+            g = gains(resid[sub], Cs[:, own_cols], groups[sub], base=floor, folds=d.folds, seed=seed)
+            top = int(np.argmax(g))
+            if g[top] < d.min_gain:
+                break
+            absorbed.append((where, int(own_cols[top]), float(g[top])))
+            floor = np.column_stack([floor, Cs[:, own_cols[top]]])
+            keep = keep[keep != own_cols[top]]
+        keep = keep[~is_floor[keep]]
         for s in forward_select(resid[sub], Cs[:, keep], groups[sub], base=floor, folds=d.folds, max_effects=1,
                                 min_gain=d.min_gain, alpha=alpha, permutations=perms, seed=seed,
                                 complexity=complexity[keep], parsimony=d.parsimony):
@@ -1008,7 +1051,7 @@ def _propose(win: _Windows, yhat, resid, C, rows, own, floor_all, d, seed: int, 
             if keys[j] not in seen:
                 seen.add(keys[j])
                 out.append((where, j, s._replace(index=j, gain=g)))
-    return out[: d.proposals]
+    return out[: d.proposals], absorbed
 
 
 def _choose(tries, noise: float) -> int:
@@ -1100,9 +1143,16 @@ def discover(campaign: Campaign, cfg: ExperimentConfig = ExperimentConfig(), *, 
         floor = _floor(win, yhat, resid, sel_rows, own, win.table.condition.to_numpy())
         if rnd == 0:
             first = Residual(resid, sel_rows, floor, win.table.condition.to_numpy(), d.folds, cfg.seed)
-        proposals = _propose(win, yhat, resid, C, sel_rows, own, floor, d, seed=cfg.seed + rnd,
-                             complexity=np.array([c.complexity for c in lib]),
-                             keys=[_unaligned_key(c) for c in lib])
+        flib, F = _floor_matrix(current, win, d.knee_quantiles) if d.floor_refinements else ([], C[:, :0])
+        both = lib + flib
+        proposals, absorbed = _propose(win, yhat, resid, np.column_stack([C, F]), sel_rows, own, floor, d,
+                                       seed=cfg.seed + rnd, complexity=np.array([c.complexity for c in both]),
+                                       keys=[_unaligned_key(c) for c in both],
+                                       is_floor=np.arange(len(both)) >= len(lib))
+        lib = both  # proposals and their runners-up index both
+        floor_terms = "; ".join(f"{lib[j].name} in {where} ({g:.3f})" for where, j, g in absorbed)
+        if absorbed:
+            log(f"round {rnd + 1}: the floor takes {floor_terms}")
         t_explain += time.perf_counter() - t0
         log(f"round {rnd + 1}: {len(lib)} candidates, {len(proposals)} proposed: "
             + (", ".join(f"{lib[j].name} in {where} (p={s.p_value:.4f}, gain {s.gain:.3f})"
@@ -1144,7 +1194,7 @@ def discover(campaign: Campaign, cfg: ExperimentConfig = ExperimentConfig(), *, 
                                    runners_up=alts, explained_fraction=s.explained_fraction,
                                    rms_before_g=cur_metrics["rms_g"], rms_after_g=conf["metrics"]["rms_g"],
                                    ensemble_rms_before_g=conf["ensemble"][0], ensemble_rms_after_g=conf["ensemble"][1],
-                                   shrink=conf["shrink"], judged_in=conf["judged_in"],
+                                   floor_terms=floor_terms, shrink=conf["shrink"], judged_in=conf["judged_in"],
                                    region_shrink=conf["local"], confirmed=ok, why_not=conf["why"],
                                    chosen=False))
                 log(f"  {c.name} ({mode}): held-out RMS {cur_metrics['rms_g']:.4f} -> {conf['metrics']['rms_g']:.4f} "

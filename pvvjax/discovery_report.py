@@ -134,6 +134,13 @@ def write_discovery(res: Discovery, out, cfg=None, worst: int = 4) -> Path:
         lines += [f"- round {r.round}, {r.name} ({r.cv_gain:.3f}): {r.runners_up}"
                   for r in res.rounds.drop_duplicates(["round", "name"]).itertuples()]
         lines += [""]
+        first = res.rounds.drop_duplicates("round")
+        floor = [(r, t) for r, t in zip(first["round"], first.get("floor_terms", [""] * len(first)))
+                 if isinstance(t, str) and t]
+        if floor:
+            lines += ["Refinements of the model's own inputs that joined each round's floor covariates before the "
+                      "candidates were asked (`floor_refinements`; held-out gain): the map's floor, not effects.", ""]
+            lines += [f"- round {rnd}: {terms}" for rnd, terms in floor] + [""]
     loc = res.localized["maneuver"].reset_index().rename(columns={"key": "maneuver"})
     lines += ["## Residual by maneuver (baseline)", "", _md(loc), ""]
     lines += ["## Wall time, s", "", _md(pd.DataFrame([res.seconds])), ""]

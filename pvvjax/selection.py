@@ -22,7 +22,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["Selected", "cv_sse", "equivalent", "forward_select", "gain"]
+__all__ = ["Selected", "cv_sse", "equivalent", "forward_select", "gain", "gains"]
 
 
 class Selected(NamedTuple):
@@ -170,26 +170,35 @@ def _base(base, n: int) -> np.ndarray:
     return np.empty((n, 0)) if base is None else _standardise(np.asarray(base, float).reshape(n, -1))
 
 
-def gain(residual, column, groups, *, base=None, folds: int = 5, seed: int = 0) -> float:
-    """The held-out gain `forward_select` credits one column with as its first effect:
+def gains(residual, columns, groups, *, base=None, folds: int = 5, seed: int = 0) -> np.ndarray:
+    """The held-out gain `forward_select` credits each column with as its first effect:
     1 − (held-out SSE with the base covariates and the column) / (with the base only), with
-    the same folds by condition (the same `seed`). For any per-window column, e.g. a known
+    the same folds by condition (the same `seed`). For any per-window columns, e.g. a known
     effect, to ask whether the selection could have preferred it.
 
     Args:
-        residual: (n,). column: (n,). groups: (n,) condition of each window.
+        residual: (n,). columns: (n,) or (n, K). groups: (n,) condition of each window.
         base, folds, seed: as in `forward_select`.
 
     Returns:
-        The relative drop of the held-out squared error.
+        (K,) the relative drop of the held-out squared error (0 for a constant column).
     """
     y = np.asarray(residual, float)
     B = _base(base, len(y))
-    c = np.asarray(column, float).reshape(len(y), 1)
-    if not c.std() > 0:
-        return 0.0
+    C = np.asarray(columns, float).reshape(len(y), -1)
     fid = _folds(np.asarray(groups), folds, seed)
-    return float(1.0 - _Design(y, B, fid).scores(_standardise(c))[0] / cv_sse(y, B, fid))
+    sd = C.std(axis=0)
+    out = np.zeros(C.shape[1])
+    if np.any(sd > 0):
+        Z = (C[:, sd > 0] - C[:, sd > 0].mean(axis=0)) / sd[sd > 0]
+        out[sd > 0] = 1.0 - _Design(y, B, fid).scores(Z) / cv_sse(y, B, fid)
+    return out
+
+
+def gain(residual, column, groups, *, base=None, folds: int = 5, seed: int = 0) -> float:
+    """`gains` of one column."""
+    return float(gains(residual, np.asarray(column, float).reshape(-1, 1), groups, base=base, folds=folds,
+                       seed=seed)[0])
 
 
 def _remaining(chosen, usable):

@@ -66,6 +66,40 @@ def test_knn_floor_against_brute_force():
         assert got[j] == pytest.approx(r[np.argsort(d)[:4]].mean())
 
 
+def test_a_knee_of_the_models_own_inputs_joins_the_floor_and_is_not_named_through_a_channel_that_follows_it():
+    from pvvjax.config import DiscoveryConfig
+    from pvvjax.discovery import _propose
+
+    # Own input x per condition; the map misses a knee of it (the floor). A measured channel
+    # p follows x (a stick that tracks the speed): its knee stands in for the floor's unless
+    # the floor may take the knee of x itself. z: an effect the model does not see.
+    rng = np.random.default_rng(8)
+    n_cond, W = 150, 12
+    cond = np.repeat(np.arange(n_cond), W)
+    x = np.repeat(rng.random(n_cond), W)
+    p = x + np.repeat(0.08 * rng.standard_normal(n_cond), W)
+    z = np.repeat(rng.standard_normal(n_cond), W) + 0.3 * rng.standard_normal(n_cond * W)
+    noise = 0.02 * rng.standard_normal(n_cond * W) + np.repeat(0.01 * rng.standard_normal(n_cond), W)
+    cand = np.column_stack([np.maximum(p - 0.7, 0), z, rng.standard_normal((n_cond * W, 6))])
+    own_knees = np.column_stack([np.maximum(x - 0.7, 0), np.maximum(0.3 - x, 0)])
+    C = np.column_stack([cand, own_knees])
+    is_floor = np.arange(C.shape[1]) >= cand.shape[1]
+    win = _Windows(pd.DataFrame(dict(condition=cond, maneuver="level", k=np.tile(np.arange(W), n_cond))),
+                   (n_cond, W), (), None)
+    rows = np.ones(len(cond), bool)
+    kw = dict(complexity=np.full(C.shape[1], 2), keys=[f"c{j}" for j in range(C.shape[1])], is_floor=is_floor)
+    run = lambda resid, refine: _propose(win, None, resid, C, rows, (), x[:, None], DiscoveryConfig(  # noqa: E731
+        floor_refinements=refine, proposals=1), seed=0, **kw)
+
+    floor_only = 0.3 * own_knees[:, 0] + noise
+    proposals, absorbed = run(floor_only, 0)
+    assert [j for _, j, _ in proposals] == [0]  # the fixed floor: the follower's knee is named
+    proposals, absorbed = run(floor_only, 2)
+    assert proposals == [] and [j for _, j, _ in absorbed] == [cand.shape[1]]  # the floor takes the knee of x
+    proposals, absorbed = run(floor_only + 0.02 * z, 2)
+    assert [j for _, j, _ in proposals] == [1] and [j for _, j, _ in absorbed] == [cand.shape[1]]
+
+
 def test_selection_gain_scores_a_column_on_the_first_rounds_design():
     from pvvjax.discovery import Discovery, Residual, selection_gain
     from pvvjax.selection import gain

@@ -140,3 +140,17 @@ def test_gain_is_what_forward_select_credits_its_first_pick_with():
     with_c = cv_sse(y, np.column_stack([base, C[:, 4]]), fid)
     assert gain(y, C[:, 4], groups, base=base, seed=3) == pytest.approx(1 - with_c / cv_sse(y, base, fid), rel=1e-9)
     assert gain(y, np.ones(len(y)), groups, base=base) == 0.0  # a constant explains nothing new
+
+
+def test_gains_of_many_columns_equal_one_least_squares_fit_each():
+    from pvvjax.selection import _folds, gains
+
+    C, groups, noise = _data(seed=7)
+    y = 0.03 * C[:, 2] - 0.01 * C[:, 9] + noise
+    base = C[:, 20:22]
+    cols = np.column_stack([C[:, :12], np.full(len(y), 3.0)])  # the last constant
+    got = gains(y, cols, groups, base=base, seed=1)
+    fid = _folds(groups, 5, 1)
+    ref = [1 - cv_sse(y, np.column_stack([base, c]), fid) / cv_sse(y, base, fid) for c in cols[:, :12].T]
+    np.testing.assert_allclose(got[:12], ref, rtol=1e-9)
+    assert got[12] == 0.0 and np.argmax(got) == 2
