@@ -308,9 +308,10 @@ On the config's seeds:
   much of it the baseline already predicts (slope of its prediction's change on the true
   effect; an effect of the model's own inputs is learned from the peaks). `truth_gain`: the
   gain the first round's selection credits the true effect itself with, as if it were a
-  candidate (same residual, floor covariates and folds); `named_gain`: the same for the
-  candidate it named. Where `truth_gain` ≤ `named_gain` the residual itself prefers the
-  named candidate: no selection on it could name the truth.
+  candidate (same residual, floor covariates, with the refinements of the model's own
+  inputs the round took, and folds); `named_gain`: the same for the candidate it named.
+  Where `truth_gain` ≤ `named_gain` the residual itself prefers the named candidate: no
+  selection on it could name the truth.
 
 {markdown_table(df[cols], "{:.3g}", nan="")}
 """ + (f"""

@@ -1141,8 +1141,6 @@ def discover(campaign: Campaign, cfg: ExperimentConfig = ExperimentConfig(), *, 
         sel_rows = full & (win.table.k.to_numpy() % d.selection_stride == 0)
         own = floor_features(current.inputs)
         floor = _floor(win, yhat, resid, sel_rows, own, win.table.condition.to_numpy())
-        if rnd == 0:
-            first = Residual(resid, sel_rows, floor, win.table.condition.to_numpy(), d.folds, cfg.seed)
         flib, F = _floor_matrix(current, win, d.knee_quantiles) if d.floor_refinements else ([], C[:, :0])
         both = lib + flib
         proposals, absorbed = _propose(win, yhat, resid, np.column_stack([C, F]), sel_rows, own, floor, d,
@@ -1150,11 +1148,15 @@ def discover(campaign: Campaign, cfg: ExperimentConfig = ExperimentConfig(), *, 
                                        keys=[_unaligned_key(c) for c in both],
                                        is_floor=np.arange(len(both)) >= len(lib))
         lib = both  # proposals and their runners-up index both
+        if rnd == 0:  # the selection's design: its floor with the refinements it took over all windows
+            taken = [F[sel_rows][:, j - len(C.T)] for where, j, _ in absorbed if where == "all"]
+            first = Residual(resid, sel_rows, np.column_stack([floor, *taken]) if taken else floor,
+                             win.table.condition.to_numpy(), d.folds, cfg.seed)
         floor_terms = "; ".join(f"{lib[j].name} in {where} ({g:.3f})" for where, j, g in absorbed)
         if absorbed:
             log(f"round {rnd + 1}: the floor takes {floor_terms}")
         t_explain += time.perf_counter() - t0
-        log(f"round {rnd + 1}: {len(lib)} candidates, {len(proposals)} proposed: "
+        log(f"round {rnd + 1}: {len(lib) - len(flib)} candidates, {len(proposals)} proposed: "
             + (", ".join(f"{lib[j].name} in {where} (p={s.p_value:.4f}, gain {s.gain:.3f})"
                          for where, j, s in proposals) or "none")
             + "".join(f"; {len(s.equivalents)} equivalent to the best in {where}: "
