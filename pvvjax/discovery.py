@@ -1149,7 +1149,7 @@ def discover(campaign: Campaign, cfg: ExperimentConfig = ExperimentConfig(), *, 
                                        is_floor=np.arange(len(both)) >= len(lib))
         lib = both  # proposals and their runners-up index both
         if rnd == 0:  # the selection's design: its floor with the refinements it took over all windows
-            taken = [F[sel_rows][:, j - len(C.T)] for where, j, _ in absorbed if where == "all"]
+            taken = [F[sel_rows, j - C.shape[1]] for where, j, _ in absorbed if where == "all"]
             first = Residual(resid, sel_rows, np.column_stack([floor, *taken]) if taken else floor,
                              win.table.condition.to_numpy(), d.folds, cfg.seed)
         floor_terms = "; ".join(f"{lib[j].name} in {where} ({g:.3f})" for where, j, g in absorbed)

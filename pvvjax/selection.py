@@ -187,11 +187,10 @@ def gains(residual, columns, groups, *, base=None, folds: int = 5, seed: int = 0
     B = _base(base, len(y))
     C = np.asarray(columns, float).reshape(len(y), -1)
     fid = _folds(np.asarray(groups), folds, seed)
-    sd = C.std(axis=0)
+    varying = C.std(axis=0) > 0
     out = np.zeros(C.shape[1])
-    if np.any(sd > 0):
-        Z = (C[:, sd > 0] - C[:, sd > 0].mean(axis=0)) / sd[sd > 0]
-        out[sd > 0] = 1.0 - _Design(y, B, fid).scores(Z) / cv_sse(y, B, fid)
+    if varying.any():
+        out[varying] = 1.0 - _Design(y, B, fid).scores(_standardise(C)) / cv_sse(y, B, fid)
     return out
 
 
