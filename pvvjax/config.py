@@ -373,6 +373,7 @@ class DiscoveryConfig:
         lag_test: before the first round, test for a lag slower than `lag_fast_s` with window
             nets trained through it (`discovery._lag_test`; up to six window trainings). A
             confirmed lag is the first effect, and every later model trains through it.
+            Either way the rounds then propose no lag of the prediction: the test decided.
         lag_test_taus: time constants the lag test tries, s (> 0; at least one above
             `lag_fast_s`).
         lag_fast_s: the fast dynamics every world has (rotor inflow and wake settle within

@@ -92,12 +92,65 @@ def test_a_knee_of_the_models_own_inputs_joins_the_floor_and_is_not_named_throug
         floor_refinements=refine, proposals=1), seed=0, **kw)
 
     floor_only = 0.3 * own_knees[:, 0] + noise
-    proposals, absorbed = run(floor_only, 0)
+    proposals, absorbed, _ = run(floor_only, 0)
     assert [j for _, j, _ in proposals] == [0]  # the fixed floor: the follower's knee is named
-    proposals, absorbed = run(floor_only, 2)
+    proposals, absorbed, _ = run(floor_only, 2)
     assert proposals == [] and [j for _, j, _ in absorbed] == [cand.shape[1]]  # the floor takes the knee of x
-    proposals, absorbed = run(floor_only + 0.02 * z, 2)
+    proposals, absorbed, _ = run(floor_only + 0.02 * z, 2)
     assert [j for _, j, _ in proposals] == [1] and [j for _, j, _ in absorbed] == [cand.shape[1]]
+
+
+def test_refine_recovers_a_knee_and_a_band_and_keeps_a_band_in_its_grid_cell():
+    from pvvjax.candidates import Candidate
+    from pvvjax.discovery import _refine
+
+    rng = np.random.default_rng(4)
+    n = 3000
+    cands = pd.DataFrame({"x:collective_pct": rng.uniform(20.0, 80.0, n), "x:rotor_rpm": rng.uniform(245.0, 275.0, n)})
+    col, rpm = cands["x:collective_pct"].to_numpy(), cands["x:rotor_rpm"].to_numpy()
+    yhat = 0.1 + 0.02 * rng.random(n)
+    noise = 1e-4 * rng.standard_normal(n)
+    knee = Candidate("threshold", ("collective_pct",), {"knee": 58.0, "above": True, "softness": 0.5})
+    resid = 0.004 * 0.5 * np.logaddexp(0.0, (col - 62.0) / 0.5) + noise
+    assert _refine(knee, resid, cands, yhat).parameters["knee"] == pytest.approx(62.0, abs=0.05)
+    band = lambda c, w: yhat * np.exp(-0.5 * ((rpm - c) / w) ** 2)  # noqa: E731
+    grid = Candidate("resonance", ("rotor_rpm",), {"center": 270.7, "width": 3.2})
+    p = _refine(grid, 0.5 * band(272.5, 2.5) + noise, cands, yhat).parameters
+    assert p["center"] == pytest.approx(272.5, abs=0.05) and p["width"] == pytest.approx(2.5, rel=0.02)
+    # A trend of rotor speed that the floor carries biases a fit without the floor, not one with it.
+    trend = 0.02 * (rpm - 245.0) / 30.0
+    p = _refine(grid, 0.5 * band(272.5, 2.5) + trend + noise, cands, yhat, base=rpm[:, None]).parameters
+    assert p["center"] == pytest.approx(272.5, abs=0.05) and p["width"] == pytest.approx(2.5, rel=0.02)
+    p = _refine(grid, 0.5 * band(272.5, 2.5) + trend + noise, cands, yhat).parameters
+    assert abs(p["center"] - 272.5) > 0.2 or abs(p["width"] / 2.5 - 1) > 0.05
+    # A band ten rpm away is another candidate: the refinement stays in the grid's cell.
+    p = _refine(grid, 0.5 * band(258.0, 3.2) + noise, cands, yhat).parameters
+    assert 270.7 - 3.2 <= p["center"] <= 270.7 + 3.2 and 1.6 <= p["width"] <= 6.4
+
+
+def test_a_refined_candidate_is_kept_only_if_the_selections_design_credits_it_with_more_gain():
+    from pvvjax.candidates import Candidate
+    from pvvjax.discovery import _keep_better
+
+    # Rotor speed per condition; the residual holds a resonance band at 270 rpm (the effect)
+    # and one at 250 rpm that the floor covariates already carry (the map's floor).
+    rng = np.random.default_rng(2)
+    n_cond, W = 120, 6
+    cond = np.repeat(np.arange(n_cond), W)
+    rpm = np.repeat(rng.uniform(240.0, 280.0, n_cond), W)
+    band = lambda c: np.exp(-0.5 * ((rpm - c) / 3.0) ** 2)  # noqa: E731
+    yhat = 0.1 + 0.01 * rng.random(len(cond))
+    resid = 0.3 * yhat * band(270.0) + 0.05 * band(250.0) + 0.002 * rng.standard_normal(len(cond))
+    win = _Windows(pd.DataFrame(dict(condition=cond)), (n_cond, W), (), None, _cands=pd.DataFrame({"x:rotor_rpm": rpm}))
+    rows = np.ones(len(cond), bool)
+    res = lambda c: Candidate("resonance", ("rotor_rpm",), {"center": c, "width": 3.0})  # noqa: E731
+    keep = lambda grid, refined, floor: _keep_better(res(grid), res(refined), win, yhat, resid, rows, floor, 5, 0,  # noqa: E731
+                                                     log=lambda m: None).parameters["center"]
+    floor = band(250.0)[:, None]
+    assert keep(268.0, 270.0, floor) == 270.0  # refined towards the effect: taken
+    assert keep(270.0, 250.0, floor) == 270.0  # refined onto the floor's band: the grid's kept
+    assert keep(270.0, 250.0, None) == 250.0  # ... which, without the floor, explains more
+    assert keep(270.0, 270.0, floor) == 270.0
 
 
 def test_selection_gain_scores_a_column_on_the_first_rounds_design():
@@ -293,7 +346,7 @@ def test_parameter_free_candidates_are_also_tried_at_the_candidate_offsets():
 
     from pvvjax._strict import from_dict
     from pvvjax.campaign import campaign_from_frames
-    from pvvjax.candidates import window_table
+    from pvvjax.candidates import values, window_table
     from pvvjax.config import DiscoveryConfig, ExperimentConfig
     from pvvjax.discovery import Model, _candidate_matrix, _unaligned_key
 
@@ -311,7 +364,12 @@ def test_parameter_free_candidates_are_also_tried_at_the_candidate_offsets():
     ctx = SimpleNamespace(cfg=ExperimentConfig(discovery=d))
     model = Model({}, ("advance_ratio",), offset_s=1.3)
     yhat = np.linspace(0.05, 0.1, len(win.table))
-    lib, C = _candidate_matrix(ctx, model, win, yhat, set())
+    lib, C, flib, F = _candidate_matrix(ctx, model, win, yhat, set())
+    # The knees of the model's own input are the floor's (at its offset), not candidates.
+    assert flib and {(c.operator, c.channels, c.parameters["offset_s"]) for c in flib} == {
+        ("threshold", ("advance_ratio",), 1.3)}
+    assert not any(c.operator == "threshold" and c.channels == ("advance_ratio",) for c in lib)
+    np.testing.assert_allclose(F[:, 0], values(flib[0], win.cands))
     assert {c.parameters["offset_s"] for c in lib if c.operator == "threshold"} == {1.3}
     assert {c.parameters["offset_s"] for c in lib if c.operator == "abs_rate"} == {0.5, 1.3}
     aligned = [c.key for c in lib if c.operator in ("input", "rate", "abs_rate", "window")]
@@ -323,6 +381,11 @@ def test_parameter_free_candidates_are_also_tried_at_the_candidate_offsets():
     np.testing.assert_allclose(C[:, j], shifted["abs_rate:longitudinal_pct"].to_numpy())
     assert np.ptp(C[:, j] - window_table(camp, win.table[["counter", "t0", "t1"]])["abs_rate:longitudinal_pct"]) > 0
     # Named once (at either alignment): gone at both.
-    lib2, _ = _candidate_matrix(ctx, model, win, yhat, {_unaligned_key(lib[j])})
+    lib2, _, flib2, _ = _candidate_matrix(ctx, model, win, yhat, {_unaligned_key(lib[j])})
     assert not any(c.operator == "abs_rate" and c.channels == ("longitudinal_pct",) for c in lib2)
-    assert len(lib2) == len(lib) - 2
+    assert len(lib2) == len(lib) - 2 and [c.key for c in flib2] == [c.key for c in flib]
+    # The lags of the prediction are candidates unless a lag test ran (lags=False).
+    assert {c.parameters["tau_s"] for c in lib if c.operator == "lag"} == set(d.lag_taus)
+    lib3, C3, _, _ = _candidate_matrix(ctx, model, win, yhat, set(), lags=False)
+    assert [c.key for c in lib3] == [c.key for c in lib if c.operator != "lag"]
+    np.testing.assert_array_equal(C3, C[:, [j for j, c in enumerate(lib) if c.operator != "lag"]])
