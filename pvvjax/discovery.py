@@ -508,9 +508,9 @@ def _keep_better(grid: Candidate, refined: Candidate, win: _Windows, yhat, resid
                  log=print) -> Candidate:
     """The refined candidate if the selection's design (its rows and floor covariates, the
     same folds) credits it with at least the grid candidate's held-out gain, else the grid's.
-    `_refine` fits the additive residual on every window without the floor, and may walk to
-    where the floor explains as much (a resonance band moved to its other flank: 267.5 →
-    257.2 rpm, measured)."""
+    `_refine` minimises the in-sample error, which a knee fitted to a few conditions can
+    lower without predicting the others (measured: knees refined to a held-out gain of 0.027
+    against the grid's 0.052, and 0.019 against 0.047)."""
     if refined.key == grid.key:
         return refined
     cols = np.column_stack([_selection_column(c, win.values(c), yhat)[rows] for c in (grid, refined)])
@@ -959,12 +959,13 @@ def _candidate_matrix(ctx: _Ctx, model: Model, win: _Windows, yhat, used_keys,
     if lags and model.lag_tau_s <= 0:
         lc, LC = _lag_candidates(yhat, win, d.lag_taus)
         lib, C = lib + lc, np.column_stack([C, LC])
-    # Drop non-finite and duplicate columns (e.g. |x| of a channel that is never negative).
-    ok = np.all(np.isfinite(C), axis=0) & (np.ptp(C, axis=0) > 0)
+    # Drop non-finite, constant and duplicate columns (e.g. |x| of a channel that is never negative).
+    usable = lambda M: np.all(np.isfinite(M), axis=0) & (np.ptp(M, axis=0) > 0)  # noqa: E731
+    ok = usable(C)
     _, first = np.unique(np.round(C[:, ok], 12), axis=1, return_index=True)
     keep = np.flatnonzero(ok)[np.sort(first)]
     F = np.column_stack(fcols) if fcols else np.empty((len(C), 0))
-    fok = np.flatnonzero(np.all(np.isfinite(F), axis=0) & (np.ptp(F, axis=0) > 0))
+    fok = np.flatnonzero(usable(F))
     return [lib[j] for j in keep], C[:, keep], [flib[j] for j in fok], F[:, fok]
 
 
@@ -1172,8 +1173,6 @@ def discover(campaign: Campaign, cfg: ExperimentConfig = ExperimentConfig(), *, 
         # test, and a lag of the prediction that a round confirms after it rejected one is a
         # smoother of the nets' transients (measured on a null world: τ 2.1 s, −2.9 %).
         lib, C, flib, F = _candidate_matrix(ctx, current, win, yhat, used, lags=lag is None)
-        if not d.floor_refinements:
-            flib, F = [], F[:, :0]
         sel_rows = full & (win.table.k.to_numpy() % d.selection_stride == 0)
         own = floor_features(current.inputs)
         floor = _floor(win, yhat, resid, sel_rows, own, win.table.condition.to_numpy())
