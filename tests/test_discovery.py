@@ -153,6 +153,41 @@ def test_a_refined_candidate_is_kept_only_if_the_selections_design_credits_it_wi
     assert keep(270.0, 270.0, floor) == 270.0
 
 
+def test_a_proposed_band_brings_the_adjacent_cell_the_design_credits_more():
+    from pvvjax.candidates import Candidate
+    from pvvjax.config import DiscoveryConfig
+    from pvvjax.discovery import _neighbour_cells
+    from pvvjax.selection import Selected, gains
+
+    # A mode at 273 rpm between grid centres 3 rpm apart: the band at 267 is proposed; of its
+    # neighbours (264, 270) the one at 270 holds more of the mode and is tried after it.
+    rng = np.random.default_rng(4)
+    n_cond, W = 150, 6
+    cond = np.repeat(np.arange(n_cond), W)
+    rpm = np.repeat(rng.uniform(240.0, 280.0, n_cond), W)
+    yhat = 0.1 + 0.01 * rng.random(len(cond))
+    resid = 0.5 * yhat * np.exp(-0.5 * ((rpm - 273.0) / 3.0) ** 2) + 0.002 * rng.standard_normal(len(cond))
+    centres = (261.0, 264.0, 267.0, 270.0, 276.0)
+    lib = [Candidate("resonance", ("rotor_rpm",), {"center": c, "width": 3.0, "offset_s": 1.0}) for c in centres]
+    lib += [Candidate("resonance", ("rotor_rpm",), {"center": 270.0, "width": 3.0, "offset_s": 0.5}),  # other alignment
+            Candidate("input", ("nz_g",), {"offset_s": 1.0})]
+    M = np.column_stack([yhat * np.exp(-0.5 * ((rpm - c.parameters.get("center", 0.0)) / 3.0) ** 2) for c in lib])
+    rows = np.ones(len(cond), bool)
+    designs = {"all": (rows, yhat[:, None])}
+    d = DiscoveryConfig()
+    s = Selected(2, 0.3, 0.3, 0.01, (), ())
+    run = lambda props, r=resid: [(w, j) for w, j, _ in _neighbour_cells(props, lib, M, designs, r, cond, d, 0)]  # noqa: E731
+    assert run([("all", 2, s)]) == [("all", 2), ("all", 3)]
+    out = _neighbour_cells([("all", 2, s)], lib, M, designs, resid, cond, d, 0)
+    # Its own gain, on the proposal's design (rows, floor, folds).
+    assert out[1][2].gain == pytest.approx(gains(resid, M[:, [3]], cond, base=yhat[:, None], folds=d.folds)[0])
+    # 270 and 267 proposed: 270 brings none (276 is 6 rpm away, the band at 0.5 s another
+    # alignment), 267 brings 264, the next one.
+    assert run([("all", 3, s), ("all", 2, s)]) == [("all", 3), ("all", 2), ("all", 1)]
+    assert run([("all", 6, s)]) == [("all", 6)]  # not a band
+    assert run([("all", 2, s)], r=0.002 * rng.standard_normal(len(cond))) == [("all", 2)]  # nothing gains min_gain
+
+
 def test_selection_gain_scores_a_column_on_the_first_rounds_design():
     from pvvjax.discovery import Discovery, Residual, selection_gain
     from pvvjax.selection import gain
