@@ -42,7 +42,8 @@ from pvvjax.discovery import discover, selection_gain, summary
 from pvvjax.synth import SynthConfig, generate
 
 base = dict(seed=41, maneuvers=["level", "climb", "descent", "turn", "roll", "pushover", "pullup", "flare"],
-            effects={"roll_rate": {"enabled": False}, "pitch_rate": {"enabled": False}})
+            effects={"roll_rate": {"enabled": False}, "pitch_rate": {"enabled": False},
+                     "rotor_resonance": {"enabled": False}})
 hidden = {"sideslip": {"enabled": True, "scale": 6.0}}  # the hidden effect
 world = from_dict(SynthConfig, {**base, "name": "notebook-world", "effects": {**base["effects"], **hidden}})
 counters, records, truth = generate(world)

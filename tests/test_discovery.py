@@ -283,7 +283,8 @@ def test_confirmed_tries_within_the_retraining_noise_are_told_apart_by_the_selec
 
 _FAST = dict(seeds=3, proposals=2, max_effects=1, offset_step_s=0.25)
 _BASE = dict(maneuvers=("level", "climb", "descent", "turn", "roll", "pushover", "pullup", "flare"),
-             effects={"roll_rate": {"enabled": False}, "pitch_rate": {"enabled": False}})
+             effects={"roll_rate": {"enabled": False}, "pitch_rate": {"enabled": False},
+                      "rotor_resonance": {"enabled": False}})
 
 
 def test_cli_on_a_world_without_hidden_effects_names_nothing(tmp_path):
