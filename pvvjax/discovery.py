@@ -1013,7 +1013,7 @@ def _neighbour_cells(proposals, lib: list[Candidate], M, designs, resid, groups,
     if it gains `min_gain` and is not proposed already. A mode between two grid centres is
     shared by both cells, and which of the two the selection ranks first depends on how few
     windows reach the band; the retraining decides (measured: a mode at 273 rpm, the band at
-    267.5 ranked first, gain 0.084, but −0.5 % retrained; the one at 270.7, gain 0.071, +19 %).
+    267.5 ranked first, gain 0.084, but −0.5 % retrained; the one at 270.7, gain 0.071, −22 % RMS).
 
     Args:
         proposals: `_propose`'s list of (where, column, `Selected`). lib: the candidate of each
@@ -1036,7 +1036,7 @@ def _neighbour_cells(proposals, lib: list[Candidate], M, designs, resid, groups,
         if not near:
             continue
         rows, floor = designs[where]
-        g = gains(resid[rows], M[rows][:, near], groups[rows], base=floor, folds=d.folds, seed=seed)
+        g = gains(resid[rows], M[:, near][rows], groups[rows], base=floor, folds=d.folds, seed=seed)
         top = int(np.argmax(g))
         if g[top] >= d.min_gain:
             taken.add(near[top])
@@ -1045,7 +1045,7 @@ def _neighbour_cells(proposals, lib: list[Candidate], M, designs, resid, groups,
 
 
 def _propose(win: _Windows, yhat, resid, C, rows, own, floor_all, d, seed: int, complexity, keys,
-             is_floor=None) -> tuple[list, list]:
+             is_floor=None) -> tuple[list, list, dict]:
     """Significant candidates over all windows and, with `local_selection`, inside each
     maneuver kind where the residual concentrates (an effect of one kind is diluted among
     all windows) and that has `min_subset_conditions` conditions (with fewer, the floor
@@ -1212,19 +1212,19 @@ def discover(campaign: Campaign, cfg: ExperimentConfig = ExperimentConfig(), *, 
         lib, C, flib, F = _candidate_matrix(ctx, current, win, yhat, used, lags=lag is None)
         sel_rows = full & (win.table.k.to_numpy() % d.selection_stride == 0)
         own = floor_features(current.inputs)
-        floor = _floor(win, yhat, resid, sel_rows, own, win.table.condition.to_numpy())
+        groups = win.table.condition.to_numpy()
+        floor = _floor(win, yhat, resid, sel_rows, own, groups)
         both, M = lib + flib, np.column_stack([C, F])
         proposals, absorbed, designs = _propose(win, yhat, resid, M, sel_rows, own, floor, d,
                                                 seed=cfg.seed + rnd, complexity=np.array([c.complexity for c in both]),
                                                 keys=[_unaligned_key(c) for c in both],
                                                 is_floor=np.arange(len(both)) >= len(lib))
         lib = both  # proposals and their runners-up index both
-        proposals = _neighbour_cells(proposals, lib, M, designs, resid, win.table.condition.to_numpy(), d,
-                                     seed=cfg.seed + rnd)
+        proposals = _neighbour_cells(proposals, lib, M, designs, resid, groups, d, seed=cfg.seed + rnd)
         if rnd == 0:  # the selection's design: its floor with the refinements it took over all windows
             taken = [M[sel_rows, j] for where, j, _ in absorbed if where == "all"]
             first = Residual(resid, sel_rows, np.column_stack([floor, *taken]) if taken else floor,
-                             win.table.condition.to_numpy(), d.folds, cfg.seed)
+                             groups, d.folds, cfg.seed)
         floor_terms = "; ".join(f"{lib[j].name} in {where} ({g:.3f})" for where, j, g in absorbed)
         if absorbed:
             log(f"round {rnd + 1}: the floor takes {floor_terms}")
