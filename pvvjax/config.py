@@ -341,8 +341,9 @@ class DiscoveryConfig:
         min_shrink: smallest relative drop of the held-out RMS of the ensemble's prediction
             (median over seeds), where the effect acts, that confirms it after retraining.
         shrink_noise: confirmed tries of a round whose shrinks (over all windows) are within
-            this of the best are tied, and the one the selection credits with the largest
-            gain is named (`discovery._choose`; 0: the largest shrink always).
+            this of the best are tied with it, as are those it does not beat at p < `alpha`
+            (a sign-flip test by condition); of tied tries, the one the selection credits with
+            the largest gain is named (`discovery._choose`).
         floor_refinements: knees and products of the model's own inputs that join each
             selection's floor covariates before any candidate is asked, the best first while it
             gains `min_gain` (`discovery._propose`): the map's floor where ~200 peaks did not

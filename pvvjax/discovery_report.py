@@ -65,10 +65,10 @@ def write_discovery(res: Discovery, out, cfg=None, worst: int = 4) -> Path:
         if col not in w:
             continue
         ok = w.predicted_after_g.notna()
+        unit = " × prediction, g" if e["operator"] == "resonance" else ""
         fig = plots.partial_dependence(w[col][ok], (w.measured_g - w.predicted_before_g)[ok],
                                        (w.predicted_after_g - w.predicted_before_g)[ok],
-                                       f"effect {e['rank']}: {e['name']}",
-                                       f"{e['name']} (window value{' × prediction, g' if e['operator'] == 'resonance' else ''})")
+                                       f"effect {e['rank']}: {e['name']}", f"{e['name']} (window value{unit})")
         figs.append((f"Partial dependence of effect {e['rank']}",
                      plots.save(fig, out / "figures" / f"effect_{e['rank']}.png")))
     rms = w.groupby("counter").apply(lambda g: float(np.sqrt(np.mean((g.measured_g - g.predicted_before_g) ** 2))),
@@ -122,14 +122,17 @@ def write_discovery(res: Discovery, out, cfg=None, worst: int = 4) -> Path:
                   "standard error of the best's: the simplest, the one that explains most, then the others); each is "
                   "added as a term (`additive`) and as a network `input` (with the default `augment = \"auto\"`), "
                   "a resonance as a learned `gain` on the nets' output, the nets retrained each time; of the "
-                  "confirmed tries the round keeps the one that shrinks the held-out RMS most (`chosen`).", "",
+                  "confirmed tries the round names (`chosen`) the one that shrinks the held-out RMS most, unless "
+                  "others tie with it: within `shrink_noise` of its shrink, or not beaten by it at p < `alpha` "
+                  "(`p_best_better`: a sign-flip test by condition of the two ensembles' squared errors); of tied "
+                  "tries, the one with the largest `cv_gain`.", "",
                   "`rms_*`: held-out RMS, median over seeds (as the metrics above); `ensemble_rms_*`: the RMS of "
                   "the ensemble's prediction (the median over seeds), whose change `shrink` (all windows) and "
                   "`region_shrink` (where the effect acts, `judged_in`) decide the confirmation; `why_not`: "
                   "why a try is not confirmed.", "",
                   _md(res.rounds[["round", "name", "augment", "p_value", "cv_gain", "rms_before_g", "rms_after_g",
                                   "ensemble_rms_before_g", "ensemble_rms_after_g", "shrink", "judged_in",
-                                  "region_shrink", "confirmed", "why_not", "chosen"]]), "",
+                                  "region_shrink", "confirmed", "why_not", "p_best_better", "chosen"]]), "",
                   "Runners-up of each proposal (held-out gain):", ""]
         lines += [f"- round {r.round}, {r.name} ({r.cv_gain:.3f}): {r.runners_up}"
                   for r in res.rounds.drop_duplicates(["round", "name"]).itertuples()]

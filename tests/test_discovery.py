@@ -264,16 +264,19 @@ def test_candidates_the_selection_cannot_tell_apart_are_retrained_simplest_then_
     assert _try_order([(7, 0.1)]) == [(7, 0.1)]
 
 
-def test_confirmed_tries_within_the_retraining_noise_are_told_apart_by_the_selection():
+def test_confirmed_tries_the_retraining_cannot_tell_apart_are_told_apart_by_the_selection():
     from pvvjax.discovery import _choose
 
-    # (shrink over all windows, selection gain) per confirmed try.
-    tries = [(0.026, 0.050), (0.021, 0.053), (0.004, 0.090)]
-    assert _choose(tries, 0.02) == 1  # the first two tie; the third is retrained out of it
-    assert _choose(tries, 0.0) == 0  # no noise: the largest shrink
-    assert _choose(tries, 0.5) == 2  # everything ties: the selection's best
-    assert _choose([(0.15, 0.1), (0.10, 0.1)], 0.1) == 0  # the same gain: the larger shrink
-    assert _choose([(0.05, 0.2)], 0.02) == 0
+    # (shrink over all windows, selection gain, p that the largest shrink's try beats it) per try.
+    tries = [(0.026, 0.050, 1.0), (0.021, 0.053, 0.001), (0.004, 0.090, 0.001)]
+    assert _choose(tries, 0.02, 0.01) == 1  # the first two tie in shrink; the third is retrained out of it
+    assert _choose(tries, 0.0, 0.01) == 0  # no noise, significant: the largest shrink
+    assert _choose(tries, 0.5, 0.01) == 2  # everything ties: the selection's best
+    # Far apart in shrink, but the best does not beat the others significantly: tied.
+    assert _choose([(0.22, 0.239, 1.0), (0.17, 0.250, 0.11), (0.19, 0.233, 0.05)], 0.02, 0.01) == 1
+    assert _choose([(0.22, 0.239, 1.0), (0.17, 0.250, 0.005), (0.19, 0.233, 0.05)], 0.02, 0.01) == 0
+    assert _choose([(0.15, 0.1, 1.0), (0.10, 0.1, 0.5)], 0.1, 0.01) == 0  # the same gain: the larger shrink
+    assert _choose([(0.05, 0.2, 1.0)], 0.02, 0.01) == 0
 
 
 # --------------------------------------------------------------------------- end to end

@@ -74,7 +74,7 @@ def test_sign_flip_test_against_exact_enumeration():
     from pvvjax.discovery import _paired_sign_flip
 
     rng = np.random.default_rng(3)
-    rows = pd.DataFrame([dict(counter=c, window=w, condition=f"c{c}", weight=1.0, measured_g=0.0)
+    rows = pd.DataFrame([dict(counter=c, window=w, condition=f"c{c}", maneuver="level", weight=1.0, measured_g=0.0)
                          for c in range(10) for w in range(5)])
     ea = 0.03 + 0.01 * rng.random(len(rows))
     eb = ea * (1.0 - 0.4 * rng.random(len(rows)) + 0.2 * (rows.counter.to_numpy() < 3))
@@ -92,19 +92,24 @@ def test_sign_flip_test_against_exact_enumeration():
 
 def test_lag_test_weighs_the_slow_lag_against_the_best_fast_one(monkeypatch):
     # The reference is the best ensemble with τ <= lag_fast_s (none or the fast lag), the
-    # slow lag the best above it; confirmed on a clear, consistent drop only.
+    # slow lag the best above it; confirmed on a clear, consistent drop only, and only if the
+    # drop is also there where a lag acts (the pull-ups' step, not the steady level counters).
     from pvvjax import discovery as D
     from pvvjax._strict import from_dict
     from pvvjax.config import DiscoveryConfig, ExperimentConfig
 
     rng = np.random.default_rng(0)
-    rows = pd.DataFrame([dict(counter=c, window=w, condition=f"c{c}", weight=1.0) for c in range(60)
-                         for w in range(10)]).assign(measured_g=lambda t: 0.1 + 0.02 * rng.random(len(t)))
+    rows = pd.DataFrame([dict(counter=c, window=w, condition=f"c{c}", maneuver="pullup" if c % 2 else "level",
+                              time_s=0.25 * w, weight=1.0, i=c, k=w) for c in range(60) for w in range(10)])
+    step = np.where((rows.maneuver == "pullup") & (rows.window >= 5), 0.1, 0.0)
+    rows = rows.assign(measured_g=0.1 + step + 0.02 * rng.random(len(rows)))
     win = _Windows(rows, (60, 10), (), None)
+    pullup = (rows.maneuver == "pullup").to_numpy()
 
     def trials(errors):
         out = []
         for (tau, off), sd in errors.items():
+            sd = np.where(pullup, *sd) if isinstance(sd, tuple) else sd  # (in pull-ups, in level flight)
             pred = rows.measured_g.to_numpy() + sd * rng.standard_normal((3, len(rows)))
             ens = float(np.sqrt(np.mean((np.median(pred, 0) - rows.measured_g.to_numpy()) ** 2)))
             out.append(dict(tau_s=tau, train_offset_s=off, model=D.Model({}, (), offset_s=off, lag_tau_s=tau), win=win,
@@ -120,6 +125,7 @@ def test_lag_test_weighs_the_slow_lag_against_the_best_fast_one(monkeypatch):
     got = D._lag_test(Ctx(), 1.0, log=lambda m: None)
     assert got["confirmed"] and not got["why"] and got["p_value"] <= 0.01  # consistent over the conditions
     assert got["reference"]["tau_s"] == 1.0 and got["slow"]["tau_s"] == 2.0  # against the fast lag, not τ = 0
+    assert got["judged_in"] == "pullup" and got["local"] > 0.3
     t = got["table"]
     assert list(t.role) == ["reference"] * 3 + ["slow"] * 2 and list(t.chosen) == [False, False, True, True, False]
     assert got["drop"] == pytest.approx(t["drop"][3]) and t["drop"][2] == 0.0
@@ -129,6 +135,14 @@ def test_lag_test_weighs_the_slow_lag_against_the_best_fast_one(monkeypatch):
     monkeypatch.setattr(D, "_lag_trials", lambda *a, **k: trials(fast))
     got = D._lag_test(Ctx(), 1.0, log=lambda m: None)
     assert not got["confirmed"] and "less than min_shrink 5%" in got["why"]
+
+    # A slow lag that gains in steady flight only, where a lag changes nothing: clear over
+    # all windows, not where it acts.
+    steady = {**lagged, (2.0, 0.0): (0.02, 0.004)}
+    monkeypatch.setattr(D, "_lag_trials", lambda *a, **k: trials(steady))
+    got = D._lag_test(Ctx(), 1.0, log=lambda m: None)
+    assert got["drop"] > 0.2 and abs(got["local"]) < 0.05 and not got["confirmed"], got["why"]
+    assert "where it acts (pullup)" in got["why"]
 
 
 def test_discover_names_a_long_lag_first_with_nets_trained_through_it(monkeypatch, tmp_path):
