@@ -3,9 +3,20 @@ synthetic campaign (generated once into the cache, loaded once per test process)
 
 from __future__ import annotations
 
-import numpy as np
-import pandas as pd
-import pytest
+import os
+from pathlib import Path
+
+# Every test process (two xdist workers, the notebooks' kernels, CLI subprocesses) shares one
+# persistent compilation cache, and keeps every program: most of the suite's time is XLA
+# compiling, mostly small op-by-op programs of ~0.1-0.3 s each that the processes compile
+# alike. Set before JAX is imported (it reads these at import; children inherit them).
+os.environ.setdefault("JAX_COMPILATION_CACHE_DIR",
+                      str(Path(os.environ.get("PVVJAX_CACHE", Path(__file__).parents[1] / ".cache")) / "jax"))
+os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0")
+
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+import pytest  # noqa: E402
 
 
 def tiny_records(n_counters=2, seconds=12.0, spr=64, rpm=257.8, seed=0):
