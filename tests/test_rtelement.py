@@ -55,7 +55,9 @@ def test_streaming_equals_offline_replay(setup, kind):
         settings = R.make_settings(batch, min_window_revs=L, max_window_revs=L, hop_revs=hop, stick_lag=True)
         stacked = jax.tree.map(lambda *a: jnp.stack([jnp.asarray(v, jnp.float64) for v in a]), *params)
         model = dict(params=stacked, idx=jnp.asarray(R.input_index("db1")))
-        offline = np.asarray(R.replay(model, rec, tau, L, tau_s, settings=settings).predicted)
+        # jitted: one compilation per record instead of one per operation and shape
+        offline = np.asarray(jax.jit(R.replay, static_argnames="settings")(model, rec, tau, L, tau_s,
+                                                                          settings=settings).predicted)
     el = VibrationElement([NumpyNet(p) for p in params], DB_INPUTS["db1"], window_revs=L, hop_revs=hop, offset_s=tau,
                           stick_offset_s=tau_s)
     streamed = _stream(el, *_frames(camp, counter))
