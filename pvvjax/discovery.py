@@ -862,8 +862,6 @@ def _lag_round(ctx: _Ctx, lag: dict, inputs) -> tuple[dict, dict | None]:
     effect (its region on the slow lag's windows, the reference re-predicted there)."""
     slow, ref = lag["slow"], lag["reference"]
     c = Candidate("lag", (), {"tau_s": slow["tau_s"]})
-    swin = slow["win"]
-    region = _region(swin, swin.table.weight.to_numpy() >= 0.999, predictions(ctx, ref["model"], swin), slow["pred"])
     row = dict(round=0, where="all", candidate=c.key, name=c.name, operator="lag", channels="",
                augment="trained through", p_value=lag["p_value"], cv_gain=np.nan,
                runners_up=f"reference: τ {ref['tau_s']:g} s", explained_fraction=lag["explained_fraction"],
@@ -873,6 +871,8 @@ def _lag_round(ctx: _Ctx, lag: dict, inputs) -> tuple[dict, dict | None]:
                confirmed=lag["confirmed"], why_not=lag["why"], p_best_better=np.nan, chosen=lag["confirmed"])
     if not lag["confirmed"]:
         return row, None
+    swin = slow["win"]  # the effect's region: the reference re-predicted on the slow lag's windows
+    region = _region(swin, swin.table.weight.to_numpy() >= 0.999, predictions(ctx, ref["model"], swin), slow["pred"])
     return row, dict(rank=1, round=0, name=c.name, operator="lag", channels=list(inputs),
                      parameters={"tau_s": slow["tau_s"]}, explained_fraction=lag["explained_fraction"],
                      p_value=lag["p_value"], region=region, key=c.key, candidate=c, found_in="all")
