@@ -132,22 +132,42 @@ def sample_series(record: pd.DataFrame, aircraft, exclude=()) -> dict[str, np.nd
     return ch
 
 
+def _interp_columns(tq, t, x):
+    """`np.interp(tq, t, x[:, c])` for every column of x (T, C) at once: the search is shared
+    (same formula as NumPy's, so the same numbers); tq within [t[0], t[-1]]."""
+    j = np.clip(np.searchsorted(t, tq, side="right") - 1, 0, len(t) - 1)
+    j1 = np.minimum(j + 1, len(t) - 1)
+    on_sample = (j1 == j) | (t[j] == tq)
+    dt = np.where(on_sample, 1.0, t[j1] - t[j])[:, None]
+    x0 = x[j]
+    return np.where(on_sample[:, None], x0, (x[j1] - x0) / dt * (tq - t[j])[:, None] + x0)
+
+
 def _rate(x, t, span: float):
     """dx/dt over `span` seconds: (x(t + span/2) − x(t − span/2)) / span on the linear
     interpolant, the span shortened at the record's ends. Sample-to-sample differences of a
     measured channel are mostly sensor noise (0.1 deg/s of noise at 320 Hz is ±45 deg/s² of
     "pitch acceleration"); over one rotor revolution, the time scale the vibration is
-    analysed on, the derivative follows the maneuver."""
+    analysed on, the derivative follows the maneuver. x: (T,) or (T, C)."""
     if len(t) < 2:
         return np.zeros_like(x)
+    vec = np.ndim(x) == 1
+    x = np.asarray(x)[:, None] if vec else np.asarray(x)
     lo, hi = np.clip(t - span / 2, t[0], t[-1]), np.clip(t + span / 2, t[0], t[-1])
-    return (np.interp(hi, t, x) - np.interp(lo, t, x)) / np.maximum(hi - lo, 1e-12)
+    r = (_interp_columns(hi, t, x) - _interp_columns(lo, t, x)) / np.maximum(hi - lo, 1e-12)[:, None]
+    return r[:, 0] if vec else r
 
 
 def _cumulative(s, t):
     """Cumulative trapezoid integral of the columns of s (T, M) over t (T,), from t[0]."""
-    inc = 0.5 * (s[1:] + s[:-1]) * np.diff(t)[:, None]
-    return np.concatenate([np.zeros((1, s.shape[1])), np.cumsum(inc, axis=0)])
+    out = np.empty(s.shape, np.float64)
+    out[0] = 0.0
+    inc = out[1:]
+    np.add(s[1:], s[:-1], out=inc)  # in place: s can be a record's hundred columns
+    inc *= 0.5
+    inc *= np.diff(t)[:, None]
+    np.cumsum(inc, axis=0, out=inc)
+    return out
 
 
 def interval_means(s, t, t0, t1, cum=None):
@@ -207,13 +227,14 @@ def window_table(campaign: Campaign, intervals: pd.DataFrame, exclude=(), channe
             raise ValueError(f"counter {counter}: channels {list(ser)} differ from the other counters' {names}")
         t = rec["time_s"].to_numpy(np.float64)
         span = 60.0 / float(np.mean(rec["rotor_rpm"])) if "rotor_rpm" in rec else 0.25  # one revolution, s
-        cols, centre = [], []
-        for k, x in ser.items():
-            r = _rate(x, t, span)
-            centre.append(np.mean(x))  # centred before squaring: the spread of a large constant stays 0
-            cols += [x, np.abs(x), r, np.abs(r), (x - centre[-1]) ** 2]
-            signed[k] = signed.get(k, False) or _signed(x)
-        m = interval_means(np.stack(cols, axis=1), t, g.t0.to_numpy(), g.t1.to_numpy()).reshape(len(g), len(names), 5)
+        x = np.stack(list(ser.values()), axis=1)  # (T, C)
+        # Centred before squaring: the spread of a large constant stays 0.
+        centre = np.array([np.mean(v) for v in ser.values()])
+        r = _rate(x, t, span)
+        cols = np.stack([x, np.abs(x), r, np.abs(r), (x - centre) ** 2], axis=2).reshape(len(t), -1)
+        for k, v in ser.items():
+            signed[k] = signed.get(k, False) or _signed(v)
+        m = interval_means(cols, t, g.t0.to_numpy(), g.t1.to_numpy()).reshape(len(g), len(names), 5)
         out = {}
         for j, k in enumerate(names):
             out[f"x:{k}"], out[f"abs:{k}"], out[f"rate:{k}"], out[f"abs_rate:{k}"] = (m[:, j, 0], m[:, j, 1],

@@ -205,13 +205,24 @@ def with_prefix(c: Columns) -> Columns:
     into a float32 pair) and a search table of its revolutions: a window sum then takes two
     prefix rows and weighs the few samples of its edge ramps, whatever the window length
     (NumPy: run once per record, outside jit; leading batch axes allowed)."""
-    cols = np.asarray(stack_columns(c).cols, np.float64)
-    w = np.asarray(c.width, np.float64)[..., None]
-    p = np.cumsum(np.concatenate([cols * w, w], axis=-1), axis=-2)
-    p = np.concatenate([np.zeros_like(p[..., :1, :]), p], axis=-2)
+    cols = np.asarray(stack_columns(c).cols)
+    w = np.asarray(c.width)
+    *lead, T, n = cols.shape
+    cols, w = cols.reshape(-1, T, n), w.reshape(-1, T)
     dt = np.asarray(c.blocks).dtype
-    hi = p.astype(dt)
-    lo = (p - hi.astype(np.float64)).astype(dt)
+    hi = np.empty((cols.shape[0], T + 1, n + 1), dt)
+    lo = np.empty_like(hi)
+    # One record at a time in a reused float64 buffer: it stays in cache, and a campaign's
+    # worth of float64 copies (hundreds of MB) would make this 10x slower.
+    p = np.empty((T + 1, n + 1), np.float64)
+    p[0] = 0.0
+    for r in range(cols.shape[0]):
+        np.multiply(cols[r], w[r][:, None], out=p[1:, :n], dtype=np.float64)
+        p[1:, n] = w[r]
+        np.cumsum(p[1:], axis=0, out=p[1:])
+        hi[r] = p
+        lo[r] = p - hi[r]
+    hi, lo = hi.reshape(*lead, T + 1, n + 1), lo.reshape(*lead, T + 1, n + 1)
     return stack_columns(c)._replace(prefix=(jnp.asarray(hi), jnp.asarray(lo)),
                                      lookup=jax.tree.map(jnp.asarray, make_lookup(c.rev)))
 

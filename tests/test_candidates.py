@@ -104,3 +104,18 @@ def test_rate_over_a_revolution_follows_the_maneuver_not_the_sensor_noise():
     # Over one revolution (0.233 s): within 3 % of the true mean |q̇|, and exact for a ramp.
     assert np.mean(np.abs(_rate(noisy, t, 60 / 257.8)[inner])) == pytest.approx(true, rel=0.03)
     np.testing.assert_allclose(_rate(2.5 * t, t, 0.25), 2.5, rtol=1e-9)
+
+
+def test_rate_of_many_columns_equals_numpys_interpolation_column_by_column():
+    from pvvjax.candidates import _rate
+
+    rng = np.random.default_rng(4)
+    t = np.cumsum(rng.uniform(0.002, 0.004, 3000))  # uneven samples
+    t[100:103] = t[100] + 0.0025 * np.arange(3)  # evenly spaced: span edges land on samples
+    x = np.stack([np.sin(t), rng.standard_normal(t.size), 1e4 + t**2], 1)
+    span = 0.005
+    lo, hi = np.clip(t - span / 2, t[0], t[-1]), np.clip(t + span / 2, t[0], t[-1])
+    for c in range(x.shape[1]):
+        ref = (np.interp(hi, t, x[:, c]) - np.interp(lo, t, x[:, c])) / np.maximum(hi - lo, 1e-12)
+        np.testing.assert_array_equal(_rate(x, t, span)[:, c], ref)  # the same numbers, not close ones
+        np.testing.assert_array_equal(_rate(x[:, c], t, span), ref)

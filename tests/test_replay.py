@@ -118,6 +118,23 @@ def test_prefix_path_equals_block_path(kind):
         np.testing.assert_allclose(np.asarray(fast), np.asarray(ref), rtol=1e-9, atol=1e-9)
 
 
+def test_prefix_sums_are_float64_cumulative_sums_per_record():
+    # float32 columns: the (hi, lo) pair holds the float64 prefix sums of width · column
+    # (and of the width), record by record under leading batch axes.
+    c1, c2 = _columns(np.float32, seed=1), _columns(np.float32, seed=2)
+    batched = with_prefix(jax.tree.map(lambda a, b: jnp.stack([a, b]), stack_columns(c1[0]), stack_columns(c2[0])))
+    for r, (cols, _, _) in enumerate((c1, c2)):
+        stacked = np.stack([np.asarray(v, np.float64) for v in cols.cols], 1)
+        w = np.asarray(cols.width, np.float64)[:, None]
+        ref = np.cumsum(np.concatenate([stacked * w, w], 1), 0)
+        hi, lo = (np.asarray(p[r], np.float64) for p in batched.prefix)
+        assert hi.dtype == np.float64 and np.all(hi[0] == 0) and np.all(lo[0] == 0)
+        np.testing.assert_allclose(hi[1:] + lo[1:], ref, rtol=1e-12, atol=1e-12)
+        single = with_prefix(cols)
+        np.testing.assert_array_equal(np.asarray(single.prefix[0]), np.asarray(batched.prefix[0][r]))
+        np.testing.assert_array_equal(np.asarray(single.prefix[1]), np.asarray(batched.prefix[1][r]))
+
+
 @pytest.fixture(scope="module")
 def small_replay(small_campaign_dir, small_dbs):
     """float64 records of the small campaign's maneuvers and an RBF db1 model."""
