@@ -7,8 +7,8 @@ are independent (one θ for the whole campaign, one per maneuver kind, one per c
 the solve is vmapped over groups; it vmaps over databases as well (stack their models).
 
 The cost is not convex in the offset (a peak can match the wrong bump), so a solve starts
-from the best point of a coarse grid and then refines it with Levenberg-Marquardt
-(optimistix) on the cost's residuals. Parameters are clipped to their bounds.
+from the best point of a coarse grid and then refines it with Levenberg-Marquardt on the
+cost's residuals (`_levenberg_marquardt`). Parameters are clipped to their bounds.
 """
 
 from __future__ import annotations
@@ -19,7 +19,6 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 import numpy as np
-import optimistix as optx
 
 from .replay import CostWeights, ReplayRecord, Settings, cost_terms, replay, residuals
 
@@ -146,6 +145,44 @@ def cost_grid(models, recs: ReplayRecord, members, mask, offsets, lengths, base=
     return jax.lax.map(lambda a: group(*a), (members, mask))
 
 
+def _levenberg_marquardt(fn, y0, *, max_steps: int, rtol: float, atol: float):
+    """Minimise sum(fn(y, None)²) over a few parameters y from y0: Marquardt's scaled
+    damping, forward-mode Jacobian (one linearisation per step).
+
+    Converged when a step changes every parameter by at most atol + rtol·|y| and lowers the
+    cost by at most atol + rtol·cost (a rejected step that small: the minimum, to float
+    precision). Written out rather than `optimistix.LevenbergMarquardt`: for 1-3
+    parameters it takes the same kind of steps, but a vmapped `calibrate` compiles in about
+    half the time (16 s -> 8 s), which is most of a calibration's first call.
+
+    Returns:
+        (y, steps taken, converged).
+    """
+    eye = jnp.eye(y0.shape[0], dtype=y0.dtype)
+
+    def linearize(y):
+        r, lin = jax.linearize(lambda v: fn(v, None), y)
+        return r, jax.vmap(lin, out_axes=1)(eye)
+
+    def body(s):
+        y, r, J, lam, k, _ = s
+        H = J.T @ J
+        d = jnp.diag(H)
+        dy = jnp.linalg.solve(H + jnp.diag(lam * d + 1e-12 * (jnp.max(d) + 1e-30)), -(J.T @ r))
+        r1, J1 = linearize(y + dy)
+        c, c1 = jnp.sum(r**2), jnp.sum(r1**2)
+        accept = jnp.isfinite(c1) & (c1 < c)
+        small = jnp.all(jnp.abs(dy) <= atol + rtol * jnp.abs(y)) & (c - c1 <= atol + rtol * c)
+        pick = lambda new, old: jnp.where(accept, new, old)  # noqa: E731
+        return (pick(y + dy, y), pick(r1, r), pick(J1, J), jnp.where(accept, jnp.maximum(lam / 3.0, 1e-12), lam * 4.0),
+                k + 1, small)
+
+    r0, J0 = linearize(y0)
+    init = (y0, r0, J0, jnp.asarray(1e-3, y0.dtype), jnp.asarray(0, jnp.int32), jnp.asarray(False))
+    y, _, _, _, steps, ok = jax.lax.while_loop(lambda s: (s[4] < max_steps) & ~s[5], body, init)
+    return y, steps, ok
+
+
 @partial(jax.jit, static_argnames=("free", "bounds", "settings", "weights", "apply", "max_steps", "rtol", "atol"))
 def calibrate(models, recs: ReplayRecord, members, mask, init, coarse, *, free: tuple[str, ...] = ("offset_s",),
               bounds: Bounds = Bounds(), settings: Settings, weights: CostWeights = CostWeights(), apply=None,
@@ -179,15 +216,12 @@ def calibrate(models, recs: ReplayRecord, members, mask, init, coarse, *, free: 
         fn = lambda y, _: _group_residuals(full(y), m, r, msk, settings, weights, apply)  # noqa: E731
         costs = jax.lax.map(lambda y: jnp.sum(fn(y, None) ** 2), coarse)
         y0 = coarse[jnp.argmin(costs)]
-        sol = optx.least_squares(fn, optx.LevenbergMarquardt(rtol=rtol, atol=atol), y0, max_steps=max_steps,
-                                 throw=False)
-        y = sol.value
+        y, steps, ok = _levenberg_marquardt(fn, y0, max_steps=max_steps, rtol=rtol, atol=atol)
         c = jnp.sum(fn(y, None) ** 2)
         c0 = jnp.min(costs)
         # Keep the start if the solve made it worse (it cannot, unless it failed).
         better = c <= c0
-        return (jnp.where(better, full(y), full(y0)), full(y0), jnp.minimum(c, c0), c0, sol.stats["num_steps"],
-                sol.result == optx.RESULTS.successful)
+        return (jnp.where(better, full(y), full(y0)), full(y0), jnp.minimum(c, c0), c0, steps, ok)
 
     out = jax.vmap(group)(members, mask, init)
     return Calibration(*out)

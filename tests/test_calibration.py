@@ -112,3 +112,29 @@ def test_bad_groups_and_parameters_are_errors(lagged):
     with pytest.raises(ValueError, match="free parameters"):
         calibrate(models, recs, members, mask, jnp.zeros(3), np.zeros((1, 1)), free=("delay",), settings=settings,
                   apply=linear_apply)
+
+
+def test_levenberg_marquardt_reaches_optimistixs_minimum_and_keeps_a_flat_parameter():
+    import optimistix as optx
+
+    from pvvjax.calibration import _levenberg_marquardt
+
+    t = jnp.linspace(0.0, 3.0, 40)
+    data = 2.0 * jnp.exp(-1.3 * t) + 0.01 * jnp.sin(7.0 * t)  # not exactly the model: a residual remains
+
+    def fn(y, _):  # exponential decay; y[2] does not enter (a clipped, flat parameter)
+        return y[0] * jnp.exp(-y[1] * t) - data
+
+    y0 = jnp.array([1.0, 0.5, 0.7])
+    y, steps, ok = jax.jit(lambda y0: _levenberg_marquardt(fn, y0, max_steps=64, rtol=1e-6, atol=1e-8))(y0)
+    ref = optx.least_squares(fn, optx.LevenbergMarquardt(rtol=1e-6, atol=1e-8), y0, max_steps=256).value
+    assert bool(ok) and int(steps) < 64
+    np.testing.assert_allclose(np.asarray(y[:2]), np.asarray(ref[:2]), rtol=1e-4)
+    assert float(y[2]) == float(y0[2])
+    # Rosenbrock's valley as least squares: minimum at (1, 1).
+    rosen = lambda y, _: jnp.stack([10.0 * (y[1] - y[0] ** 2), 1.0 - y[0]])  # noqa: E731
+    y, steps, ok = _levenberg_marquardt(rosen, jnp.array([-1.2, 1.0]), max_steps=100, rtol=1e-7, atol=1e-10)
+    np.testing.assert_allclose(np.asarray(y), [1.0, 1.0], atol=1e-4)
+    assert bool(ok)
+    # Out of steps: not converged.
+    assert not bool(_levenberg_marquardt(rosen, jnp.array([-1.2, 1.0]), max_steps=2, rtol=1e-7, atol=1e-10)[2])
