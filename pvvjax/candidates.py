@@ -39,6 +39,7 @@ __all__ = [
     "sample_series",
     "values",
     "window_table",
+    "window_tables",
 ]
 
 # Not flight state: the clock, the vibration itself and the blade azimuth.
@@ -215,8 +216,19 @@ def window_table(campaign: Campaign, intervals: pd.DataFrame, exclude=(), channe
         `abs_rate:<ch>`, `spread:<ch>`; `attrs["signed"]` lists the channels that take both
         signs (whose magnitude is a candidate of its own).
     """
-    parts, names, signed = [], None, {}
-    for counter, g in intervals.groupby("counter", sort=False):
+    return window_tables(campaign, [intervals], exclude, channels)[0]
+
+
+def window_tables(campaign: Campaign, intervals: list[pd.DataFrame], exclude=(), channels=None) -> list[pd.DataFrame]:
+    """`window_table` of several interval sets of the same windows (the same index and
+    counters, other times: the windows at other offsets) in one pass over each record's
+    samples: the series, rates and running integrals are computed once per record."""
+    first = intervals[0]
+    for iv in intervals[1:]:
+        if not (iv.index.equals(first.index) and (iv.counter.to_numpy() == first.counter.to_numpy()).all()):
+            raise ValueError("window_tables: interval sets must share their index and counters")
+    parts, names, signed = [[] for _ in intervals], None, {}
+    for counter, rows in first.groupby("counter", sort=False).indices.items():
         rec = campaign.records[counter]
         ser = sample_series(rec, campaign.aircraft, exclude)
         if channels is not None:
@@ -232,18 +244,24 @@ def window_table(campaign: Campaign, intervals: pd.DataFrame, exclude=(), channe
         centre = np.array([np.mean(v) for v in ser.values()])
         r = _rate(x, t, span)
         cols = np.stack([x, np.abs(x), r, np.abs(r), (x - centre) ** 2], axis=2).reshape(len(t), -1)
+        cum = _cumulative(cols, t)
         for k, v in ser.items():
             signed[k] = signed.get(k, False) or _signed(v)
-        m = interval_means(cols, t, g.t0.to_numpy(), g.t1.to_numpy()).reshape(len(g), len(names), 5)
-        out = {}
-        for j, k in enumerate(names):
-            out[f"x:{k}"], out[f"abs:{k}"], out[f"rate:{k}"], out[f"abs_rate:{k}"] = (m[:, j, 0], m[:, j, 1],
-                                                                                     m[:, j, 2], m[:, j, 3])
-            out[f"spread:{k}"] = np.sqrt(np.maximum(m[:, j, 4] - (m[:, j, 0] - centre[j]) ** 2, 0.0))
-        parts.append(pd.DataFrame(out, index=g.index))
-    table = pd.concat(parts).loc[intervals.index]
-    table.attrs["signed"] = sorted(k for k, v in signed.items() if v)
-    return table
+        for iv, out_parts in zip(intervals, parts):
+            g = iv.iloc[rows]
+            m = interval_means(cols, t, g.t0.to_numpy(), g.t1.to_numpy(), cum).reshape(len(g), len(names), 5)
+            out = {}
+            for j, k in enumerate(names):
+                out[f"x:{k}"], out[f"abs:{k}"], out[f"rate:{k}"], out[f"abs_rate:{k}"] = (m[:, j, 0], m[:, j, 1],
+                                                                                         m[:, j, 2], m[:, j, 3])
+                out[f"spread:{k}"] = np.sqrt(np.maximum(m[:, j, 4] - (m[:, j, 0] - centre[j]) ** 2, 0.0))
+            out_parts.append(pd.DataFrame(out, index=g.index))
+    tables = []
+    for iv, out_parts in zip(intervals, parts):
+        table = pd.concat(out_parts).loc[iv.index]
+        table.attrs["signed"] = sorted(k for k, v in signed.items() if v)
+        tables.append(table)
+    return tables
 
 
 def _hinge(u, softness):

@@ -43,7 +43,7 @@ import pandas as pd
 from . import train as _train
 from .batch import to_batch
 from .campaign import Campaign
-from .candidates import Candidate, library, values, window_table
+from .candidates import Candidate, library, values, window_table, window_tables
 from .config import ExperimentConfig
 from .databases import DB_INPUTS, OUTPUT, STATE_CHANNELS, build_databases
 from .effects import lag as _lag
@@ -230,13 +230,33 @@ class _Windows:
         key = round(float(offset), 6)
         if key in self._shifted:
             return self._shifted[key]
-        iv = self.table[["counter", "t0", "t1"]].assign(t0=self.table.t0 + self.offset - offset,
-                                                         t1=self.table.t1 + self.offset - offset)
+        iv = self._shift(offset)
         chans = None if extra is None else {ch for c in extra for ch in c.channels}
         out = window_table(self.campaign, iv, self.exclude, channels=chans)
         if extra is None:
             self._shifted[key] = out
         return out
+
+    def _shift(self, offset: float) -> pd.DataFrame:
+        return self.table[["counter", "t0", "t1"]].assign(t0=self.table.t0 + self.offset - offset,
+                                                         t1=self.table.t1 + self.offset - offset)
+
+    def prefetch(self, offsets) -> None:
+        """Compute the full tables at these offsets that `at` has not computed yet, in one
+        pass over the records (`window_tables`: a record's series once for all offsets)."""
+        todo = {}  # key -> (own offset?, offset), as `at` would compute them
+        for off in offsets:
+            own, key = abs(off - self.offset) < 1e-9, round(float(off), 6)
+            if ((self._cands is None) if own else (key not in self._shifted)) and key not in todo:
+                todo[key] = (own, off)
+        if len(todo) < 2:  # nothing to share
+            return
+        ivs = [self.table[["counter", "t0", "t1"]] if own else self._shift(off) for own, off in todo.values()]
+        for (key, (own, _)), tab in zip(todo.items(), window_tables(self.campaign, ivs, self.exclude)):
+            if own:
+                self._cands = tab
+            else:
+                self._shifted[key] = tab
 
     def values(self, c: Candidate) -> np.ndarray:
         """A candidate's value per window, at its own alignment (`offset_s` parameter)."""
@@ -960,6 +980,7 @@ def _candidate_matrix(ctx: _Ctx, model: Model, win: _Windows, yhat, used_keys,
     # parameter are also tried at `candidate_offsets_s` (a transient's faster response).
     lib, cols, flib, fcols = [], [], [], []
     extra = sorted({round(float(o), 6) for o in d.candidate_offsets_s} - {round(float(model.offset_s), 6)})
+    win.prefetch([model.offset_s, *extra])
     for off in [model.offset_s, *extra]:
         table = win.at(off)  # `win.cands` at the model's own offset (`win` is its replay)
         for c in library(table, model_inputs=taken, knee_quantiles=d.knee_quantiles):

@@ -119,3 +119,28 @@ def test_rate_of_many_columns_equals_numpys_interpolation_column_by_column():
         ref = (np.interp(hi, t, x[:, c]) - np.interp(lo, t, x[:, c])) / np.maximum(hi - lo, 1e-12)
         np.testing.assert_array_equal(_rate(x, t, span)[:, c], ref)  # the same numbers, not close ones
         np.testing.assert_array_equal(_rate(x[:, c], t, span), ref)
+
+
+def test_window_tables_of_several_offsets_equal_one_table_each(tiny):
+    from pvvjax.candidates import window_tables
+    from pvvjax.discovery import _Windows
+
+    c = _campaign(tiny)
+    rows = []
+    for name in c.names:
+        t = c.records[name].time_s.to_numpy()
+        rows += [(name, a, a + 0.8) for a in np.arange(t[0] + 0.3, t[-1] - 1.0, 0.45)]
+    iv = pd.DataFrame(rows, columns=["counter", "t0", "t1"], index=np.arange(len(rows))[::-1])  # any index
+    moved = iv.assign(t0=iv.t0 - 0.37, t1=iv.t1 - 0.37)
+    both = window_tables(c, [iv, moved])
+    for tab, ref in zip(both, (window_table(c, iv), window_table(c, moved))):
+        pd.testing.assert_frame_equal(tab, ref, check_exact=True)
+        assert tab.attrs == ref.attrs
+    with pytest.raises(ValueError, match="share their index"):
+        window_tables(c, [iv, moved.iloc[1:]])
+    # Discovery's replayed windows fetch the tables of a round's offsets in one pass.
+    win = _Windows(iv.assign(maneuver="level"), (1, len(iv)), (), c, offset=0.2)
+    win.prefetch([0.2, 0.57, 0.57])
+    assert win._cands is not None and set(win._shifted) == {0.57}
+    pd.testing.assert_frame_equal(win.at(0.57), window_table(c, win._shift(0.57)), check_exact=True)
+    pd.testing.assert_frame_equal(win.cands, window_table(c, iv), check_exact=True)
