@@ -87,7 +87,7 @@ for tau in (0.0, 0.5, 1.0):
 
 # %% [markdown]
 # ## One offset and window length for all maneuvers
-# Levenberg-Marquardt (optimistix) from the best point of a coarse grid, vmapped over the
+# Levenberg-Marquardt from the best point of a coarse grid, vmapped over the
 # two databases; a brute-force grid checks it.
 
 # %%
