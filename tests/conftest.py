@@ -19,6 +19,18 @@ import pandas as pd  # noqa: E402
 import pytest  # noqa: E402
 
 
+def pytest_configure(config):
+    # xdist hands tests out one at a time (two pending per worker), so that the heavy tests,
+    # collected first, spread over the workers and the light ones fill the gaps: in chunks
+    # of consecutive tests one worker would take most heavy tests (a minute or more at the end).
+    if hasattr(config.option, "maxschedchunk") and config.option.maxschedchunk is None:
+        config.option.maxschedchunk = 1
+
+
+def pytest_collection_modifyitems(config, items):
+    items.sort(key=lambda item: item.get_closest_marker("heavy") is None)  # stable: heavy first
+
+
 def tiny_records(n_counters=2, seconds=12.0, spr=64, rpm=257.8, seed=0):
     """Counters table and records of a small valid campaign (constant rotor speed)."""
     rng = np.random.default_rng(seed)

@@ -25,6 +25,7 @@ def lagged():
     return taus, R.prepare(batch), R.make_settings(batch, hop_revs=1.0), _per_counter(linear_model(), 4)
 
 
+@pytest.mark.heavy
 def test_calibration_recovers_known_lags_per_group(lagged):
     taus, recs, settings, models = lagged
     coarse = np.arange(-1.0, 3.01, 0.5)[:, None]
@@ -69,6 +70,7 @@ def small_cal(small_campaign_dir, small_dbs):
     return R.prepare(batch), R.make_settings(batch, hop_revs=1.0, min_window_revs=6.0), models
 
 
+@pytest.mark.heavy
 def test_gradient_optimum_agrees_with_a_brute_force_grid(small_cal):
     from pvvjax.networks import rbf_apply
 
@@ -91,6 +93,7 @@ def test_gradient_optimum_agrees_with_a_brute_force_grid(small_cal):
         assert float(cal.cost[0]) <= grid.min() * (1 + 2e-4)
 
 
+@pytest.mark.heavy
 def test_calibration_vmaps_over_databases(lagged):
     _, recs, settings, model = lagged
     other = {**model, "params": {**model["params"], "w": model["params"]["w"] * 1.3}}

@@ -27,6 +27,7 @@ def test_console_script_help():
         assert cmd in out.stdout
 
 
+@pytest.mark.heavy
 def test_main_job_on_the_embedded_campaign(tmp_path, capsys, default_campaign_dir):
     cfg = tmp_path / "paper.toml"
     cfg.write_text(f'name = "t"\nout_dir = "{tmp_path.as_posix()}"\n[analysis]\nwindow_revs = 8.0\n')
@@ -46,6 +47,7 @@ def test_missing_campaign_folder_is_a_clear_error(tmp_path, capsys):
     assert "campaign folder not found" in capsys.readouterr().err
 
 
+@pytest.mark.heavy
 def test_sweep_then_export_a_numpy_net(tmp_path, small_campaign_dir, capsys):
     cfg = tmp_path / "s.toml"
     cfg.write_text(f'''name = "s"\nout_dir = "{tmp_path.as_posix()}"\n[campaign]\npath = "{small_campaign_dir.as_posix()}"
@@ -73,6 +75,7 @@ def test_sweep_then_export_a_numpy_net(tmp_path, small_campaign_dir, capsys):
     assert sig.pvv_g.notna().all() and sig.pvv_g.max() > 0.05 and sig.shake_g.abs().max() > 0.0
 
 
+@pytest.mark.heavy
 def test_replay_and_calibrate_commands(tmp_path, small_campaign_dir, capsys):
     import pandas as pd
 
@@ -111,6 +114,7 @@ def test_cli_reference_in_the_docs_is_current():
     assert doc.read_text() == cli_reference(), "regenerate with: python experiments/reference_docs.py --docs"
 
 
+@pytest.mark.heavy
 def test_main_job_with_networks_reports_table1_beside_the_paper(tmp_path, small_campaign_dir, capsys):
     cfg = tmp_path / "p.toml"
     cfg.write_text(f'''name = "p"\nout_dir = "{tmp_path.as_posix()}"\n[campaign]\npath = "{small_campaign_dir.as_posix()}"

@@ -100,6 +100,7 @@ def test_a_knee_of_the_models_own_inputs_joins_the_floor_and_is_not_named_throug
     assert [j for _, j, _ in proposals] == [1] and [j for _, j, _ in absorbed] == [cand.shape[1]]
 
 
+@pytest.mark.heavy
 def test_refine_recovers_a_knee_and_a_band_and_keeps_a_band_in_its_grid_cell():
     from pvvjax.candidates import Candidate
     from pvvjax.discovery import _refine
@@ -290,6 +291,7 @@ _BASE = dict(maneuvers=("level", "climb", "descent", "turn", "roll", "pushover",
                       "rotor_resonance": {"enabled": False}})
 
 
+@pytest.mark.heavy
 def test_cli_on_a_world_without_hidden_effects_names_nothing(tmp_path):
     from pvvjax._strict import from_dict
     from pvvjax.campaign import write_campaign
@@ -319,6 +321,7 @@ def test_report_lists_the_other_confirmed_tries_of_an_effects_round():
     assert _also_confirmed(rounds, 2, "d") == "none"
 
 
+@pytest.mark.heavy
 def test_a_lag_fit_measures_a_lag_and_runs_to_the_grid_end_on_prediction_noise():
     # Steady counters, half with a step: a measurement that lags the prediction by 1 s gives a
     # time constant of 1 s. Steady counters measured without a lag, against a noisy
@@ -338,6 +341,7 @@ def test_a_lag_fit_measures_a_lag_and_runs_to_the_grid_end_on_prediction_noise()
     assert tau == max(taus) and not _lag_identified(tau, taus)
 
 
+@pytest.mark.heavy
 def test_nets_trained_on_the_windows_see_every_strided_window_and_lower_the_floor(monkeypatch):
     # train_rows = "windows": after the peak nets calibrate the offset, the baseline is
     # retrained on every train_stride-th fully weighted window of the replay at that offset
@@ -357,13 +361,15 @@ def test_nets_trained_on_the_windows_see_every_strided_window_and_lower_the_floo
         return fit(x, y, folds, **kw)
 
     monkeypatch.setattr(D, "fit_ensemble", recorded)
+    contexts, context = [], D._context
+    monkeypatch.setattr(D, "_context", lambda *a: contexts.append(context(*a)) or contexts[-1])
     res = {}
     for rows in ("peaks", "windows"):
         d = from_dict(DiscoveryConfig, {**_FAST, "max_effects": 0, "train_rows": rows, "train_stride": 8})
         res[rows] = D.discover(camp, ExperimentConfig(discovery=d), log=lambda m: None)
     assert len(calls) == 3  # peaks; peaks (to calibrate the offset), then windows
     x, y, folds = calls[2]
-    ctx = D._context(camp, ExperimentConfig(discovery=d), lambda m: None)
+    ctx = contexts[-1]  # the "windows" run's
     ctx.replay_params = res["windows"].baseline.params  # any nets: the windows do not depend on them
     win = D._replay(ctx, res["windows"].baseline.offset_s)
     rows = (win.table.weight.to_numpy() >= 0.999) & (win.table.k.to_numpy() % 8 == 0)

@@ -30,6 +30,7 @@ def test_delag_undoes_the_exact_lag_recursion():
     np.testing.assert_array_equal(delag(y, t, i, 0.0), y)
 
 
+@pytest.mark.heavy
 def test_a_world_without_a_hidden_lag_gains_nothing_from_nets_trained_through_one(monkeypatch):
     # The nets train on the de-lagged strided windows (recorded), their offset is refitted,
     # and on a world with nothing hidden a 2 s lag does not lower the held-out RMS by 5 %.
@@ -145,6 +146,7 @@ def test_lag_test_weighs_the_slow_lag_against_the_best_fast_one(monkeypatch):
     assert "where it acts (pullup)" in got["why"]
 
 
+@pytest.mark.heavy
 def test_discover_names_a_long_lag_first_with_nets_trained_through_it(monkeypatch, tmp_path):
     # A world whose vibration lags its state by 2 s: the lag test (here τ = 0 at the peak
     # nets' offset against τ = 3 s) names the lag first; the baseline becomes the test's

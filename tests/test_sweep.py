@@ -27,6 +27,7 @@ def _cfg(**sweep):
     return ExperimentConfig(sweep=SweepConfig(**{**base, **sweep}), train=FAST)
 
 
+@pytest.mark.heavy
 def test_sweep_results_params_and_resume(tmp_path, small_dbs):
     cfg = _cfg()
     res = run_sweep(cfg, small_dbs, tmp_path, log=lambda *a: None)
@@ -101,6 +102,7 @@ def _sweep_config_file(tmp_path, campaign_dir, n_archs):
     return cfg
 
 
+@pytest.mark.heavy
 def test_killed_sweep_resumes_without_duplicates_or_corrupt_files(tmp_path, small_campaign_dir):
     cfg = _sweep_config_file(tmp_path, small_campaign_dir, n_archs=8)
     out = tmp_path / "kill" / "sweep"
@@ -145,6 +147,7 @@ print(json.dumps(dict(zip(res.net_id, res.val_rms_g))))
 """
 
 
+@pytest.mark.heavy
 def test_sweep_axis_is_sharded_over_devices_in_a_separate_process(tmp_path, small_campaign_dir, small_dbs):
     env = {**os.environ, "XLA_FLAGS": "--xla_force_host_platform_device_count=2", "JAX_PLATFORMS": "cpu"}
     out = subprocess.run([sys.executable, "-c", SHARDING_SCRIPT, str(small_campaign_dir), str(tmp_path / "two")],
