@@ -168,7 +168,8 @@ def _levenberg_marquardt(fn, y0, *, max_steps: int, rtol: float, atol: float):
         y, r, J, lam, k, _ = s
         H = J.T @ J
         d = jnp.diag(H)
-        dy = jnp.linalg.solve(H + jnp.diag(lam * d + 1e-12 * (jnp.max(d) + 1e-30)), -(J.T @ r))
+        floor = 1e-12 * jnp.max(d) + jnp.sqrt(jnp.finfo(d.dtype).tiny)  # a flat cost: a zero step, not 0 / 0
+        dy = jnp.linalg.solve(H + jnp.diag(lam * d + floor), -(J.T @ r))
         r1, J1 = linearize(y + dy)
         c, c1 = jnp.sum(r**2), jnp.sum(r1**2)
         accept = jnp.isfinite(c1) & (c1 < c)

@@ -139,5 +139,9 @@ def test_levenberg_marquardt_reaches_optimistixs_minimum_and_keeps_a_flat_parame
     y, steps, ok = _levenberg_marquardt(rosen, jnp.array([-1.2, 1.0]), max_steps=100, rtol=1e-7, atol=1e-10)
     np.testing.assert_allclose(np.asarray(y), [1.0, 1.0], atol=1e-4)
     assert bool(ok)
+    # A flat cost (no parameter enters): converged at once, where it started.
+    y, steps, ok = _levenberg_marquardt(lambda y, _: jnp.full(5, 0.3), jnp.array([0.5, 1.0]), max_steps=20, rtol=1e-5,
+                                        atol=1e-6)
+    assert bool(ok) and int(steps) == 1 and np.asarray(y).tolist() == [0.5, 1.0]
     # Out of steps: not converged.
     assert not bool(_levenberg_marquardt(rosen, jnp.array([-1.2, 1.0]), max_steps=2, rtol=1e-7, atol=1e-10)[2])
