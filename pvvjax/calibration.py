@@ -153,7 +153,7 @@ def _levenberg_marquardt(fn, y0, *, max_steps: int, rtol: float, atol: float):
     cost by at most atol + rtol·cost (a rejected step that small: the minimum, to float
     precision). Written out rather than `optimistix.LevenbergMarquardt`: for 1-3
     parameters it takes the same kind of steps, but a vmapped `calibrate` compiles in about
-    half the time (16 s -> 8 s), which is most of a calibration's first call.
+    half the time (21 s -> 9 s on the test problem), which is most of a calibration's first call.
 
     Returns:
         (y, steps taken, converged).

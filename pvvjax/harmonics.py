@@ -205,7 +205,8 @@ def with_prefix(c: Columns) -> Columns:
     into a float32 pair) and a search table of its revolutions: a window sum then takes two
     prefix rows and weighs the few samples of its edge ramps, whatever the window length
     (NumPy: run once per record, outside jit; leading batch axes allowed)."""
-    cols = np.asarray(stack_columns(c).cols)
+    c = stack_columns(c)
+    cols = np.asarray(c.cols)
     w = np.asarray(c.width)
     *lead, T, n = cols.shape
     cols, w = cols.reshape(-1, T, n), w.reshape(-1, T)
@@ -223,7 +224,7 @@ def with_prefix(c: Columns) -> Columns:
         hi[r] = p
         lo[r] = p - hi[r]
     hi, lo = hi.reshape(*lead, T + 1, n + 1), lo.reshape(*lead, T + 1, n + 1)
-    return stack_columns(c)._replace(prefix=(jnp.asarray(hi), jnp.asarray(lo)),
+    return c._replace(prefix=(jnp.asarray(hi), jnp.asarray(lo)),
                                      lookup=jax.tree.map(jnp.asarray, make_lookup(c.rev)))
 
 
