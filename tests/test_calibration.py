@@ -129,19 +129,21 @@ def test_levenberg_marquardt_reaches_optimistixs_minimum_and_keeps_a_flat_parame
         return y[0] * jnp.exp(-y[1] * t) - data
 
     y0 = jnp.array([1.0, 0.5, 0.7])
-    y, steps, ok = jax.jit(lambda y0: _levenberg_marquardt(fn, y0, max_steps=64, rtol=1e-6, atol=1e-8))(y0)
+    y, r, steps, ok = jax.jit(lambda y0: _levenberg_marquardt(fn, y0, max_steps=64, rtol=1e-6, atol=1e-8))(y0)
     ref = optx.least_squares(fn, optx.LevenbergMarquardt(rtol=1e-6, atol=1e-8), y0, max_steps=256).value
     assert bool(ok) and int(steps) < 64
     np.testing.assert_allclose(np.asarray(y[:2]), np.asarray(ref[:2]), rtol=1e-4)
+    np.testing.assert_allclose(np.asarray(r), np.asarray(fn(y, None)), rtol=1e-6, atol=1e-7)  # the residuals at y
     assert float(y[2]) == float(y0[2])
     # Rosenbrock's valley as least squares: minimum at (1, 1).
     rosen = lambda y, _: jnp.stack([10.0 * (y[1] - y[0] ** 2), 1.0 - y[0]])  # noqa: E731
-    y, steps, ok = _levenberg_marquardt(rosen, jnp.array([-1.2, 1.0]), max_steps=100, rtol=1e-7, atol=1e-10)
+    y, r, steps, ok = _levenberg_marquardt(rosen, jnp.array([-1.2, 1.0]), max_steps=100, rtol=1e-7, atol=1e-10)
     np.testing.assert_allclose(np.asarray(y), [1.0, 1.0], atol=1e-4)
+    np.testing.assert_allclose(np.asarray(r), np.asarray(rosen(y, None)), atol=1e-6)
     assert bool(ok)
     # A flat cost (no parameter enters): converged at once, where it started.
-    y, steps, ok = _levenberg_marquardt(lambda y, _: jnp.full(5, 0.3), jnp.array([0.5, 1.0]), max_steps=20, rtol=1e-5,
-                                        atol=1e-6)
+    y, _, steps, ok = _levenberg_marquardt(lambda y, _: jnp.full(5, 0.3), jnp.array([0.5, 1.0]), max_steps=20,
+                                           rtol=1e-5, atol=1e-6)
     assert bool(ok) and int(steps) == 1 and np.asarray(y).tolist() == [0.5, 1.0]
     # Out of steps: not converged.
-    assert not bool(_levenberg_marquardt(rosen, jnp.array([-1.2, 1.0]), max_steps=2, rtol=1e-7, atol=1e-10)[2])
+    assert not bool(_levenberg_marquardt(rosen, jnp.array([-1.2, 1.0]), max_steps=2, rtol=1e-7, atol=1e-10)[3])
