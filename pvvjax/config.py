@@ -385,6 +385,12 @@ class DiscoveryConfig:
             the model's own offset: the static map's offset matches the slow, quasi-static
             changes, and a transient effect reaches the vibration through the faster rotor
             response (about 0.5 s).
+        resonance_probe: in a round that proposes no resonance, train the nets once with a
+            learned gain on every rotor-speed band of the grid at once and propose the band
+            of the largest gain as a resonance (retrained as a gain; the confirmation decides).
+            A mode the nets learned as a mean per rotor-speed level leaves a residual no
+            prediction × band column explains (`docs/discovery.md`). Off by default until the
+            whole hidden-effect benchmark is rerun with it.
     """
 
     database: str = "db1"
@@ -419,6 +425,7 @@ class DiscoveryConfig:
     lag_test_taus: tuple[float, ...] = (1.0, 2.0, 3.0)
     lag_fast_s: float = 1.0
     candidate_offsets_s: tuple[float, ...] = (0.5,)
+    resonance_probe: bool = False
 
     def __post_init__(self):
         _check_databases("discovery", (self.database,))

@@ -51,6 +51,7 @@ from .networks import mlp_apply, mlp_init, scaling
 from .replay import FEATURES, input_index, make_settings, prepare
 from .replay_tables import _replay_all
 from .residuals import localize
+from .selection import Selected as _Selected
 from .selection import _standardise, forward_select, gains
 from .selection import gain as _selection_gain
 from .sweep import _stack, train_nets
@@ -1085,6 +1086,36 @@ def _neighbour_cells(proposals, lib: list[Candidate], M, designs, resid, groups,
     return out
 
 
+def _probe_gains(ctx: _Ctx, model: Model, bands) -> np.ndarray:
+    """The gains of nets trained with a learned gain on every band at once (`gain_apply`),
+    median over folds and seeds: (len(bands),). The nets learn the response, the gains how
+    much each band magnifies it; a mode is the band of the largest."""
+    params = _train_model(ctx, model._replace(gains=model.gains + tuple(bands)))
+    g = np.asarray(params["gain"])[..., len(model.gains):]
+    return np.median(g.reshape(-1, len(bands)), axis=0)
+
+
+def _resonance_probe(ctx: _Ctx, model: Model, proposals, lib: list[Candidate], M, designs, resid, groups, d,
+                     seed: int, log) -> list:
+    """`proposals` and, if none is a resonance, the rotor-speed band of the largest
+    `_probe_gains` (the model's offset; a band not named already). Its `Selected` carries the
+    band's held-out gain as a column of the selection (usually ~0: what it explains is not
+    proportional to the prediction) and no p-value: the retraining's confirmation decides."""
+    if any(lib[j].operator == "resonance" for _, j, _ in proposals) or "all" not in designs:
+        return proposals
+    bands = [(j, c) for j, c in enumerate(lib)
+             if c.operator == "resonance" and c.parameters.get("offset_s") == model.offset_s]
+    if not bands:
+        return proposals
+    g = _probe_gains(ctx, model, [c for _, c in bands])
+    j = bands[int(np.argmax(g))][0]
+    rows, floor = designs["all"]
+    gain = float(gains(resid[rows], M[rows][:, [j]], groups[rows], base=floor, folds=d.folds, seed=seed)[0])
+    log("resonance probe: gains by band centre " + ", ".join(
+        f"{c.parameters['center']:.1f} {v:+.2f}" for (_, c), v in zip(bands, g)) + f": proposes {lib[j].name}")
+    return list(proposals) + [("all", j, _Selected(j, gain, float("nan"), float("nan")))]
+
+
 def _propose(win: _Windows, yhat, resid, C, rows, own, floor_all, d, seed: int, complexity, keys,
              is_floor=None) -> tuple[list, list, dict]:
     """Significant candidates over all windows and, with `local_selection`, inside each
@@ -1267,6 +1298,9 @@ def discover(campaign: Campaign, cfg: ExperimentConfig = ExperimentConfig(), *, 
                                                 is_floor=np.arange(len(both)) >= len(lib))
         lib = both  # proposals and their runners-up index both
         proposals = _neighbour_cells(proposals, lib, M, designs, resid, groups, d, seed=cfg.seed + rnd)
+        if d.resonance_probe:
+            proposals = _resonance_probe(ctx, current, proposals, lib, M, designs, resid, groups, d, cfg.seed + rnd,
+                                         lambda m: log(f"round {rnd + 1}: {m}"))
         if rnd == 0:  # the selection's design: its floor with the refinements it took over all windows
             taken = [M[sel_rows, j] for where, j, _ in absorbed if where == "all"]
             first = Residual(resid, sel_rows, np.column_stack([floor, *taken]) if taken else floor,

@@ -257,6 +257,59 @@ def test_gain_net_learns_a_known_magnification_jointly_with_the_response():
     np.testing.assert_allclose(gain_apply(one, xb), mlp_apply(one, xb[:, :2]) * (1 + b * one["gain"][0]), rtol=1e-5)
 
 
+def test_gains_on_every_band_at_once_find_the_mode_the_nets_input_already_carries():
+    """The resonance probe's premise: rotor speed at five levels is a net input, the top level
+    magnified 2.2x; nets trained with a gain on each level's band learn the response from every
+    level and put the largest gain on the mode's band (a net alone learns a mean per level)."""
+    from pvvjax.config import TrainConfig
+    from pvvjax.discovery import fit_ensemble
+
+    rng = np.random.default_rng(1)
+    n = 300
+    x = rng.uniform(-1, 1, (n, 2))
+    levels = np.array([245.0, 251.0, 258.0, 265.0, 271.0])
+    rpm = rng.choice(levels, n, p=[0.12, 0.12, 0.5, 0.13, 0.13])
+    bands = np.exp(-0.5 * ((rpm[:, None] - levels[None]) / 3.2) ** 2)
+    y = (0.12 + 0.04 * x[:, 0] + 0.03 * x[:, 1] ** 2) * np.where(rpm == 271.0, 2.2, 1.0)
+    p = fit_ensemble(np.column_stack([x, (rpm - 258.0) / 8.0, bands]), y, np.arange(n) % 3, k=3, seeds=2,
+                     hidden=(4,), n_gain=5, train_cfg=TrainConfig(max_steps=3000))
+    g = np.median(p["gain"].reshape(-1, 5), axis=0)
+    assert int(np.argmax(g)) == 4, g
+    assert g[4] > g[:4].max() + 0.5, g
+
+
+def test_the_resonance_probe_proposes_the_band_of_the_largest_gain_unless_one_is_proposed(monkeypatch):
+    import pvvjax.discovery as D
+    from pvvjax.candidates import Candidate
+    from pvvjax.config import DiscoveryConfig
+    from pvvjax.selection import Selected
+
+    model = D.Model(params={}, inputs=("rotor_rpm",), offset_s=1.0)
+    band = lambda c, off=1.0: Candidate("resonance", ("rotor_rpm",), {"center": c, "width": 3.0, "offset_s": off})  # noqa: E731
+    lib = [Candidate("input", ("sideslip_deg",), {"offset_s": 1.0}), band(250.0), band(260.0), band(270.0),
+           band(270.0, 0.5)]
+    seen = []
+
+    def fake(ctx, m, bands):
+        seen.append([c.parameters["center"] for c in bands])
+        return np.array([0.1, 0.2, 0.9])
+
+    monkeypatch.setattr(D, "_probe_gains", fake)
+    rng = np.random.default_rng(0)
+    n = 200
+    M, resid, groups = rng.normal(size=(n, len(lib))), rng.normal(size=n), np.arange(n) // 4
+    designs = {"all": (np.ones(n, bool), np.ones((n, 1)))}
+    d = DiscoveryConfig()
+    first = [("all", 0, Selected(0, 0.3, 0.3, 0.01))]
+    out = D._resonance_probe(None, model, first, lib, M, designs, resid, groups, d, 0, lambda m: None)
+    assert seen == [[250.0, 260.0, 270.0]]  # the bands at the model's offset only
+    assert out[:1] == first and len(out) == 2
+    where, j, s = out[1]
+    assert (where, j, s.index) == ("all", 3, 3) and np.isnan(s.p_value) and np.isfinite(s.gain)
+    with_band = [("all", 2, Selected(2, 0.3, 0.3, 0.01))]
+    assert D._resonance_probe(None, model, with_band, lib, M, designs, resid, groups, d, 0, print) == with_band
+
+
 def test_candidates_the_selection_cannot_tell_apart_are_retrained_simplest_then_best():
     from pvvjax.discovery import _try_order
 
