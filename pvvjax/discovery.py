@@ -1101,7 +1101,7 @@ def _resonance_probe(ctx: _Ctx, model: Model, proposals, lib: list[Candidate], M
     `_probe_gains` (the model's offset; a band not named already). Its `Selected` carries the
     band's held-out gain as a column of the selection (usually ~0: what it explains is not
     proportional to the prediction) and no p-value: the retraining's confirmation decides."""
-    if any(lib[j].operator == "resonance" for _, j, _ in proposals) or "all" not in designs:
+    if any(lib[j].operator == "resonance" for _, j, _ in proposals):
         return proposals
     bands = [(j, c) for j, c in enumerate(lib)
              if c.operator == "resonance" and c.parameters.get("offset_s") == model.offset_s]
@@ -1110,7 +1110,7 @@ def _resonance_probe(ctx: _Ctx, model: Model, proposals, lib: list[Candidate], M
     g = _probe_gains(ctx, model, [c for _, c in bands])
     j = bands[int(np.argmax(g))][0]
     rows, floor = designs["all"]
-    gain = float(gains(resid[rows], M[rows][:, [j]], groups[rows], base=floor, folds=d.folds, seed=seed)[0])
+    gain = _selection_gain(resid[rows], M[rows, j], groups[rows], base=floor, folds=d.folds, seed=seed)
     log("resonance probe: gains by band centre " + ", ".join(
         f"{c.parameters['center']:.1f} {v:+.2f}" for (_, c), v in zip(bands, g)) + f": proposes {lib[j].name}")
     return list(proposals) + [("all", j, _Selected(j, gain, float("nan"), float("nan")))]
