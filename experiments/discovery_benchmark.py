@@ -4,7 +4,8 @@ Each scenario generates a synthetic campaign (the base physics of the benchmark 
 the scenario's effect, or nothing for a null scenario), runs `pvvjax.discovery.discover`
 on it, which never sees the generator's settings, and scores the outcome against the truth:
 the effect ranked first, its fitted parameter, and the attributable shrink
-(before − after) / (before − before of the null scenario with the same seed).
+(before − after) / (before − before of the null scenario with the same seed; for an input
+taken away from the model, before of the database that has it, on the same world).
 
     python experiments/discovery_benchmark.py experiments/configs/discovery/benchmark.toml [--only a,b] [--docs]
         [--seed-offsets 0,1]   # and again with every seed shifted by 1 (a replication)
@@ -50,7 +51,7 @@ def scenario_configs(path, seed_offset: int = 0) -> tuple[list[dict], dict]:
         seed = sc["seed"] + seed_offset
         synth = from_dict(SynthConfig, {**base, "name": f"bench-{sc['name']}", "seed": seed, "effects": effects})
         out.append(dict(name=sc["name"], seed=seed, database=sc.get("database", "db1"), truth=sc.get("truth"),
-                        synth=synth))
+                        reference_database=sc.get("reference_database"), synth=synth))
     return out, raw.get("discovery", {})
 
 
@@ -103,7 +104,20 @@ def run_scenario(sc: dict, overrides: dict, out: Path, log=print):
         kinds = row["region"].split(", ")
         row["region_before_g"] = _rms_in(res, kinds, "predicted_before_g")
         row["region_after_g"] = _rms_in(res, kinds, "predicted_after_g")
-    return row, res
+    ref = reference_baseline(campaign, sc, overrides, log) if sc.get("reference_database") else None
+    return row, res, ref
+
+
+def reference_baseline(campaign, sc: dict, overrides: dict, log=print):
+    """The baseline without the effect on the scenario's own world, for an input taken away
+    from the model: the database that has it (`reference_database`; db2 is db3 plus the
+    gross weight). A db1 null of the same seed differs from db3 in more inputs than the
+    weight, and its baseline's error floor by as much as the gap itself. Discovery with no
+    rounds trains, calibrates and replays that baseline alone."""
+    dcfg = from_dict(DiscoveryConfig, {**overrides, "database": sc["reference_database"], "max_effects": 0})
+    tag = f"{sc['name']}, {sc['reference_database']}"
+    return discover(campaign, ExperimentConfig(name=tag, discovery=dcfg), name=sc["synth"].name,
+                    log=lambda m: log(f"  [{tag}] {m}"))
 
 
 def _rms_in(res, kinds, column: str = "predicted_before_g") -> float:
@@ -139,16 +153,18 @@ def identifiability(res, null) -> dict:
     return out
 
 
-def attributable(df: pd.DataFrame, nulls: dict) -> pd.DataFrame:
-    """(before − after) / (before − before of the same seed's null scenario): over all
-    windows (RMS), in the named effect's region (RMS), and on the scenario's gap metric
+def attributable(df: pd.DataFrame, nulls: dict, references: dict | None = None) -> pd.DataFrame:
+    """(before − after) / (before − before of the same seed's null scenario, or of the
+    scenario's own reference baseline where `references` holds one by scenario name): over
+    all windows (RMS), in the named effect's region (RMS), and on the scenario's gap metric
     (`truth.gap_metric`, default RMS: a lag lowers the RMS, since the smoothed vibration is
     easier to fit, and shows in the peaks instead)."""
     df = df.copy()
+    references = references or {}
     for col in ("rms_null_g", "region_null_g", "attributable_rms", "attributable_region", "attributable_shrink"):
         df[col] = np.nan
     for i, r in df.iterrows():
-        null = nulls.get(r.seed)
+        null = references.get(r.scenario, nulls.get(r.seed))
         if r.hidden == "none" or null is None:
             continue
         null_before = null.before
@@ -181,10 +197,13 @@ def run_all(scenarios, overrides, out: Path) -> pd.DataFrame:
     """Every scenario (the null ones first: they are the references of the hidden ones with
     the same seed), scored; writes `out/results.*` and each scenario's folder."""
     out.mkdir(parents=True, exist_ok=True)
-    rows, nulls = [], {}
+    rows, nulls, refs = [], {}, {}
     for sc in sorted(scenarios, key=lambda s: s["truth"] is not None):
         print(f"scenario {sc['name']} (seed {sc['seed']}, {sc['database']})", flush=True)
-        r, res = run_scenario(sc, overrides, out)
+        r, res, ref = run_scenario(sc, overrides, out)
+        if ref is not None:
+            r["reference"] = f"{ref.database} baseline"
+            refs[sc["name"]] = ref
         if sc["truth"] is None:
             nulls[sc["seed"]] = res
         elif sc["seed"] in nulls:
@@ -193,7 +212,7 @@ def run_all(scenarios, overrides, out: Path) -> pd.DataFrame:
         print(f"  named: {r['named']}; correct: {r['correct_first']}; RMS {r['rms_before_g']:.4f} -> "
               f"{r['rms_after_g']:.4f} g; {r['seconds']:.0f} s", flush=True)
         pd.DataFrame(rows).to_csv(out / "partial.csv", index=False)
-    df = attributable(pd.DataFrame(rows), nulls)
+    df = attributable(pd.DataFrame(rows), nulls, refs)
     write_table(df, out / "results", ExperimentConfig(discovery=from_dict(DiscoveryConfig, overrides)))
     print(df.drop(columns=["generate_s"]).to_string())
     print(f"results: {out / 'results.csv'}")
@@ -251,6 +270,7 @@ def _summary(df: pd.DataFrame) -> dict:
                 nulls_clean=f"{int(nulls.correct_first.sum())} / {len(nulls)}",
                 attributable_median=float(np.nanmedian(hidden.attributable_shrink)),
                 attributable_at_least_half=f"{int((hidden.attributable_shrink >= 0.5).sum())} / {len(hidden)}",
+                gap_measured=f"{int(hidden.attributable_shrink.notna().sum())} / {len(hidden)}",
                 seconds=f"{df.seconds.min():.0f}-{df.seconds.max():.0f}")
 
 
@@ -259,12 +279,16 @@ def _blank(t: pd.DataFrame) -> pd.DataFrame:
     return t.astype(object).where(t.notna(), np.nan)
 
 
+_SUMMARY_HEADER = ("| seeds | right first | truth confirmed | nulls clean | attributable ≥ 0.5 | gap measured "
+                   "| median attributable | seconds |\n|---|---|---|---|---|---|---|---|\n")
+
+
 def write_docs(tables: dict, config: str, offsets: str):
     tables = {off: _blank(t) for off, t in tables.items()}
     df = tables[min(tables)]
     cols = ["scenario", "seed", "database", "hidden", "named", "correct_first", "truth_confirmed", "parameter",
-            "true_value", "fitted_value", "rms_null_g", "rms_before_g", "rms_after_g", "region", "region_null_g",
-            "region_before_g", "region_after_g", "peak_before_g", "peak_after_g", "phase_before_s",
+            "true_value", "fitted_value", "reference", "rms_null_g", "rms_before_g", "rms_after_g", "region",
+            "region_null_g", "region_before_g", "region_after_g", "peak_before_g", "peak_after_g", "phase_before_s",
             "phase_after_s", "gap_metric", "attributable_rms", "attributable_region", "attributable_shrink",
             "effect_rms_g", "learned_share", "truth_gain", "named_gain", "seconds"]
     cols = [c for c in cols if c in df.columns]
@@ -285,10 +309,8 @@ Command: `python experiments/discovery_benchmark.py {config} --seed-offsets {off
 (2-core VM, {time.strftime('%Y-%m-%d')}; `seconds` is the wall time of each scenario:
 generation, training, offset, selection, retraining and replays).
 
-| seeds | right first | truth confirmed | nulls clean | attributable ≥ 0.5 | median attributable | seconds |
-|---|---|---|---|---|---|---|
-""" + "".join(f"| {r.seeds} | {r.right_first} | {r.truth_confirmed} | {r.nulls_clean} | "
-               f"{r.attributable_at_least_half} | {r.attributable_median:.2f} | {r.seconds} |\n"
+""" + _SUMMARY_HEADER + "".join(f"| {r.seeds} | {r.right_first} | {r.truth_confirmed} | {r.nulls_clean} | "
+               f"{r.attributable_at_least_half} | {r.gap_measured} | {r.attributable_median:.2f} | {r.seconds} |\n"
                for r in summary.itertuples()) + f"""
 On the config's seeds:
 
@@ -299,7 +321,11 @@ On the config's seeds:
   scenario's gap metric: median {s['attributable_median']:.2f}, ≥ 0.5 in {s['attributable_at_least_half']}
   scenarios. `attributable_rms` is over all windows, `attributable_region` over the named
   effect's region (the maneuver kinds where it acts), both against the null scenario's
-  baseline on the same windows.
+  baseline on the same windows (`rms_null_g`, `region_null_g`). Where an input is taken away
+  from the model (weight missing from db3) the world is the null world itself, and the
+  reference is the baseline of the database that has the input, on it (`reference`: db2,
+  which is db3 plus the gross weight). `gap measured`: the scenarios whose reference is
+  below their baseline (a gap to attribute); the others count as below 0.5.
 - `peak_*`: mean abs peak error over counters (g); `phase_*`: mean abs peak-time error over
   the transient counters (s; 3–5 s already on the null worlds, where a flat counter's
   largest window wanders, so a noisy gauge).

@@ -1,0 +1,60 @@
+"""Scoring of the hidden-effect benchmark (experiments/discovery_benchmark.py): the
+attributable shrink against the right reference. The discovery runs themselves are tested
+in test_discovery.py and the discovery notebook."""
+
+import importlib.util
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pandas as pd
+import pytest
+
+ROOT = Path(__file__).parents[1]
+
+
+@pytest.fixture(scope="module")
+def bench():
+    path = ROOT / "experiments" / "discovery_benchmark.py"
+    spec = importlib.util.spec_from_file_location("discovery_benchmark", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def _baseline(rms, peak=0.03):
+    return SimpleNamespace(before=dict(rms_g=rms, peak_error_g=peak, phase_error_s=4.0), lag_test=None)
+
+
+def _row(scenario, rms_before, rms_after, lag_baseline=False, gap_metric="rms_g"):
+    return dict(scenario=scenario, seed=1, hidden="x", rms_before_g=rms_before, rms_after_g=rms_after, region="",
+                lag_baseline=lag_baseline, gap_metric=gap_metric, peak_before_g=0.04, peak_after_g=0.035,
+                phase_before_s=4.0, phase_after_s=4.0)
+
+
+def test_attributable_shrink_is_against_the_null_of_the_seed_or_the_scenarios_own_reference(bench):
+    rows = pd.DataFrame([
+        _row("effect", 0.060, 0.050),                  # gap 0.02 over the null's 0.04: closes half
+        _row("missing-input", 0.050, 0.045),           # against its own reference (0.045): closes all
+        _row("below-null", 0.035, 0.034),              # before under the null's: no gap to attribute
+        _row("lagged", 0.060, 0.050, lag_baseline=True),  # reference nets of a lag test the null never ran
+        _row("peaks", 0.060, 0.050, gap_metric="peak_error_g"),
+    ])
+    out = bench.attributable(rows, {1: _baseline(0.040)}, {"missing-input": _baseline(0.045)})
+    got = dict(zip(out.scenario, out.attributable_shrink))
+    assert got["effect"] == pytest.approx(0.5) and got["missing-input"] == pytest.approx(1.0)
+    assert np.isnan(got["below-null"]) and np.isnan(got["lagged"])
+    assert got["peaks"] == pytest.approx((0.04 - 0.035) / (0.04 - 0.03))  # on the peak error
+    assert dict(zip(out.scenario, out.rms_null_g))["missing-input"] == 0.045
+
+
+def test_the_weight_scenarios_reference_is_db3_plus_the_gross_weight(bench):
+    from pvvjax.databases import DB_INPUTS
+
+    scenarios, _ = bench.scenario_configs(ROOT / "experiments" / "configs" / "discovery" / "benchmark.toml", 2)
+    (weight,) = [s for s in scenarios if s["reference_database"]]
+    ref, model = DB_INPUTS[weight["reference_database"]], DB_INPUTS[weight["database"]]
+    assert set(ref) - set(model) == {"gross_weight_lb"} and set(model) <= set(ref)
+    # the same world as the null scenario of its seed: nothing hidden in the generator
+    (null,) = [s for s in scenarios if s["truth"] is None and s["seed"] == weight["seed"]]
+    assert weight["synth"].effects == null["synth"].effects and weight["seed"] == 43
