@@ -104,7 +104,10 @@ def run_scenario(sc: dict, overrides: dict, out: Path, log=print):
         kinds = row["region"].split(", ")
         row["region_before_g"] = _rms_in(res, kinds, "predicted_before_g")
         row["region_after_g"] = _rms_in(res, kinds, "predicted_after_g")
-    ref = reference_baseline(campaign, sc, overrides, log) if sc.get("reference_database") else None
+    ref = None
+    if sc.get("reference_database"):
+        ref = reference_baseline(campaign, sc, overrides, log)
+        row["reference"] = f"{ref.database} baseline"
     return row, res, ref
 
 
@@ -195,14 +198,14 @@ def attributable(df: pd.DataFrame, nulls: dict, references: dict | None = None) 
 
 def run_all(scenarios, overrides, out: Path) -> pd.DataFrame:
     """Every scenario (the null ones first: they are the references of the hidden ones with
-    the same seed), scored; writes `out/results.*` and each scenario's folder."""
+    the same seed, unless a scenario brings its own `reference_baseline`), scored; writes
+    `out/results.*` and each scenario's folder."""
     out.mkdir(parents=True, exist_ok=True)
     rows, nulls, refs = [], {}, {}
     for sc in sorted(scenarios, key=lambda s: s["truth"] is not None):
         print(f"scenario {sc['name']} (seed {sc['seed']}, {sc['database']})", flush=True)
         r, res, ref = run_scenario(sc, overrides, out)
         if ref is not None:
-            r["reference"] = f"{ref.database} baseline"
             refs[sc["name"]] = ref
         if sc["truth"] is None:
             nulls[sc["seed"]] = res
