@@ -239,9 +239,19 @@ def window_tables(campaign: Campaign, intervals: list[pd.DataFrame], exclude=(),
             raise ValueError(f"counter {counter}: channels {list(ser)} differ from the other counters' {names}")
         t = rec["time_s"].to_numpy(np.float64)
         span = 60.0 / float(np.mean(rec["rotor_rpm"])) if "rotor_rpm" in rec else 0.25  # one revolution, s
-        x = np.stack(list(ser.values()), axis=1)  # (T, C)
+        # A few windows in a long record (the training windows: one per record) take only the
+        # samples they and their rates reach (a revolution of margin; rates inside are the
+        # record's). Windows over most of the record integrate it whole, from its start.
+        lo = min(float(iv.t0.iloc[rows].min()) for iv in intervals) - span
+        hi = max(float(iv.t1.iloc[rows].max()) for iv in intervals) + span
+        i0 = max(int(np.searchsorted(t, lo)) - 2, 0)
+        i1 = min(int(np.searchsorted(t, hi)) + 2, len(t))
+        if i1 - i0 > len(t) // 2:
+            i0, i1 = 0, len(t)
+        x = np.stack([v[i0:i1] for v in ser.values()], axis=1)  # (T, C)
         # Centred before squaring: the spread of a large constant stays 0.
         centre = np.array([np.mean(v) for v in ser.values()])
+        t = t[i0:i1]
         r = _rate(x, t, span)
         cols = np.stack([x, np.abs(x), r, np.abs(r), (x - centre) ** 2], axis=2).reshape(len(t), -1)
         cum = _cumulative(cols, t)

@@ -144,3 +144,18 @@ def test_window_tables_of_several_offsets_equal_one_table_each(tiny):
     assert win._cands is not None and set(win._shifted) == {0.57}
     pd.testing.assert_frame_equal(win.at(0.57), window_table(c, win._shift(0.57)), check_exact=True)
     pd.testing.assert_frame_equal(win.cands, window_table(c, iv), check_exact=True)
+
+
+def test_a_few_windows_of_a_long_record_equal_the_same_windows_of_the_whole_record(tiny):
+    # One window per record (discovery's training windows) integrates only the samples it and
+    # its rates reach; against the same windows among others spanning each record (integrated
+    # from its start): the same means, rates and spreads, at the record's ends as well.
+    c = _campaign(tiny)
+    (a, b), (ta, tb) = c.names[:2], (c.records[n].time_s.to_numpy() for n in c.names[:2])
+    few = pd.DataFrame({"counter": [a, a, b], "t0": [ta[0] - 0.3, 2.0, tb[-1] - 0.6],
+                        "t1": [ta[0] + 0.7, 2.9, tb[-1] + 0.4]})
+    fill = [(n, s, s + 1.0) for n in (a, b) for s in np.arange(0.0, c.records[n].time_s.iloc[-1], 0.5)]
+    whole = pd.concat([few, pd.DataFrame(fill, columns=["counter", "t0", "t1"])], ignore_index=True)
+    got, ref = window_table(c, few), window_table(c, whole).iloc[:3]
+    assert np.abs(got["rate:pitch_rate_dps"]).min() > 0.1 and np.abs(got["spread:airspeed_kt"]).min() > 0.1
+    np.testing.assert_allclose(got.to_numpy(), ref.to_numpy(), rtol=1e-9, atol=1e-9)
