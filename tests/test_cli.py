@@ -89,12 +89,13 @@ def test_replay_and_calibrate_commands(tmp_path, small_campaign_dir, capsys):
     summary = pd.read_csv(out / "replay" / "summary.csv")
     assert set(summary.maneuver) == {"pullup", "pushover"} and (summary.offset_s == 0.5).all()
     assert len(list((out / "replay").glob("replay_*.png"))) == 1
-    assert main(["calibrate", str(cfg)]) == 0
-    cal = pd.read_csv(out / "calibration" / "calibration.csv")
-    assert len(cal) == 1 and -1.0 <= cal.offset_s[0] <= 3.0 and bool(cal.within_one_grid_step[0])
-    assert (out / "calibration" / "cost_map_db1_all.png").exists()
+    # One offset per maneuver kind (the default, one for all, is the main job's), each within a
+    # step of the brute-force grid's best; the first group's cost map.
     assert main(["calibrate", str(cfg), "--groups", "maneuver"]) == 0
-    assert set(pd.read_csv(out / "calibration" / "calibration.csv").group) == {"pullup", "pushover"}
+    cal = pd.read_csv(out / "calibration" / "calibration.csv")
+    assert set(cal.group) == {"pullup", "pushover"} and (cal.groups == "maneuver").all()
+    assert cal.offset_s.between(-1.0, 3.0).all() and cal.within_one_grid_step.all()
+    assert (out / "calibration" / f"cost_map_db1_{cal.group[0]}.png").exists()
 
 
 def test_replay_config_mistakes_are_clear_errors(tmp_path, capsys):
