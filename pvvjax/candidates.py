@@ -242,12 +242,13 @@ def window_tables(campaign: Campaign, intervals: list[pd.DataFrame], exclude=(),
         # A few windows in a long record (the training windows: one per record) take only the
         # samples they and their rates reach (a revolution of margin; rates inside are the
         # record's). Windows over most of the record integrate it whole, from its start.
-        lo = min(float(iv.t0.iloc[rows].min()) for iv in intervals) - span
-        hi = max(float(iv.t1.iloc[rows].max()) for iv in intervals) + span
-        i0 = max(int(np.searchsorted(t, lo)) - 2, 0)
-        i1 = min(int(np.searchsorted(t, hi)) + 2, len(t))
-        if i1 - i0 > len(t) // 2:
-            i0, i1 = 0, len(t)
+        edges = np.concatenate([np.r_[iv.t0.to_numpy()[rows], iv.t1.to_numpy()[rows]] for iv in intervals])
+        i0, i1 = 0, len(t)
+        if not np.isnan(edges).any():  # a NaN edge gives NaN means for its row, as over the whole record
+            i0 = max(int(np.searchsorted(t, edges.min() - span)) - 2, 0)
+            i1 = min(int(np.searchsorted(t, edges.max() + span)) + 2, len(t))
+            if i1 - i0 > len(t) // 2:
+                i0, i1 = 0, len(t)
         x = np.stack([v[i0:i1] for v in ser.values()], axis=1)  # (T, C)
         # Centred before squaring: the spread of a large constant stays 0.
         centre = np.array([np.mean(v) for v in ser.values()])

@@ -159,3 +159,8 @@ def test_a_few_windows_of_a_long_record_equal_the_same_windows_of_the_whole_reco
     got, ref = window_table(c, few), window_table(c, whole).iloc[:3]
     assert np.abs(got["rate:pitch_rate_dps"]).min() > 0.1 and np.abs(got["spread:airspeed_kt"]).min() > 0.1
     np.testing.assert_allclose(got.to_numpy(), ref.to_numpy(), rtol=1e-9, atol=1e-9)
+    # A window without times is NaN, and leaves the others as they were.
+    blank = pd.concat([few, pd.DataFrame({"counter": [b], "t0": [np.nan], "t1": [np.nan]})], ignore_index=True)
+    out = window_table(c, blank)
+    assert out.iloc[3].isna().all()
+    np.testing.assert_allclose(out.iloc[:3].to_numpy(), ref.to_numpy(), rtol=1e-9, atol=1e-9)
