@@ -175,11 +175,12 @@ def _levenberg_marquardt(fn, y0, *, max_steps: int, rtol: float, atol: float):
         r1, lin = jax.linearize(lambda v: fn(v, None), y + dy)
         J1 = jax.vmap(lin, out_axes=1)(eye)
         c1 = jnp.sum(r1**2)
+        first = k < 0  # the start point itself: accepted if finite, neither a step nor converged
         accept = jnp.isfinite(c1) & (c1 < c)
-        small = (k >= 0) & jnp.all(jnp.abs(dy) <= atol + rtol * jnp.abs(y)) & (c - c1 <= atol + rtol * c)
+        small = ~first & jnp.all(jnp.abs(dy) <= atol + rtol * jnp.abs(y)) & (c - c1 <= atol + rtol * c)
         pick = lambda new, old: jnp.where(accept, new, old)  # noqa: E731
         y, r, J, c = pick(y + dy, y), pick(r1, r), pick(J1, J), pick(c1, c)
-        lam = jnp.where(k < 0, lam, jnp.where(accept, jnp.maximum(lam / 3.0, 1e-12), lam * 4.0))
+        lam = jnp.where(first, lam, jnp.where(accept, jnp.maximum(lam / 3.0, 1e-12), lam * 4.0))
         return y, r, J, c, lam, k + 1, small, step(J, r, lam)
 
     # Step -1 tries y0 itself: r and J are placeholders until it is accepted.
