@@ -75,29 +75,6 @@ def test_sweep_then_export_a_numpy_net(tmp_path, small_campaign_dir, capsys):
     assert sig.pvv_g.notna().all() and sig.pvv_g.max() > 0.05 and sig.shake_g.abs().max() > 0.0
 
 
-@pytest.mark.heavy
-def test_replay_and_calibrate_commands(tmp_path, small_campaign_dir, capsys):
-    import pandas as pd
-
-    cfg = tmp_path / "r.toml"
-    cfg.write_text(f'''name = "r"\nout_dir = "{tmp_path.as_posix()}"\n[campaign]\npath = "{small_campaign_dir.as_posix()}"
-[sweep]\ndatabases = ["db1"]\nfamily = "rbf"\ncenters = [12]\nseeds = 1\nfolds = 3
-[replay]\ndatabases = ["db1"]\nmaneuvers = ["pullup", "pushover"]
-[calibration]\nfree = ["offset_s"]\nwindow_bounds = [6.0, 10.0]\ngrid_offset_step_s = 0.25\ngrid_window_step_revs = 2.0\n''')
-    assert main(["replay", str(cfg), "--offset", "0.5", "--plots", "1"]) == 0  # trains the config's sweep first
-    out = tmp_path / "r"
-    summary = pd.read_csv(out / "replay" / "summary.csv")
-    assert set(summary.maneuver) == {"pullup", "pushover"} and (summary.offset_s == 0.5).all()
-    assert len(list((out / "replay").glob("replay_*.png"))) == 1
-    # One offset per maneuver kind (the default, one for all, is the main job's), each within a
-    # step of the brute-force grid's best; the first group's cost map.
-    assert main(["calibrate", str(cfg), "--groups", "maneuver"]) == 0
-    cal = pd.read_csv(out / "calibration" / "calibration.csv")
-    assert set(cal.group) == {"pullup", "pushover"} and (cal.groups == "maneuver").all()
-    assert cal.offset_s.between(-1.0, 3.0).all() and cal.within_one_grid_step.all()
-    assert (out / "calibration" / f"cost_map_db1_{cal.group[0]}.png").exists()
-
-
 def test_replay_config_mistakes_are_clear_errors(tmp_path, capsys):
     cfg = tmp_path / "bad.toml"
     cfg.write_text('[calibration]\nfree = ["offset"]\n')
@@ -122,7 +99,8 @@ def test_main_job_with_networks_reports_table1_beside_the_paper(tmp_path, small_
 [run]\nnetworks = true\nhtml = false
 [sweep]\ndatabases = ["db1", "db3"]\nhidden = [[4]]\nseeds = 1\nfolds = 3
 [train]\nmax_steps = 300\nlearning_rate = 0.01
-[calibration]\ngrid_offset_step_s = 0.5\n''')
+[replay]\ndatabases = ["db1", "db3"]
+[calibration]\ngrid_offset_step_s = 0.5\ngrid_window_step_revs = 2.0\n''')
     assert main(["run", str(cfg)]) == 0
     assert "[4/6] networks" in capsys.readouterr().out
     report = (tmp_path / "p" / "report.md").read_text()
@@ -148,6 +126,22 @@ def test_main_job_with_networks_reports_table1_beside_the_paper(tmp_path, small_
     wl = pd.read_csv(tmp_path / "p" / "studies" / "window_length.csv")
     assert (wl.gradient_cost <= wl.grid_cost * 1.02).all() and len(wl) == 4
     assert "## Window length" in report and "figures/window_length.png" in report
+    # The replay and calibrate commands on the same config use the main job's nets (the sweep
+    # resumes): a replay at a given offset, and one offset per maneuver kind (the study's fit),
+    # each within a step of the brute-force grid's best, with the first group's cost map.
+    out = tmp_path / "p"
+    assert main(["replay", str(cfg), "--offset", "0.5", "--plots", "1"]) == 0
+    summary = pd.read_csv(out / "replay" / "summary.csv")
+    assert set(summary.maneuver) == set(kinds.maneuver) and (summary.offset_s == 0.5).all()
+    assert set(summary.database) == {"db1", "db3"} and len(list((out / "replay").glob("replay_*.png"))) == 1
+    assert main(["calibrate", str(cfg), "--groups", "maneuver", "--free", "offset_s"]) == 0
+    cal = pd.read_csv(out / "calibration" / "calibration.csv")
+    fit = pd.read_csv(out / "studies" / "offset_per_kind_fit.csv")
+    assert set(cal.group) == set(kinds.maneuver) and (cal.groups == "maneuver").all()
+    assert cal.offset_s.between(-1.0, 3.0).all() and cal.within_one_grid_step.all()
+    pd.testing.assert_series_equal(cal.sort_values(["database", "group"]).offset_s.reset_index(drop=True),
+                                   fit.sort_values(["database", "group"]).offset_s.reset_index(drop=True))
+    assert (out / "calibration" / f"cost_map_db1_{cal.group[0]}.png").exists()
 
 
 def test_api_reference_is_current_and_covers_every_public_module():
