@@ -95,7 +95,13 @@ def _group_cost(theta, models, recs, mask, settings, weights, apply):
     return jnp.sum(_group_residuals(theta, models, recs, mask, settings, weights, apply) ** 2)
 
 
-@partial(jax.jit, static_argnames=("settings", "weights", "apply"))
+def _reference_as_data(settings: Settings) -> tuple[Settings, float]:
+    """The settings without their reference window length, and that length: it enters the
+    compiled programs as data, so that fits with different reference windows (the window-length
+    study's two set-ups) share one program instead of compiling the replay twice."""
+    return settings._replace(reference_revs=0.0), settings.reference_revs
+
+
 def counter_costs(models, recs: ReplayRecord, theta, *, settings: Settings, weights: CostWeights = CostWeights(),
                   apply=None) -> dict:
     """Cost terms of every counter at its own θ.
@@ -108,6 +114,13 @@ def counter_costs(models, recs: ReplayRecord, theta, *, settings: Settings, weig
     Returns:
         dict of (N,) arrays: cost, peak_error_g, phase_error_s, rms_g.
     """
+    static, ref = _reference_as_data(settings)
+    return _counter_costs(models, recs, theta, ref, settings=static, weights=weights, apply=apply)
+
+
+@partial(jax.jit, static_argnames=("settings", "weights", "apply"))
+def _counter_costs(models, recs, theta, reference_revs, *, settings, weights, apply):
+    settings = settings._replace(reference_revs=reference_revs)
     theta = jnp.broadcast_to(jnp.asarray(theta, recs.time.dtype), (recs.time.shape[0], 3))
 
     def one(m, r, th):
@@ -117,7 +130,6 @@ def counter_costs(models, recs: ReplayRecord, theta, *, settings: Settings, weig
     return jax.vmap(one)(models, recs, theta)
 
 
-@partial(jax.jit, static_argnames=("settings", "weights", "apply"))
 def cost_grid(models, recs: ReplayRecord, members, mask, offsets, lengths, base=(0.0, 8.0, 0.0), *,
               settings: Settings, weights: CostWeights = CostWeights(), apply=None):
     """Brute-force group cost on a grid of offsets × window lengths.
@@ -131,6 +143,14 @@ def cost_grid(models, recs: ReplayRecord, members, mask, offsets, lengths, base=
     Returns:
         (G, J, K) mean cost of each group.
     """
+    static, ref = _reference_as_data(settings)
+    return _cost_grid(models, recs, members, mask, offsets, lengths, base, ref, settings=static, weights=weights,
+                      apply=apply)
+
+
+@partial(jax.jit, static_argnames=("settings", "weights", "apply"))
+def _cost_grid(models, recs, members, mask, offsets, lengths, base, reference_revs, *, settings, weights, apply):
+    settings = settings._replace(reference_revs=reference_revs)
     base = jnp.asarray(base, recs.time.dtype)
 
     offsets, lengths = jnp.asarray(offsets, base.dtype), jnp.asarray(lengths, base.dtype)
@@ -192,7 +212,6 @@ def _levenberg_marquardt(fn, y0, *, max_steps: int, rtol: float, atol: float):
     return y, r, steps, ok
 
 
-@partial(jax.jit, static_argnames=("free", "bounds", "settings", "weights", "apply", "max_steps", "rtol", "atol"))
 def calibrate(models, recs: ReplayRecord, members, mask, init, coarse, *, free: tuple[str, ...] = ("offset_s",),
               bounds: Bounds = Bounds(), settings: Settings, weights: CostWeights = CostWeights(), apply=None,
               max_steps: int = 64, rtol: float = 1e-5, atol: float = 1e-6) -> Calibration:
@@ -214,6 +233,15 @@ def calibrate(models, recs: ReplayRecord, members, mask, init, coarse, *, free: 
     unknown = [f for f in free if f not in PARAMS]
     if unknown or not free:
         raise ValueError(f"free parameters must be a non-empty subset of {PARAMS}, got {free}")
+    static, ref = _reference_as_data(settings)
+    return _calibrate(models, recs, members, mask, init, coarse, ref, free=tuple(free), bounds=bounds, settings=static,
+                      weights=weights, apply=apply, max_steps=max_steps, rtol=rtol, atol=atol)
+
+
+@partial(jax.jit, static_argnames=("free", "bounds", "settings", "weights", "apply", "max_steps", "rtol", "atol"))
+def _calibrate(models, recs, members, mask, init, coarse, reference_revs, *, free, bounds, settings, weights, apply,
+               max_steps, rtol, atol) -> Calibration:
+    settings = settings._replace(reference_revs=reference_revs)
     fi = jnp.array([PARAMS.index(f) for f in free])
     dt = recs.time.dtype
     init = jnp.broadcast_to(jnp.asarray(init, dt), (members.shape[0], 3))

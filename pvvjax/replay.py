@@ -114,7 +114,8 @@ class Settings(NamedTuple):
         reference_revs: length of the measured (reference) windows, revolutions; 0: the
             window length L of the replay, so that inputs and vibration share windows (the
             paper). > 0 decouples them: L is then the length of the input averaging only,
-            centred on each reference window.
+            centred on each reference window. Inside `calibration`'s compiled programs it
+            is a traced scalar, so that one program serves every reference length.
         aircraft: rotor constants for the derived features.
     """
 
@@ -219,7 +220,11 @@ def replay(model: dict, rec: ReplayRecord, offset_s, window_revs, stick_offset_s
     dt = c.blocks.dtype
     W = settings.plan.n_windows
     L = jnp.asarray(window_revs, dt)
-    L_ref = L if settings.reference_revs <= 0 else jnp.asarray(settings.reference_revs, dt)
+    ref = settings.reference_revs
+    if isinstance(ref, (int, float)):
+        L_ref = L if ref <= 0 else jnp.asarray(ref, dt)
+    else:  # data (the calibration's programs): one program for every reference length
+        L_ref = jnp.where(ref > 0, jnp.asarray(ref, dt), L)
     hop = L_ref if settings.hop_revs <= 0 else jnp.asarray(settings.hop_revs, dt)
     a = rec.rev_start + hop * jnp.arange(W, dtype=dt)
     b = a + L_ref

@@ -52,6 +52,28 @@ def test_per_counter_costs_are_lowest_at_the_true_lag(lagged):
     assert np.abs(np.asarray(at_truth["phase_error_s"])).max() < 0.1
 
 
+def test_the_reference_window_length_is_data_one_program_serves_every_length(lagged):
+    # The measured windows' length (the window-length study's second set-up) enters the cost
+    # programs as data: the costs equal those of replays that bake it in, and other lengths
+    # reuse the compiled program instead of compiling the replay again.
+    from pvvjax.calibration import _counter_costs
+
+    _, recs, settings, models = lagged
+    theta = jnp.array([0.5, 6.0, 0.0])
+
+    def baked(ref):
+        s = settings._replace(reference_revs=ref)
+        one = lambda m, r: jnp.sum(R.residuals(R.replay(m, r, 0.5, 6.0, 0.0, settings=s, apply=linear_apply)) ** 2)  # noqa: E731
+        return np.asarray(jax.jit(jax.vmap(one))(models, recs))
+
+    n0 = _counter_costs._cache_size()
+    for ref in (0.0, 8.0, 10.0):
+        got = counter_costs(models, recs, theta, settings=settings._replace(reference_revs=ref), apply=linear_apply)
+        np.testing.assert_allclose(np.asarray(got["cost"]), baked(ref), rtol=1e-6)
+    assert _counter_costs._cache_size() - n0 <= 1
+    assert not np.allclose(baked(0.0), baked(8.0), rtol=1e-3)
+
+
 @pytest.fixture(scope="module")
 def small_cal(small_campaign_dir, small_dbs):
     from pvvjax.campaign import load_campaign
