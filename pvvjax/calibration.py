@@ -20,7 +20,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .replay import CostWeights, ReplayRecord, Settings, cost_terms, replay, residuals
+from .replay import CostWeights, ReplayRecord, Settings, cost_terms, join_settings, replay, residuals, split_settings
 
 __all__ = ["PARAMS", "Bounds", "Calibration", "calibrate", "cost_grid", "counter_costs", "group_members"]
 
@@ -95,13 +95,6 @@ def _group_cost(theta, models, recs, mask, settings, weights, apply):
     return jnp.sum(_group_residuals(theta, models, recs, mask, settings, weights, apply) ** 2)
 
 
-def _reference_as_data(settings: Settings) -> tuple[Settings, float]:
-    """The settings without their reference window length, and that length: it enters the
-    compiled programs as data, so that fits with different reference windows (the window-length
-    study's two set-ups) share one program instead of compiling the replay twice."""
-    return settings._replace(reference_revs=0.0), settings.reference_revs
-
-
 def counter_costs(models, recs: ReplayRecord, theta, *, settings: Settings, weights: CostWeights = CostWeights(),
                   apply=None) -> dict:
     """Cost terms of every counter at its own θ.
@@ -114,13 +107,13 @@ def counter_costs(models, recs: ReplayRecord, theta, *, settings: Settings, weig
     Returns:
         dict of (N,) arrays: cost, peak_error_g, phase_error_s, rms_g.
     """
-    static, ref = _reference_as_data(settings)
-    return _counter_costs(models, recs, theta, ref, settings=static, weights=weights, apply=apply)
+    static, data = split_settings(settings)
+    return _counter_costs(models, recs, theta, data, settings=static, weights=weights, apply=apply)
 
 
 @partial(jax.jit, static_argnames=("settings", "weights", "apply"))
-def _counter_costs(models, recs, theta, reference_revs, *, settings, weights, apply):
-    settings = settings._replace(reference_revs=reference_revs)
+def _counter_costs(models, recs, theta, data, *, settings, weights, apply):
+    settings = join_settings(settings, data)
     theta = jnp.broadcast_to(jnp.asarray(theta, recs.time.dtype), (recs.time.shape[0], 3))
 
     def one(m, r, th):
@@ -143,14 +136,14 @@ def cost_grid(models, recs: ReplayRecord, members, mask, offsets, lengths, base=
     Returns:
         (G, J, K) mean cost of each group.
     """
-    static, ref = _reference_as_data(settings)
-    return _cost_grid(models, recs, members, mask, offsets, lengths, base, ref, settings=static, weights=weights,
+    static, data = split_settings(settings)
+    return _cost_grid(models, recs, members, mask, offsets, lengths, base, data, settings=static, weights=weights,
                       apply=apply)
 
 
 @partial(jax.jit, static_argnames=("settings", "weights", "apply"))
-def _cost_grid(models, recs, members, mask, offsets, lengths, base, reference_revs, *, settings, weights, apply):
-    settings = settings._replace(reference_revs=reference_revs)
+def _cost_grid(models, recs, members, mask, offsets, lengths, base, data, *, settings, weights, apply):
+    settings = join_settings(settings, data)
     base = jnp.asarray(base, recs.time.dtype)
 
     offsets, lengths = jnp.asarray(offsets, base.dtype), jnp.asarray(lengths, base.dtype)
@@ -233,15 +226,15 @@ def calibrate(models, recs: ReplayRecord, members, mask, init, coarse, *, free: 
     unknown = [f for f in free if f not in PARAMS]
     if unknown or not free:
         raise ValueError(f"free parameters must be a non-empty subset of {PARAMS}, got {free}")
-    static, ref = _reference_as_data(settings)
-    return _calibrate(models, recs, members, mask, init, coarse, ref, free=tuple(free), bounds=bounds, settings=static,
+    static, data = split_settings(settings)
+    return _calibrate(models, recs, members, mask, init, coarse, data, free=tuple(free), bounds=bounds, settings=static,
                       weights=weights, apply=apply, max_steps=max_steps, rtol=rtol, atol=atol)
 
 
 @partial(jax.jit, static_argnames=("free", "bounds", "settings", "weights", "apply", "max_steps", "rtol", "atol"))
-def _calibrate(models, recs, members, mask, init, coarse, reference_revs, *, free, bounds, settings, weights, apply,
+def _calibrate(models, recs, members, mask, init, coarse, data, *, free, bounds, settings, weights, apply,
                max_steps, rtol, atol) -> Calibration:
-    settings = settings._replace(reference_revs=reference_revs)
+    settings = join_settings(settings, data)
     fi = jnp.array([PARAMS.index(f) for f in free])
     dt = recs.time.dtype
     init = jnp.broadcast_to(jnp.asarray(init, dt), (members.shape[0], 3))

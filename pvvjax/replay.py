@@ -58,12 +58,14 @@ __all__ = [
     "Settings",
     "cost_terms",
     "input_index",
+    "join_settings",
     "make_settings",
     "prepare",
     "replay",
     "replay_cost",
     "residuals",
     "soft_peak",
+    "split_settings",
 ]
 
 # Every network input of db1-db3, in one order (a database picks its inputs by index, so
@@ -114,8 +116,8 @@ class Settings(NamedTuple):
         reference_revs: length of the measured (reference) windows, revolutions; 0: the
             window length L of the replay, so that inputs and vibration share windows (the
             paper). > 0 decouples them: L is then the length of the input averaging only,
-            centred on each reference window. Inside `calibration`'s compiled programs it
-            is a traced scalar, so that one program serves every reference length.
+            centred on each reference window.
+        (`split_settings` passes offset_bounds and reference_revs to compiled programs as data.)
         aircraft: rotor constants for the derived features.
     """
 
@@ -135,6 +137,25 @@ def make_settings(batch: RecordBatch, *, max_window_revs: float = 12.0, min_wind
     hop = hop_revs if hop_revs > 0 else (reference_revs if reference_revs > 0 else min_window_revs)
     plan = plan_windows(batch, max(max_window_revs, reference_revs), hop, edge="linear")
     return Settings(plan=plan, hop_revs=float(hop_revs), reference_revs=float(reference_revs), **kw)
+
+
+def split_settings(settings: Settings) -> tuple[Settings, tuple]:
+    """Split off the settings that can enter a compiled replay as data: the offset bounds
+    (replays at another offset) and the reference window length (the window-length study's
+    set-ups). Pass the static part as a static argument and the data as an argument, and
+    rejoin them inside (`join_settings`): one program then serves every value.
+
+    Returns:
+        (settings with those fields at fixed values, (offset_bounds, reference_revs)).
+    """
+    return settings._replace(offset_bounds=(0.0, 0.0), reference_revs=0.0), (settings.offset_bounds,
+                                                                              settings.reference_revs)
+
+
+def join_settings(static: Settings, data: tuple) -> Settings:
+    """The settings `split_settings` split (inside the compiled function the data are traced)."""
+    offset_bounds, reference_revs = data
+    return static._replace(offset_bounds=tuple(offset_bounds), reference_revs=reference_revs)
 
 
 def _prepare_one(az, cos_psi, sin_psi, rev, width, time, x, mask, harmonic, block):
@@ -223,7 +244,7 @@ def replay(model: dict, rec: ReplayRecord, offset_s, window_revs, stick_offset_s
     ref = settings.reference_revs
     if isinstance(ref, (int, float)):
         L_ref = L if ref <= 0 else jnp.asarray(ref, dt)
-    else:  # data (the calibration's programs): one program for every reference length
+    else:  # data (`split_settings`): one compiled program for every reference length
         L_ref = jnp.where(ref > 0, jnp.asarray(ref, dt), L)
     hop = L_ref if settings.hop_revs <= 0 else jnp.asarray(settings.hop_revs, dt)
     a = rec.rev_start + hop * jnp.arange(W, dtype=dt)

@@ -8,6 +8,7 @@ paper's figures; the calibration itself minimises the smooth cost of `replay`.
 from __future__ import annotations
 
 import time
+from functools import partial
 from pathlib import Path
 
 import jax
@@ -20,7 +21,17 @@ from .calibration import PARAMS, Bounds, calibrate, cost_grid, counter_costs, gr
 from .campaign import Campaign
 from .config import CalibrationConfig, ReplayConfig
 from .databases import STATE_CHANNELS
-from .replay import FEATURES, CostWeights, ReplayRecord, Settings, make_settings, prepare, replay
+from .replay import (
+    FEATURES,
+    CostWeights,
+    ReplayRecord,
+    Settings,
+    join_settings,
+    make_settings,
+    prepare,
+    replay,
+    split_settings,
+)
 from .sweep import heldout_models
 
 __all__ = [
@@ -83,8 +94,16 @@ def _bounds(cfg: CalibrationConfig) -> Bounds:
     return Bounds(tuple(cfg.offset_bounds), tuple(cfg.window_bounds), tuple(cfg.stick_offset_bounds))
 
 
-_replay_all = jax.jit(jax.vmap(lambda m, r, th, settings: replay(m, r, th[0], th[1], th[2], settings=settings),
-                               in_axes=(0, 0, 0, None)), static_argnums=3)
+@partial(jax.jit, static_argnums=4)
+def _replay_jit(m, r, th, data, static):
+    settings = join_settings(static, data)
+    return jax.vmap(lambda m, r, th: replay(m, r, th[0], th[1], th[2], settings=settings))(m, r, th)
+
+
+def _replay_all(m, r, th, settings):
+    """Every counter's replay; replays at other offsets share one compiled program."""
+    static, data = split_settings(settings)
+    return _replay_jit(m, r, th, data, static)
 
 
 def replay_windows(info: pd.DataFrame, recs: ReplayRecord, models: dict, theta, settings: Settings) -> pd.DataFrame:
