@@ -419,6 +419,32 @@ def metrics(pred, win: _Windows, full=None) -> dict:
 # --------------------------------------------------------------------------- fits
 
 
+# The least-squares residuals are module functions with their data in `args` (optimistix's
+# fn(y, args)): a closure over the arrays would make them constants of the compiled solve, and
+# XLA would compile a new solve (~3 s) for every candidate and every fit.
+def _tau_residuals(log_tau, args):
+    y, tg, i, k, target = args
+    return _lag_grid(y, tg, jnp.exp(log_tau))[i, k] - target
+
+
+def _band(theta, center, width):
+    """A resonance band kept in its grid cell: centre within one width, width within a factor 2."""
+    return center + width * jnp.tanh(theta[0]), width * 2.0 ** jnp.tanh(theta[1])
+
+
+def _refine_residuals(theta, args):
+    x, r, yhat, B, softness, center, width, operator, above = args  # operator, above: static
+    if operator == "threshold":
+        u = (x - theta[0]) if above else (theta[0] - x)
+        column = softness * jax.nn.softplus(u / softness)
+    else:
+        c, w = _band(theta, center, width)
+        column = yhat * jnp.exp(-0.5 * ((x - c) / w) ** 2)
+    A = jnp.column_stack([B, column])
+    coef = jnp.linalg.lstsq(A, r)[0]
+    return r - A @ coef
+
+
 def _fit_tau(yhat, meas, win: _Windows, full, taus, refine: bool = True) -> tuple[float, float]:
     """Time constant of a lag of the (ensemble) prediction that best fits the measured PVV:
     the best of `taus`, refined (if `refine`) by Levenberg–Marquardt in log τ. Returns (τ, SSE)."""
@@ -427,17 +453,12 @@ def _fit_tau(yhat, meas, win: _Windows, full, taus, refine: bool = True) -> tupl
     if not refine:
         return t_best, min(sse)
     i, k, to_grid, tg = _grid(win)
-    y = jnp.asarray(to_grid(yhat))
-    sel = (jnp.asarray(i[full]), jnp.asarray(k[full]))
-    target = jnp.asarray(meas[full])
-
-    def resid(log_tau, _):
-        return _lag_grid(y, jnp.asarray(tg), jnp.exp(log_tau))[sel] - target
-
-    sol = optx.least_squares(resid, optx.LevenbergMarquardt(rtol=1e-6, atol=1e-9), jnp.log(t_best), max_steps=64,
-                             throw=False)
+    args = (jnp.asarray(to_grid(yhat)), jnp.asarray(tg), jnp.asarray(i[full]), jnp.asarray(k[full]),
+            jnp.asarray(meas[full]))
+    sol = optx.least_squares(_tau_residuals, optx.LevenbergMarquardt(rtol=1e-6, atol=1e-9), jnp.log(t_best), args,
+                             max_steps=64, throw=False)
     tau = float(jnp.exp(sol.value))
-    fit = float(jnp.sum(resid(sol.value, None) ** 2))
+    fit = float(jnp.sum(_tau_residuals(sol.value, args) ** 2))
     # Within the grid's span: beyond it a lag only smooths the prediction flat.
     ok = np.isfinite(fit) and fit <= min(sse) and min(taus) <= tau <= max(taus)
     return (tau, fit) if ok else (t_best, min(sse))
@@ -490,38 +511,24 @@ def _refine(c: Candidate, residual, cands: pd.DataFrame, prediction, base=None) 
     if c.operator not in ("threshold", "resonance"):
         return c
     x = jnp.asarray(cands[f"x:{c.channels[0]}"].to_numpy())
-    r = jnp.asarray(residual)
-    yhat = jnp.asarray(prediction)
     p = c.parameters
-
-    def column(theta):
-        if c.operator == "threshold":
-            u = (x - theta[0]) if p["above"] else (theta[0] - x)
-            return p["softness"] * jax.nn.softplus(u / p["softness"])
-        center, width = band(theta)
-        return yhat * jnp.exp(-0.5 * ((x - center) / width) ** 2)
-
-    def band(theta):
-        return p["center"] + p["width"] * jnp.tanh(theta[0]), p["width"] * 2.0 ** jnp.tanh(theta[1])
-
     # Standardised (float32 least squares).
     B = jnp.asarray(np.column_stack([np.ones(len(x)), *([] if base is None else [_standardise(np.asarray(base))])]))
-
-    def resid(theta, _):
-        A = jnp.column_stack([B, column(theta)])
-        coef = jnp.linalg.lstsq(A, r)[0]
-        return r - A @ coef
-
+    f32 = lambda v: jnp.asarray(v, jnp.float32)  # noqa: E731
+    args = (x, jnp.asarray(residual), jnp.asarray(prediction), B, f32(p.get("softness", 1.0)),
+            f32(p.get("center", 0.0)), f32(p.get("width", 1.0)), c.operator, bool(p.get("above", True)))
     th0 = jnp.array([p["knee"]]) if c.operator == "threshold" else jnp.zeros(2)
-    sol = optx.least_squares(resid, optx.LevenbergMarquardt(rtol=1e-6, atol=1e-10), th0, max_steps=100, throw=False)
+    sol = optx.least_squares(_refine_residuals, optx.LevenbergMarquardt(rtol=1e-6, atol=1e-10), th0, args,
+                             max_steps=100, throw=False)
     th = np.asarray(sol.value)
-    better = float(jnp.sum(resid(sol.value, None) ** 2)) <= float(jnp.sum(resid(th0, None) ** 2))
+    sse = lambda th: float(jnp.sum(_refine_residuals(th, args) ** 2))  # noqa: E731
+    better = sse(sol.value) <= sse(th0)
     if not (np.all(np.isfinite(th)) and better):
         return c
     lo, hi = float(x.min()), float(x.max())
     if c.operator == "threshold":
         return replace(c, parameters={**p, "knee": float(np.clip(th[0], lo, hi))})
-    center, width = (float(v) for v in band(sol.value))
+    center, width = (float(v) for v in _band(sol.value, p["center"], p["width"]))
     return replace(c, parameters={**p, "center": float(np.clip(center, lo, hi)), "width": width})
 
 

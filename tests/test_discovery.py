@@ -3,6 +3,7 @@ on a small synthetic world with a hidden effect and the same world without it (t
 subset of the hidden-effect benchmark, experiments/discovery_benchmark.py)."""
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pandas as pd
@@ -101,9 +102,13 @@ def test_a_knee_of_the_models_own_inputs_joins_the_floor_and_is_not_named_throug
 
 
 @pytest.mark.heavy
-def test_refine_recovers_a_knee_and_a_band_and_keeps_a_band_in_its_grid_cell():
+def test_refine_recovers_a_knee_and_a_band_and_keeps_a_band_in_its_grid_cell(monkeypatch):
+    from pvvjax import discovery as D
     from pvvjax.candidates import Candidate
     from pvvjax.discovery import _refine
+
+    calls, residuals = [], D._refine_residuals
+    monkeypatch.setattr(D, "_refine_residuals", lambda th, args: calls.append(1) or residuals(th, args))
 
     rng = np.random.default_rng(4)
     n = 3000
@@ -118,6 +123,12 @@ def test_refine_recovers_a_knee_and_a_band_and_keeps_a_band_in_its_grid_cell():
     grid = Candidate("resonance", ("rotor_rpm",), {"center": 270.7, "width": 3.2})
     p = _refine(grid, 0.5 * band(272.5, 2.5) + noise, cands, yhat).parameters
     assert p["center"] == pytest.approx(272.5, abs=0.05) and p["width"] == pytest.approx(2.5, rel=0.02)
+    # The data are the solve's arguments, not constants of it: another band of the same size
+    # reuses the compiled solve (two calls: the start's and the solution's cost, no tracing).
+    del calls[:]
+    p = _refine(replace(grid, parameters={"center": 262.0, "width": 2.0}), 0.3 * band(263.0, 2.5) + noise, cands,
+                yhat).parameters
+    assert len(calls) == 2 and p["center"] == pytest.approx(263.0, abs=0.05)
     # A trend of rotor speed that the floor carries biases a fit without the floor, not one with it.
     trend = 0.02 * (rpm - 245.0) / 30.0
     p = _refine(grid, 0.5 * band(272.5, 2.5) + trend + noise, cands, yhat, base=rpm[:, None]).parameters
