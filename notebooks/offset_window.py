@@ -78,11 +78,19 @@ peak_summary(w)[["database", "measured_peak_g", "predicted_peak_g", "phase_error
 # %%
 settings = make_settings(batch, min_window_revs=4.0, max_window_revs=16.0, hop_revs=2.0, offset_bounds=(-1.0, 3.0))
 m1, r1 = jax.tree.map(lambda a: a[i], (models["db1"], recs))
-cost = jax.jit(lambda tau, L: replay_cost(replay(m1, r1, tau, L, settings=settings)))
-grad = jax.jit(jax.grad(lambda tau, L: replay_cost(replay(m1, r1, tau, L, settings=settings)), argnums=(0, 1)))
+
+
+# The nets and the record are arguments, not constants closed over: the compiled cost and
+# gradient then serve every counter of the set (its records share one padded length).
+def pullup_cost(tau, L, model, rec):
+    return replay_cost(replay(model, rec, tau, L, settings=settings))
+
+
+cost = jax.jit(pullup_cost)
+grad = jax.jit(jax.grad(pullup_cost, argnums=(0, 1)))
 for tau in (0.0, 0.5, 1.0):
-    g = grad(tau, 8.0)
-    print(f"offset {tau:.1f} s: cost {float(cost(tau, 8.0)):7.2f}, d/d offset {float(g[0]):7.2f}, "
+    g = grad(tau, 8.0, m1, r1)
+    print(f"offset {tau:.1f} s: cost {float(cost(tau, 8.0, m1, r1)):7.2f}, d/d offset {float(g[0]):7.2f}, "
           f"d/d L {float(g[1]):6.2f}")
 
 # %% [markdown]
