@@ -20,7 +20,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .replay import CostWeights, ReplayRecord, Settings, cost_terms, join_settings, replay, residuals, split_settings
+from .replay import CostWeights, ReplayRecord, Settings, cost_terms, jit_settings, replay, residuals
 
 __all__ = ["PARAMS", "Bounds", "Calibration", "calibrate", "cost_grid", "counter_costs", "group_members"]
 
@@ -95,6 +95,7 @@ def _group_cost(theta, models, recs, mask, settings, weights, apply):
     return jnp.sum(_group_residuals(theta, models, recs, mask, settings, weights, apply) ** 2)
 
 
+@partial(jit_settings, static_argnames=("weights", "apply"))
 def counter_costs(models, recs: ReplayRecord, theta, *, settings: Settings, weights: CostWeights = CostWeights(),
                   apply=None) -> dict:
     """Cost terms of every counter at its own θ.
@@ -107,13 +108,6 @@ def counter_costs(models, recs: ReplayRecord, theta, *, settings: Settings, weig
     Returns:
         dict of (N,) arrays: cost, peak_error_g, phase_error_s, rms_g.
     """
-    static, data = split_settings(settings)
-    return _counter_costs(models, recs, theta, data, settings=static, weights=weights, apply=apply)
-
-
-@partial(jax.jit, static_argnames=("settings", "weights", "apply"))
-def _counter_costs(models, recs, theta, data, *, settings, weights, apply):
-    settings = join_settings(settings, data)
     theta = jnp.broadcast_to(jnp.asarray(theta, recs.time.dtype), (recs.time.shape[0], 3))
 
     def one(m, r, th):
@@ -123,6 +117,7 @@ def _counter_costs(models, recs, theta, data, *, settings, weights, apply):
     return jax.vmap(one)(models, recs, theta)
 
 
+@partial(jit_settings, static_argnames=("weights", "apply"))
 def cost_grid(models, recs: ReplayRecord, members, mask, offsets, lengths, base=(0.0, 8.0, 0.0), *,
               settings: Settings, weights: CostWeights = CostWeights(), apply=None):
     """Brute-force group cost on a grid of offsets × window lengths.
@@ -136,14 +131,6 @@ def cost_grid(models, recs: ReplayRecord, members, mask, offsets, lengths, base=
     Returns:
         (G, J, K) mean cost of each group.
     """
-    static, data = split_settings(settings)
-    return _cost_grid(models, recs, members, mask, offsets, lengths, base, data, settings=static, weights=weights,
-                      apply=apply)
-
-
-@partial(jax.jit, static_argnames=("settings", "weights", "apply"))
-def _cost_grid(models, recs, members, mask, offsets, lengths, base, data, *, settings, weights, apply):
-    settings = join_settings(settings, data)
     base = jnp.asarray(base, recs.time.dtype)
 
     offsets, lengths = jnp.asarray(offsets, base.dtype), jnp.asarray(lengths, base.dtype)
@@ -205,6 +192,7 @@ def _levenberg_marquardt(fn, y0, *, max_steps: int, rtol: float, atol: float):
     return y, r, steps, ok
 
 
+@partial(jit_settings, static_argnames=("free", "bounds", "weights", "apply", "max_steps", "rtol", "atol"))
 def calibrate(models, recs: ReplayRecord, members, mask, init, coarse, *, free: tuple[str, ...] = ("offset_s",),
               bounds: Bounds = Bounds(), settings: Settings, weights: CostWeights = CostWeights(), apply=None,
               max_steps: int = 64, rtol: float = 1e-5, atol: float = 1e-6) -> Calibration:
@@ -226,15 +214,6 @@ def calibrate(models, recs: ReplayRecord, members, mask, init, coarse, *, free: 
     unknown = [f for f in free if f not in PARAMS]
     if unknown or not free:
         raise ValueError(f"free parameters must be a non-empty subset of {PARAMS}, got {free}")
-    static, data = split_settings(settings)
-    return _calibrate(models, recs, members, mask, init, coarse, data, free=tuple(free), bounds=bounds, settings=static,
-                      weights=weights, apply=apply, max_steps=max_steps, rtol=rtol, atol=atol)
-
-
-@partial(jax.jit, static_argnames=("free", "bounds", "settings", "weights", "apply", "max_steps", "rtol", "atol"))
-def _calibrate(models, recs, members, mask, init, coarse, data, *, free, bounds, settings, weights, apply,
-               max_steps, rtol, atol) -> Calibration:
-    settings = join_settings(settings, data)
     fi = jnp.array([PARAMS.index(f) for f in free])
     dt = recs.time.dtype
     init = jnp.broadcast_to(jnp.asarray(init, dt), (members.shape[0], 3))

@@ -274,7 +274,7 @@ def _replay(ctx: _Ctx, offset: float) -> _Windows:
     theta = jnp.asarray(np.tile([offset, L, 0.0], (N, 1)), jnp.float32)
     model = dict(params=jax.tree.map(lambda a: jnp.asarray(a[ctx.counter_fold]), ctx.replay_params),
                  idx=jnp.asarray(np.tile(input_index(d.database, len(DB_INPUTS[d.database])), (N, 1))))
-    rep = jax.device_get(_replay_all(model, ctx.recs, theta, ctx.settings))
+    rep = jax.device_get(_replay_all(model, ctx.recs, theta, settings=ctx.settings))
     W = rep.time.shape[1]
     # Input windows in record time: measured window edges (revolutions) -> time -> − offset.
     a = np.asarray(ctx.recs.rev_start)[:, None] + d.hop_revs * np.arange(W)[None, :]

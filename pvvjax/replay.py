@@ -22,7 +22,7 @@ bounds, and fades out over `fade_s` beyond that, so the cost is continuous in L 
 
 from __future__ import annotations
 
-from functools import partial
+from functools import partial, wraps
 from typing import NamedTuple
 
 import jax
@@ -58,14 +58,13 @@ __all__ = [
     "Settings",
     "cost_terms",
     "input_index",
-    "join_settings",
+    "jit_settings",
     "make_settings",
     "prepare",
     "replay",
     "replay_cost",
     "residuals",
     "soft_peak",
-    "split_settings",
 ]
 
 # Every network input of db1-db3, in one order (a database picks its inputs by index, so
@@ -117,7 +116,7 @@ class Settings(NamedTuple):
             window length L of the replay, so that inputs and vibration share windows (the
             paper). > 0 decouples them: L is then the length of the input averaging only,
             centred on each reference window.
-        (`split_settings` passes offset_bounds and reference_revs to compiled programs as data.)
+        (`jit_settings` passes offset_bounds and reference_revs to compiled programs as data.)
         aircraft: rotor constants for the derived features.
     """
 
@@ -139,23 +138,37 @@ def make_settings(batch: RecordBatch, *, max_window_revs: float = 12.0, min_wind
     return Settings(plan=plan, hop_revs=float(hop_revs), reference_revs=float(reference_revs), **kw)
 
 
-def split_settings(settings: Settings) -> tuple[Settings, tuple]:
-    """Split off the settings that can enter a compiled replay as data: the offset bounds
-    (replays at another offset) and the reference window length (the window-length study's
-    set-ups). Pass the static part as a static argument and the data as an argument, and
-    rejoin them inside (`join_settings`): one program then serves every value.
+def jit_settings(fn=None, *, static_argnames=()):
+    """`jax.jit` for a function with a `settings=` keyword (`Settings`). The settings' static
+    part keys the compiled program; the offset bounds and the reference window length are
+    passed in as data, so that replays at another offset, or with another reference length,
+    reuse the program instead of compiling the replay again.
+
+    Args:
+        fn: the function (use as a decorator, with or without arguments).
+        static_argnames: its other static keyword arguments.
 
     Returns:
-        (settings with those fields at fixed values, (offset_bounds, reference_revs)).
+        the function, with the compiled program as its `jitted` attribute.
     """
-    return settings._replace(offset_bounds=(0.0, 0.0), reference_revs=0.0), (settings.offset_bounds,
-                                                                              settings.reference_revs)
+    if fn is None:
+        return partial(jit_settings, static_argnames=static_argnames)
 
+    def joined(*args, settings, settings_data, **kw):
+        offset_bounds, reference_revs = settings_data
+        return fn(*args, settings=settings._replace(offset_bounds=tuple(offset_bounds),
+                                                    reference_revs=reference_revs), **kw)
 
-def join_settings(static: Settings, data: tuple) -> Settings:
-    """The settings `split_settings` split (inside the compiled function the data are traced)."""
-    offset_bounds, reference_revs = data
-    return static._replace(offset_bounds=tuple(offset_bounds), reference_revs=reference_revs)
+    jitted = jax.jit(joined, static_argnames=("settings", *static_argnames))
+
+    @wraps(fn)
+    def wrapper(*args, settings: Settings, **kw):
+        data = (settings.offset_bounds, settings.reference_revs)
+        return jitted(*args, settings=settings._replace(offset_bounds=(0.0, 0.0), reference_revs=0.0),
+                      settings_data=data, **kw)
+
+    wrapper.jitted = jitted
+    return wrapper
 
 
 def _prepare_one(az, cos_psi, sin_psi, rev, width, time, x, mask, harmonic, block):
@@ -244,7 +257,7 @@ def replay(model: dict, rec: ReplayRecord, offset_s, window_revs, stick_offset_s
     ref = settings.reference_revs
     if isinstance(ref, (int, float)):
         L_ref = L if ref <= 0 else jnp.asarray(ref, dt)
-    else:  # data (`split_settings`): one compiled program for every reference length
+    else:  # data (`jit_settings`): one compiled program for every reference length
         L_ref = jnp.where(ref > 0, jnp.asarray(ref, dt), L)
     hop = L_ref if settings.hop_revs <= 0 else jnp.asarray(settings.hop_revs, dt)
     a = rec.rev_start + hop * jnp.arange(W, dtype=dt)

@@ -8,7 +8,6 @@ paper's figures; the calibration itself minimises the smooth cost of `replay`.
 from __future__ import annotations
 
 import time
-from functools import partial
 from pathlib import Path
 
 import jax
@@ -21,17 +20,7 @@ from .calibration import PARAMS, Bounds, calibrate, cost_grid, counter_costs, gr
 from .campaign import Campaign
 from .config import CalibrationConfig, ReplayConfig
 from .databases import STATE_CHANNELS
-from .replay import (
-    FEATURES,
-    CostWeights,
-    ReplayRecord,
-    Settings,
-    join_settings,
-    make_settings,
-    prepare,
-    replay,
-    split_settings,
-)
+from .replay import FEATURES, CostWeights, ReplayRecord, Settings, jit_settings, make_settings, prepare, replay
 from .sweep import heldout_models
 
 __all__ = [
@@ -94,16 +83,10 @@ def _bounds(cfg: CalibrationConfig) -> Bounds:
     return Bounds(tuple(cfg.offset_bounds), tuple(cfg.window_bounds), tuple(cfg.stick_offset_bounds))
 
 
-@partial(jax.jit, static_argnums=4)
-def _replay_jit(m, r, th, data, static):
-    settings = join_settings(static, data)
+@jit_settings
+def _replay_all(m, r, th, *, settings):
+    """Every counter's replay (leading axis N) at its θ (N, 3)."""
     return jax.vmap(lambda m, r, th: replay(m, r, th[0], th[1], th[2], settings=settings))(m, r, th)
-
-
-def _replay_all(m, r, th, settings):
-    """Every counter's replay; replays at other offsets share one compiled program."""
-    static, data = split_settings(settings)
-    return _replay_jit(m, r, th, data, static)
 
 
 def replay_windows(info: pd.DataFrame, recs: ReplayRecord, models: dict, theta, settings: Settings) -> pd.DataFrame:
@@ -122,7 +105,7 @@ def replay_windows(info: pd.DataFrame, recs: ReplayRecord, models: dict, theta, 
     for db, model in models.items():
         th = theta[db] if isinstance(theta, dict) else theta
         th = np.broadcast_to(np.asarray(th, np.float32), (n, 3))
-        rep = _replay_all(model, recs, jnp.asarray(th), settings)
+        rep = _replay_all(model, recs, jnp.asarray(th), settings=settings)
         W = rep.time.shape[1]
         parts.append(pd.DataFrame({
             "database": db,
