@@ -389,9 +389,10 @@ class DiscoveryConfig:
             learned gain on every rotor-speed band of the grid at once and propose the band
             of the largest gain as a resonance (retrained as a gain; the confirmation decides).
             A mode the nets learned as a mean per rotor-speed level leaves a residual no
-            prediction × band column explains (`docs/discovery.md`). Off by default: on the
-            hidden-effect benchmark it names one more resonance but also a false band at the
-            lowest rotor speed after a lag, on two of three long-lag worlds.
+            prediction × band column explains (`docs/discovery.md`). Only for nets trained on
+            the peaks: window nets (after a confirmed lag, or `train_rows = "windows"`)
+            under-learn the lowest rotor speed, and a band there confirmed on two of three
+            long-lag worlds. Off by default.
     """
 
     database: str = "db1"

@@ -37,6 +37,9 @@ def test_metrics_against_a_loop():
                       for _, g in t.groupby("counter") if g.maneuver.iloc[0] == "pullup"])
         per.append((rms, pk, ph))
     np.testing.assert_allclose([m["rms_g"], m["peak_error_g"], m["phase_error_s"]], np.median(per, axis=0), rtol=1e-9)
+    ens = win.table.assign(p=np.median(pred, axis=0))
+    np.testing.assert_allclose(m["ensemble_rms_g"], np.sqrt(np.mean((ens.p - ens.measured_g) ** 2)), rtol=1e-9)
+    assert m["ensemble_rms_g"] < m["rms_g"]  # three random predictions: their median is nearer the mean
 
 
 def test_lag_of_window_series_is_the_exact_recursion():
@@ -319,6 +322,10 @@ def test_the_resonance_probe_proposes_the_band_of_the_largest_gain_unless_one_is
     assert (where, j, s.index) == ("all", 3, 3) and np.isnan(s.p_value) and np.isfinite(s.gain)
     with_band = [("all", 2, Selected(2, 0.3, 0.3, 0.01))]
     assert D._resonance_probe(None, model, with_band, lib, M, designs, resid, groups, d, 0, print) == with_band
+    # Window nets (through a lag, or trained on the windows): no probe.
+    for m, dd in ((model._replace(through_lag=True, lag_tau_s=2.0), d), (model, DiscoveryConfig(train_rows="windows"))):
+        assert D._resonance_probe(None, m, first, lib, M, designs, resid, groups, dd, 0, lambda m: None) == first
+    assert len(seen) == 1
 
 
 def test_candidates_the_selection_cannot_tell_apart_are_retrained_simplest_then_best():
