@@ -22,12 +22,15 @@ def bench():
     return mod
 
 
-def _baseline(rms, peak=0.03):
-    return SimpleNamespace(before=dict(rms_g=rms, peak_error_g=peak, phase_error_s=4.0), lag_test=None)
+def _baseline(rms, peak=0.03):  # the ensemble's RMS 10 % below the seeds' median
+    return SimpleNamespace(before=dict(rms_g=rms, peak_error_g=peak, phase_error_s=4.0, ensemble_rms_g=0.9 * rms),
+                           lag_test=None)
 
 
-def _row(scenario, rms_before, rms_after, lag_baseline=False, gap_metric="rms_g"):
+def _row(scenario, rms_before, rms_after, lag_baseline=False, gap_metric="rms_g", ensemble=None):
+    ens = ensemble or (0.9 * rms_before, 0.9 * rms_after)
     return dict(scenario=scenario, seed=1, hidden="x", rms_before_g=rms_before, rms_after_g=rms_after, region="",
+                ensemble_before_g=ens[0], ensemble_after_g=ens[1],
                 lag_baseline=lag_baseline, gap_metric=gap_metric, peak_before_g=0.04, peak_after_g=0.035,
                 phase_before_s=4.0, phase_after_s=4.0)
 
@@ -39,6 +42,8 @@ def test_attributable_shrink_is_against_the_null_of_the_seed_or_the_scenarios_ow
         _row("below-null", 0.035, 0.034),              # before under the null's: no gap to attribute
         _row("lagged", 0.060, 0.050, lag_baseline=True),  # reference nets of a lag test the null never ran
         _row("peaks", 0.060, 0.050, gap_metric="peak_error_g"),
+        # the ensemble's gap 0.054 - 0.036, closed by 0.009; the seeds' RMS did not move
+        _row("ensemble", 0.060, 0.060, gap_metric="ensemble_rms_g", ensemble=(0.054, 0.045)),
     ])
     out = bench.attributable(rows, {1: _baseline(0.040)}, {"missing-input": _baseline(0.045)})
     got = dict(zip(out.scenario, out.attributable_shrink))
@@ -46,6 +51,8 @@ def test_attributable_shrink_is_against_the_null_of_the_seed_or_the_scenarios_ow
     assert np.isnan(got["below-null"]) and np.isnan(got["lagged"])
     assert got["peaks"] == pytest.approx((0.04 - 0.035) / (0.04 - 0.03))  # on the peak error
     assert dict(zip(out.scenario, out.rms_null_g))["missing-input"] == 0.045
+    assert got["ensemble"] == pytest.approx(0.5) and dict(zip(out.scenario, out.attributable_rms))["ensemble"] == 0.0
+    assert dict(zip(out.scenario, out.attributable_ensemble))["effect"] == pytest.approx(0.5)
 
 
 def test_the_weight_scenarios_reference_is_db3_plus_the_gross_weight(bench):
