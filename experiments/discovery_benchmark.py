@@ -308,7 +308,8 @@ def _blank(t: pd.DataFrame) -> pd.DataFrame:
 
 
 _SUMMARY_HEADER = ("| seeds | right first | truth confirmed | nulls clean | attributable ≥ 0.5 | gap measured "
-                   "| median attributable | ≥ 0.5 on the seeds' RMS | seconds |\n|---|---|---|---|---|---|---|---|---|\n")
+                   "| median attributable | ≥ 0.5 on the seeds' RMS | seconds |\n"
+                   "|---|---|---|---|---|---|---|---|---|\n")
 
 
 def write_docs(tables: dict, config: str, offsets: str):

@@ -90,7 +90,8 @@ def write_discovery(res: Discovery, out, cfg=None, worst: int = 4) -> Path:
            + (f" trained through a {res.baseline.lag_tau_s:g} s lag" if res.baseline.lag_tau_s > 0 else "")
            + ", so that before and after measure the lag, not the training rows." if res.baseline.through_lag else ""),
         "",
-        "## Metrics (held-out counters, medians over seeds; `ensemble_rms_g`: of the median prediction)", "", _md(metrics), "",
+        "## Metrics (held-out counters, medians over seeds; `ensemble_rms_g`: of the median prediction)", "",
+        _md(metrics), "",
         f"Gap shrink 1 − after/before RMS: **{js['gap_shrink']:.1%}**.", "",
         "## Effects", "",
     ]
