@@ -94,12 +94,11 @@ def main():
         info, batch, recs, models = load_replay_set(camp, counters, SWEEP, ["db1"])
         source = "paper networks (held out, 4 seeds)"
     else:  # a stand-in with the same interface: RBF nets fitted to db1
-        from pvvjax.networks import rbf_fit
-        from pvvjax.sweep import stack_data
-
-        from pvvjax.replay import input_index, prepare
         from pvvjax.batch import to_batch
         from pvvjax.databases import STATE_CHANNELS
+        from pvvjax.networks import rbf_fit
+        from pvvjax.replay import input_index, prepare
+        from pvvjax.sweep import stack_data
 
         x, y, m, _ = stack_data(build_databases(camp), ["db1"], 5, 0)["db1"]
         p = jax.tree.map(lambda *a: jnp.stack(a), *[rbf_fit(jax.random.key(s), x, y, 20, in_mask=m) for s in range(4)])

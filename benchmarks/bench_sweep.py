@@ -47,7 +47,8 @@ def sklearn_net(x, y, tr, va, hidden, seed):
 
     xs, xsd = x[tr].mean(0), x[tr].std(0) + 1e-12
     ym, ysd = y[tr].mean(), y[tr].std()
-    m = MLPRegressor(hidden_layer_sizes=hidden, activation="tanh", solver="adam", learning_rate_init=TRAIN.learning_rate,
+    m = MLPRegressor(hidden_layer_sizes=hidden, activation="tanh", solver="adam",
+                     learning_rate_init=TRAIN.learning_rate,
                      batch_size=int(tr.sum()), max_iter=TRAIN.eval_every, warm_start=True, tol=0.0,
                      n_iter_no_change=10**9, alpha=0.0, random_state=seed)
     best, since, steps = np.inf, 0, 0
@@ -93,7 +94,8 @@ def main():
             sk_steps.append(s)
         k = len(sk_val)
         t_sk_all = t_sk * n / k
-        print(f"machine: {platform.machine()}, {jax.devices()[0].device_kind} x{jax.device_count()}, jax {jax.__version__}, "
+        print(f"machine: {platform.machine()}, {jax.devices()[0].device_kind} x{jax.device_count()}, "
+              f"jax {jax.__version__}, "
               f"scikit-learn {sklearn.__version__}")
         print(f"{n} nets; scikit-learn trained {k} of them one by one ({t_sk:.1f} s; x{n / k:.2f} for all)")
         print(f"{'':34s} {'time (s)':>9s} {'per net (ms)':>13s} {'steps/net':>10s} {'median val RMS (g)':>19s}")

@@ -27,7 +27,8 @@ def main():
                                                 q75=lambda v: v.quantile(0.75), count="size")
         chosen = search_architecture(val["median"])
         test = g[g.width == chosen["width"]].test_rms_g.median()
-        fig = plots.size_search(val, chosen, f"Architecture search, {db} (n-W-5-1, median of {int(val['count'].max())} nets)")
+        title = f"Architecture search, {db} (n-W-5-1, median of {int(val['count'].max())} nets)"
+        fig = plots.size_search(val, chosen, title)
         path = plots.save(fig, out / f"architecture_search_{db}.png")
         print(val[["median", "q25", "q75"]].round(4).to_string())
         print(f"{db}: search path {chosen['path']} -> {chosen['width']} PEs in the first layer "

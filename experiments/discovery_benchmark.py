@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import argparse
 import time
-import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -34,6 +33,11 @@ from pvvjax.discovery import discover, selection_gain, summary
 from pvvjax.discovery_report import write_discovery
 from pvvjax.io import markdown_table, read_table, write_table
 from pvvjax.synth import SynthConfig, generate
+
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10
+    import tomli as tomllib
 
 ROOT = Path(__file__).resolve().parents[1]
 

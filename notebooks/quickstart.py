@@ -63,4 +63,5 @@ print(f"airspeed {v_kt:.1f} kt, MLF = {float(pvvjax.maneuver_load_factor(0.0, 9.
 # %%
 dbs = pvvjax.build_databases(campaign)
 print({k: v.shape for k, v in dbs.items()})
-dbs["db1"].set_index("condition").loc[["T1-level-135", "T1-descent-160", "T1-climb-62", "T1-turn45-145", "11022", "AR60"]]
+dbs["db1"].set_index("condition").loc[
+    ["T1-level-135", "T1-descent-160", "T1-climb-62", "T1-turn45-145", "11022", "AR60"]]

@@ -28,7 +28,8 @@ _EXPORTS = {
     "lag_study": ["lag_study"],
     "networks": ["mlp_apply", "mlp_init", "rbf_apply", "rbf_fit"],
     "npnet": ["NumpyNet"],
-    "replay": ["CostWeights", "Replay", "make_settings", "prepare", "replay_cost"],  # the function: pvvjax.replay.replay
+    # the function itself: pvvjax.replay.replay
+    "replay": ["CostWeights", "Replay", "make_settings", "prepare", "replay_cost"],
     "replay_tables": ["load_replay_set", "peak_summary", "replay_windows"],
     "residuals": ["localize", "residual_windows"],
     "rtelement": ["VibrationElement"],

@@ -198,7 +198,8 @@ def _check_values(df: pd.DataFrame, columns, file: str, problems: list) -> None:
             bad |= vals > hi if inclusive else vals >= hi
         row = _first_bad(bad)
         if row is not None:
-            span = f"{'[' if inclusive else '('}{'' if lo is None else lo}, {'' if hi is None else hi}{']' if inclusive else ')'}"
+            span = (f"{'[' if inclusive else '('}{'' if lo is None else lo}, "
+                    f"{'' if hi is None else hi}{']' if inclusive else ')'}")
             problems.append(Problem(file, col, row, f"value {vals[row - 1]:g} outside the physical range {span}"))
 
 
@@ -282,7 +283,8 @@ def _check_counters(df: pd.DataFrame, mapping, problems: list) -> pd.DataFrame |
         bad = ~np.isfinite(seg) | (seg < 1) | (seg != np.round(seg))
         row = _first_bad(bad)
         if row is not None:
-            problems.append(Problem("counters.csv", "segment", row, f"segment must be an integer >= 1, got {df['segment'].iloc[row - 1]!r}"))
+            problems.append(Problem("counters.csv", "segment", row,
+                                    f"segment must be an integer >= 1, got {df['segment'].iloc[row - 1]!r}"))
             seg = np.where(bad, 1, seg)
         df["segment"] = seg.astype(int)
     else:
@@ -310,7 +312,8 @@ def _check_record(df: pd.DataFrame, file: str, constants: dict, window_revs: flo
     n_before = len(problems)
     for col in REQUIRED_CHANNELS:
         if col in df.columns and col in constants:
-            problems.append(Problem(file, col, None, "channel given both here and in counters.csv; give it in one place"))
+            problems.append(Problem(file, col, None,
+                                    "channel given both here and in counters.csv; give it in one place"))
         elif col not in df.columns and col not in constants:
             where = " (or as a constant in counters.csv)" if col in ("gross_weight_lb", "density_ratio") else ""
             problems.append(Problem(file, col, None, f"required column missing{where}"))
@@ -325,7 +328,8 @@ def _check_record(df: pd.DataFrame, file: str, constants: dict, window_revs: flo
     dt = np.diff(t)
     row = _first_bad(dt <= 0)
     if row is not None:
-        problems.append(Problem(file, "time_s", row + 1, f"time not strictly increasing ({t[row - 1]:g} then {t[row]:g})"))
+        problems.append(Problem(file, "time_s", row + 1,
+                                f"time not strictly increasing ({t[row - 1]:g} then {t[row]:g})"))
         return False
     med = np.median(dt)
     row = _first_bad(np.abs(dt - med) > UNIFORM_TOLERANCE * med)
@@ -356,7 +360,8 @@ def _timeseries_files(folder: Path, problems: list) -> dict[str, Path]:
         if p.suffix not in (".csv", ".parquet"):
             continue
         if p.stem in files:
-            problems.append(Problem(f"timeseries/{p.name}", None, None, f"counter {p.stem!r} has both a CSV and a Parquet file"))
+            problems.append(Problem(f"timeseries/{p.name}", None, None,
+                                    f"counter {p.stem!r} has both a CSV and a Parquet file"))
             continue
         files[p.stem] = p
     return files
@@ -390,7 +395,8 @@ def _assemble(counters: pd.DataFrame, raw: Mapping[str, pd.DataFrame], fnames: M
     names = list(dict.fromkeys(counters["counter"]))
     for i, name in enumerate(counters["counter"]):
         if name not in fnames:
-            problems.append(Problem("counters.csv", "counter", i + 1, f"counter {name!r} has no file timeseries/{name}.csv or .parquet"))
+            problems.append(Problem("counters.csv", "counter", i + 1,
+                                    f"counter {name!r} has no file timeseries/{name}.csv or .parquet"))
     for name, f in fnames.items():
         if name not in names:
             problems.append(Problem(f, None, None, f"no counter {name!r} in counters.csv"))

@@ -537,7 +537,8 @@ def cmd_export(args) -> int:
         "```python\nfrom npnet import NumpyNet\nnet = NumpyNet.load('net.npz')\n"
         f"pvv_g = net([{', '.join(meta['inputs'])}])\n```\n\nInputs in this order, canonical units "
         "(kt, lb, rpm, -, -, ft/min, %).\n")
-    print(f"exported {row.database} {row.architecture} (net {row.net_id}, held-out RMS {row.test_rms_g:.4f} g) to {out}")
+    print(f"exported {row.database} {row.architecture} (net {row.net_id}, held-out RMS {row.test_rms_g:.4f} g) "
+          f"to {out}")
     print(f"inputs: {', '.join(meta['inputs'])}")
     return 0
 

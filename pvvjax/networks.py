@@ -166,7 +166,8 @@ def rbf_fit(key, x, y, n_centers: int, *, kmeans_steps: int = 30, width_factor: 
     # Ridge least squares as ordinary least squares on [A; sqrt(ridge)·I] (SVD): the normal
     # equations of overlapping Gaussians are too ill-conditioned for float32.
     aug = jnp.concatenate([design, jnp.sqrt(ridge) * jnp.eye(n_centers + 1)], 0)
-    sol = jnp.linalg.lstsq(aug, jnp.concatenate([t, jnp.zeros(n_centers + 1)]), rcond=1e-7)[0]  # no truncation: the ridge regularises
+    # no truncation: the ridge regularises
+    sol = jnp.linalg.lstsq(aug, jnp.concatenate([t, jnp.zeros(n_centers + 1)]), rcond=1e-7)[0]
     return {**params, "w": sol[:-1], "b": sol[-1]}
 
 

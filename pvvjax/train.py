@@ -21,8 +21,8 @@ import optax
 
 from .networks import mlp_apply
 
-__all__ = ["TRAINABLE", "Data", "Fit", "TrainState", "TrainingError", "condition_folds", "done", "fit", "init_state", "make_data",
-           "masked_metrics", "result", "run", "split_masks"]
+__all__ = ["TRAINABLE", "Data", "Fit", "TrainState", "TrainingError", "condition_folds", "done", "fit", "init_state",
+           "make_data", "masked_metrics", "result", "run", "split_masks"]
 
 
 class TrainingError(RuntimeError):
@@ -143,7 +143,8 @@ def _lm_step(t, lam, const, data, apply):
     d = jnp.linalg.solve(H + lam * jnp.diag(jnp.diag(H)) + 1e-6 * jnp.eye(f.size), -(J.T @ r))
     loss, new_loss = jnp.sum(r**2), jnp.sum(resid(f + d) ** 2)
     ok = jnp.isfinite(new_loss) & (new_loss < loss)
-    return unravel(jnp.where(ok, f + d, f)), jnp.where(ok, lam / 3.0, lam * 2.0), loss / jnp.maximum(jnp.sum(data.w), 1.0)
+    return (unravel(jnp.where(ok, f + d, f)), jnp.where(ok, lam / 3.0, lam * 2.0),
+            loss / jnp.maximum(jnp.sum(data.w), 1.0))
 
 
 def init_state(params: dict, data: Data, cfg, apply=mlp_apply) -> TrainState:

@@ -5,12 +5,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from test_replay import lagged_campaign, linear_apply, linear_model
 
 from pvvjax import replay as R
 from pvvjax.batch import to_batch
 from pvvjax.calibration import Bounds, calibrate, cost_grid, counter_costs, group_members
 from pvvjax.databases import STATE_CHANNELS
-from test_replay import lagged_campaign, linear_apply, linear_model
 
 
 def _per_counter(model, n):

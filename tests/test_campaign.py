@@ -3,8 +3,8 @@
 import numpy as np
 import pandas as pd
 import pytest
-
 from conftest import tiny_records, write_tiny
+
 from pvvjax.campaign import CampaignError, campaign_from_frames, load_campaign, validate_campaign
 from pvvjax.config import ColumnMap
 
@@ -69,7 +69,8 @@ def test_weight_missing_everywhere(tmp_path):
 def test_channel_in_both_places(tmp_path):
     c, r = tiny_records()
     r["C1"]["density_ratio"] = 1.0
-    _only(_problems(write_tiny(tmp_path / "c", c, r)), "timeseries/C1.csv", "'density_ratio'", "both here and in counters.csv")
+    _only(_problems(write_tiny(tmp_path / "c", c, r)), "timeseries/C1.csv", "'density_ratio'",
+          "both here and in counters.csv")
 
 
 def test_duplicate_counter(tmp_path):
@@ -123,7 +124,8 @@ def test_record_shorter_than_one_window(tmp_path):
 
 
 @pytest.mark.parametrize("column, value, where", [
-    ("collective_pct", 101.0, "timeseries"), ("lateral_pct", -1.0, "timeseries"), ("longitudinal_pct", 120.0, "timeseries"),
+    ("collective_pct", 101.0, "timeseries"), ("lateral_pct", -1.0, "timeseries"),
+    ("longitudinal_pct", 120.0, "timeseries"),
     ("rotor_rpm", 0.0, "timeseries"), ("roll_angle_deg", 95.0, "timeseries"),
     ("density_ratio", 1.4, "counters"), ("density_ratio", 0.2, "counters"), ("gross_weight_lb", 0.0, "counters"),
 ])

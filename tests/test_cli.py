@@ -50,7 +50,8 @@ def test_missing_campaign_folder_is_a_clear_error(tmp_path, capsys):
 @pytest.mark.heavy
 def test_sweep_then_export_a_numpy_net(tmp_path, small_campaign_dir, capsys):
     cfg = tmp_path / "s.toml"
-    cfg.write_text(f'''name = "s"\nout_dir = "{tmp_path.as_posix()}"\n[campaign]\npath = "{small_campaign_dir.as_posix()}"
+    cfg.write_text(f'''name = "s"\nout_dir = "{tmp_path.as_posix()}"
+[campaign]\npath = "{small_campaign_dir.as_posix()}"
 [sweep]\ndatabases = ["db1"]\nhidden = [[4]]\nseeds = 1\nfolds = 3\ntest_folds = [0]
 [train]\nmax_steps = 300\nlearning_rate = 0.01\n''')
     assert main(["sweep", str(cfg)]) == 0
@@ -95,7 +96,8 @@ def test_cli_reference_in_the_docs_is_current():
 @pytest.mark.heavy
 def test_main_job_with_networks_reports_table1_beside_the_paper(tmp_path, small_campaign_dir, capsys):
     cfg = tmp_path / "p.toml"
-    cfg.write_text(f'''name = "p"\nout_dir = "{tmp_path.as_posix()}"\n[campaign]\npath = "{small_campaign_dir.as_posix()}"
+    cfg.write_text(f'''name = "p"\nout_dir = "{tmp_path.as_posix()}"
+[campaign]\npath = "{small_campaign_dir.as_posix()}"
 [run]\nnetworks = true\nhtml = false
 [sweep]\ndatabases = ["db1", "db3"]\nhidden = [[4]]\nseeds = 1\nfolds = 3
 [train]\nmax_steps = 300\nlearning_rate = 0.01

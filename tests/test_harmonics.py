@@ -5,8 +5,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-
 from conftest import tiny_records
+
 from pvvjax.batch import sample_widths, to_batch
 from pvvjax.campaign import campaign_from_frames
 from pvvjax.harmonics import WindowPlan, analyze, harmonic_windows, plan_windows
@@ -44,8 +44,8 @@ def _run(rec, L, hop=None, taper=0.0, n_windows=8, k=4, dtype=jnp.float32, max_r
     rev = np.concatenate([rev, rev[-1] + (rev[-1] - rev[-2]) * np.arange(1, pad + 1)])
     mask = np.arange(T) < mask.size
     f = lambda v: jnp.asarray(v, dtype)  # noqa: E731
-    return harmonic_windows(f(az), f(np.cos(psi)), f(np.sin(psi)), f(rev), f(width), f(time), f(x), jnp.asarray(mask), L,
-                            L if hop is None else hop, harmonic=k, taper_revs=taper, plan=plan)
+    return harmonic_windows(f(az), f(np.cos(psi)), f(np.sin(psi)), f(rev), f(width), f(time), f(x), jnp.asarray(mask),
+                            L, L if hop is None else hop, harmonic=k, taper_revs=taper, plan=plan)
 
 
 @pytest.mark.parametrize("L", [4, 8, 12])
@@ -147,7 +147,7 @@ def test_vmap_over_counters_equals_one_by_one():
     n_valid = np.asarray(out.valid).sum(axis=1)
     revs = batch.lengths / 64
     np.testing.assert_array_equal(n_valid, np.floor(revs / 8 + 1e-6).astype(int))
-    np.testing.assert_allclose(np.asarray(out.amplitude)[np.asarray(out.valid)][:3], 0.1 * np.array([1, 1, 1]), rtol=0.02)
+    np.testing.assert_allclose(np.asarray(out.amplitude)[np.asarray(out.valid)][:3], [0.1, 0.1, 0.1], rtol=0.02)
 
 
 def test_hop_gives_overlapping_windows_and_start_shift():

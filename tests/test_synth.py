@@ -110,7 +110,8 @@ def test_same_seed_same_data_and_subsets_match_the_full_campaign(default_campaig
 
 def test_effects_change_vibration_only():
     base = generate(SynthConfig(conditions=("11022",)))[1]["11022"]
-    no_stall = generate(SynthConfig(conditions=("11022",), effects={"dynamic_stall": EffectConfig(enabled=False)}))[1]["11022"]
+    off = {"dynamic_stall": EffectConfig(enabled=False)}
+    no_stall = generate(SynthConfig(conditions=("11022",), effects=off))[1]["11022"]
     pd.testing.assert_frame_equal(base.drop(columns="az_g"), no_stall.drop(columns="az_g"))
     diff = (base.az_g - no_stall.az_g).abs()
     assert diff[base.time_s.between(12, 16)].max() > 0.05 and diff[base.time_s < 8].max() < 1e-6

@@ -24,7 +24,8 @@ def test_folds_split_by_condition_never_by_row():
 def _problem(n=160, seed=0):
     rng = np.random.default_rng(seed)
     x = rng.uniform(-1, 1, (n, 3)).astype(np.float32)
-    y = (0.15 + 0.05 * np.sin(2 * x[:, 0]) + 0.03 * x[:, 1] * x[:, 2] + 0.002 * rng.standard_normal(n)).astype(np.float32)
+    y = 0.15 + 0.05 * np.sin(2 * x[:, 0]) + 0.03 * x[:, 1] * x[:, 2] + 0.002 * rng.standard_normal(n)
+    y = y.astype(np.float32)
     folds = condition_folds(np.arange(n), 5, 0)
     tr, va, te = split_masks(folds, 0, 5)
     return x, y, tr, va, te

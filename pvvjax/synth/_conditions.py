@@ -90,7 +90,8 @@ def catalogue(seed: int, counts: dict[str, int] | None = None) -> list[Condition
                 c = Condition(cid, kind, float(r.uniform(40, 120)), w, sig, rpm, float(r.uniform(400, 2000)), dur)
             elif kind == "descent":
                 if i % 3 == 2:  # high-speed dives
-                    c = Condition(cid, kind, float(r.uniform(130, 165)), w, sig, rpm, float(r.uniform(-2500, -800)), dur)
+                    c = Condition(cid, kind, float(r.uniform(130, 165)), w, sig, rpm, float(r.uniform(-2500, -800)),
+                                  dur)
                 else:
                     c = Condition(cid, kind, float(r.uniform(30, 95)), w, sig, rpm, float(r.uniform(-1600, -300)), dur)
             elif kind == "turn":
@@ -98,9 +99,11 @@ def catalogue(seed: int, counts: dict[str, int] | None = None) -> list[Condition
             elif kind == "roll":
                 c = Condition(cid, kind, float(r.uniform(60, 140)), w, sig, rpm, 0.0, dur, float(r.uniform(20, 45)), te)
             elif kind == "pushover":
-                c = Condition(cid, kind, float(r.uniform(80, 150)), w, sig, rpm, 0.0, dur, float(r.uniform(1.5, 3.0)), te)
+                c = Condition(cid, kind, float(r.uniform(80, 150)), w, sig, rpm, 0.0, dur, float(r.uniform(1.5, 3.0)),
+                              te)
             elif kind == "pullup":
-                c = Condition(cid, kind, float(r.uniform(80, 150)), w, sig, rpm, 0.0, dur, float(r.uniform(2.0, 5.0)), te)
+                c = Condition(cid, kind, float(r.uniform(80, 150)), w, sig, rpm, 0.0, dur, float(r.uniform(2.0, 5.0)),
+                              te)
             elif kind == "autorotation":
                 c = Condition(cid, kind, float(r.uniform(50, 90)), w, sig, rpm, 0.0, 54.0, 0.0,
                               float(np.round(r.uniform(8, 12), 1)), counters=(f"{cid}-1", f"{cid}-2"))

@@ -107,10 +107,10 @@ def simulate(init: dict, sched: dict, dt: float) -> dict:
     phi = init["phi_deg"].astype(float).copy()
     n0 = 1.0 / np.cos(np.deg2rad(phi))
     coll_trim0 = collective_for_power(power_required_hp(v, w, sig, rpm_set, climb0, n0), rpm_set)
-    q = np.zeros(K); gam = np.zeros(K); p = np.zeros(K)
-    hc = climb0.astype(float).copy(); omega = rpm_set.astype(float).copy()
+    q, gam, p, beta = np.zeros(K), np.zeros(K), np.zeros(K), np.zeros(K)
+    hc, omega = climb0.astype(float).copy(), rpm_set.astype(float).copy()
     pw = np.maximum(power_required_hp(v, w, sig, rpm_set, climb0, n0), 0.0)
-    beta = np.zeros(K); alt = np.full(K, 1000.0)
+    alt = np.full(K, 1000.0)
     out = {k: np.zeros((K, N)) for k in (
         "airspeed_kt", "pitch_rate_dps", "roll_angle_deg", "roll_rate_dps", "yaw_rate_dps", "climb_rate_fpm",
         "pitch_angle_deg", "nz_g", "rotor_rpm", "shaft_power_hp", "altitude_ft", "sideslip_deg",

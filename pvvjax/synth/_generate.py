@@ -106,7 +106,8 @@ def ground_truth(cfg: SynthConfig) -> dict:
         eff = EFFECTS[name]
         effects.append(dict(
             name=name, enabled=on, scale=scale, params=params, kind=eff.kind, formula=eff.formula,
-            physics=eff.physics, channels=list(eff.channels), default=dict(enabled=default[name][0], params=default[name][2]),
+            physics=eff.physics, channels=list(eff.channels),
+            default=dict(enabled=default[name][0], params=default[name][2]),
             changed=(on, scale, params) != default[name],
         ))
     return dict(generator_version=GENERATOR_VERSION, config=to_dict(cfg), effects=effects,
