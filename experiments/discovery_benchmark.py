@@ -167,9 +167,10 @@ def identifiability(res, null) -> dict:
 def attributable(df: pd.DataFrame, nulls: dict, references: dict | None = None) -> pd.DataFrame:
     """(before − after) / (before − before of the same seed's null scenario, or of the
     scenario's own reference baseline where `references` holds one by scenario name): over
-    all windows (RMS), in the named effect's region (RMS), and on the scenario's gap metric
-    (`truth.gap_metric`, default RMS: a lag lowers the RMS, since the smoothed vibration is
-    easier to fit, and shows in the peaks instead)."""
+    all windows on the ensemble's RMS and on the seeds' median RMS, in the named effect's
+    region (ensemble), and on the scenario's gap metric (`truth.gap_metric`, default the
+    ensemble's RMS: a lag lowers the RMS, since the smoothed vibration is easier to fit, and
+    shows in the peaks instead)."""
     df = df.copy()
     references = references or {}
     for col in ("rms_null_g", "ensemble_null_g", "region_null_g", "attributable_rms", "attributable_ensemble",
