@@ -25,6 +25,15 @@ def _metrics_row(label, m):
                 phase_error_s=m["phase_error_s"], rms_by_seed=", ".join(f"{v:.4f}" for v in m["rms_by_seed"]))
 
 
+def _json_text(js: dict, path) -> str:
+    """`js` as strict JSON: NaN is not JSON, and a reader of the contract would fail on the
+    file rather than here."""
+    try:
+        return json.dumps(js, indent=2, allow_nan=False)
+    except ValueError as e:
+        raise ValueError(f"{path}: a value is not a finite number: {js}") from e
+
+
 def _also_confirmed(rounds: pd.DataFrame, rnd: int, name: str) -> str:
     """The confirmed tries of a round other than the named effect, best first."""
     t = rounds[(rounds["round"] == rnd) & rounds["confirmed"] & (rounds["name"] != name)]
@@ -45,7 +54,7 @@ def write_discovery(res: Discovery, out, cfg=None, worst: int = 4) -> Path:
     out = Path(out)
     (out / "figures").mkdir(parents=True, exist_ok=True)
     js = summary(res)
-    (out / "discovery.json").write_text(json.dumps(js, indent=2))
+    (out / "discovery.json").write_text(_json_text(js, out / "discovery.json"))
     write_table(res.windows, out / "windows", cfg)
     res.rounds.to_csv(out / "rounds.csv", index=False)
     if res.lag_test is not None:

@@ -328,6 +328,29 @@ def test_the_resonance_probe_proposes_the_band_of_the_largest_gain_unless_one_is
     assert len(seen) == 1
 
 
+def test_a_probes_band_gets_the_p_value_of_its_retraining_by_condition_where_it_acts():
+    import pvvjax.discovery as D
+
+    win = _windows(n_counters=30)
+    k = win.table.i.to_numpy()
+    win.values = lambda c: np.where(k < 15, 0.9, 0.1)  # the band acts on conditions K0-K14
+    y = win.table.measured_g.to_numpy()
+    rng = np.random.default_rng(3)
+    current = dict(pred=(y + 0.1 * rng.standard_normal(len(y)))[None], win=win)
+
+    def p(better):  # the current prediction with the error halved on the `better` windows
+        trial = dict(pred=np.where(better, (y + current["pred"][0]) / 2, current["pred"][0])[None], win=win)
+        p, explained = D._probe_test(trial, current, None, 0)
+        e2 = lambda t: np.sum((t["pred"][0] - y) ** 2)  # noqa: E731
+        assert explained == pytest.approx(1 - e2(trial) / e2(current))
+        return p
+
+    assert p(k < 15) < 1e-3  # better on every condition where it acts
+    assert p(k >= 15) == 1.0  # better only where it does not act
+    assert p(k < 2) > 0.1  # better on two conditions only
+    assert p(k < 2) == p(k < 2)  # seeded
+
+
 def test_candidates_the_selection_cannot_tell_apart_are_retrained_simplest_then_best():
     from pvvjax.discovery import _try_order
 
@@ -380,6 +403,14 @@ def test_cli_on_a_world_without_hidden_effects_names_nothing(tmp_path):
     assert set(js["baseline"]["metrics"]) == {"rms_g", "peak_error_g", "phase_error_s"}
     report = (tmp_path / "out" / "report.md").read_text()
     assert "figures/residual_map.png" in report and (tmp_path / "out" / "figures" / "residual_map.png").exists()
+
+
+def test_discovery_json_is_strict_json():
+    from pvvjax.discovery_report import _json_text
+
+    assert json.loads(_json_text({"p_value": 0.01}, "out/discovery.json")) == {"p_value": 0.01}
+    with pytest.raises(ValueError, match="out/discovery.json: a value is not a finite number"):
+        _json_text({"effects": [{"p_value": float("nan")}]}, "out/discovery.json")
 
 
 def test_report_lists_the_other_confirmed_tries_of_an_effects_round():
