@@ -415,9 +415,9 @@ def metrics(pred, win: _Windows, full=None) -> dict:
                     float(np.mean(phase)) if phase.size else 0.0))
     per = np.array(per)
     med = np.median(per, axis=0)
-    ens = np.median(np.atleast_2d(pred)[:, full], axis=0)
+    ens = _rms_by_seed(np.median(np.atleast_2d(pred), axis=0)[None], win, full)[0]
     return dict(rms_g=float(med[0]), peak_error_g=float(med[1]), phase_error_s=float(med[2]), rms_by_seed=per[:, 0],
-                ensemble_rms_g=float(np.sqrt(np.mean((ens - meas) ** 2))))
+                ensemble_rms_g=float(ens))
 
 
 # --------------------------------------------------------------------------- fits
@@ -793,10 +793,9 @@ def _lag_trials(ctx: _Ctx, delta: float, taus, reference_offsets, log=print) -> 
         model = _fit_offset(ctx, Model(params, inputs, lag_tau_s=tau, through_lag=True), with_lag=False)
         win = _replay(ctx, model.offset_s)
         pred = predictions(ctx, model, win)
-        full = win.table.weight.to_numpy() >= 0.999
-        ens = float(_rms_by_seed(np.median(pred, axis=0)[None], win, full)[0])
-        out.append(dict(tau_s=tau, train_offset_s=off, model=model, win=win, pred=pred, metrics=metrics(pred, win),
-                        ensemble_rms_g=ens))
+        m = metrics(pred, win)
+        ens = m["ensemble_rms_g"]
+        out.append(dict(tau_s=tau, train_offset_s=off, model=model, win=win, pred=pred, metrics=m, ensemble_rms_g=ens))
         log(f"  lag test: τ {tau:.2f} s trained at {off:.2f} s, refitted offset {model.offset_s:.2f} s: "
             f"ensemble RMS {ens:.4f} g")
     return out
