@@ -164,6 +164,16 @@ def identifiability(res, null) -> dict:
     return out
 
 
+# A scenario's gap metric: its before and after columns.
+_GAP_COLUMNS = {"ensemble_rms_g": ("ensemble_before_g", "ensemble_after_g"), "rms_g": ("rms_before_g", "rms_after_g"),
+                "phase_error_s": ("phase_before_s", "phase_after_s"), "peak_error_g": ("peak_before_g", "peak_after_g")}
+
+
+def _closed(before: float, after: float, reference: float) -> float:
+    """The share of the gap before − reference that after closes; NaN without a gap."""
+    return (before - after) / (before - reference) if before - reference > 0 else np.nan
+
+
 def attributable(df: pd.DataFrame, nulls: dict, references: dict | None = None) -> pd.DataFrame:
     """(before − after) / (before − before of the same seed's null scenario, or of the
     scenario's own reference baseline where `references` holds one by scenario name): over
@@ -188,27 +198,16 @@ def attributable(df: pd.DataFrame, nulls: dict, references: dict | None = None) 
             null_before = {k: float(ref[k]) for k in ("rms_g", "peak_error_g", "phase_error_s")}
             null_before["ensemble_rms_g"] = float(ref["ensemble_rms_g"])
         df.loc[i, "rms_null_g"] = null_before["rms_g"]
-        gap = r.rms_before_g - null_before["rms_g"]
-        if gap > 0:
-            df.loc[i, "attributable_rms"] = (r.rms_before_g - r.rms_after_g) / gap
+        df.loc[i, "attributable_rms"] = _closed(r.rms_before_g, r.rms_after_g, null_before["rms_g"])
         df.loc[i, "ensemble_null_g"] = null_before["ensemble_rms_g"]
-        gap = r.ensemble_before_g - null_before["ensemble_rms_g"]
-        if gap > 0:
-            df.loc[i, "attributable_ensemble"] = (r.ensemble_before_g - r.ensemble_after_g) / gap
+        df.loc[i, "attributable_ensemble"] = _closed(r.ensemble_before_g, r.ensemble_after_g,
+                                                     null_before["ensemble_rms_g"])
         if r.region and not r.lag_baseline:
             ref = _rms_in(null, r.region.split(", "))
             df.loc[i, "region_null_g"] = ref
-            if r.region_before_g - ref > 0:
-                df.loc[i, "attributable_region"] = (r.region_before_g - r.region_after_g) / (r.region_before_g - ref)
-        if r.gap_metric in ("rms_g", "ensemble_rms_g"):
-            df.loc[i, "attributable_shrink"] = df.loc[i, "attributable_rms" if r.gap_metric == "rms_g" else
-                                                      "attributable_ensemble"]
-        else:
-            key = {"phase_error_s": ("phase_before_s", "phase_after_s"),
-                   "peak_error_g": ("peak_before_g", "peak_after_g")}[r.gap_metric]
-            g = r[key[0]] - null_before[r.gap_metric]
-            if g > 0:
-                df.loc[i, "attributable_shrink"] = (r[key[0]] - r[key[1]]) / g
+            df.loc[i, "attributable_region"] = _closed(r.region_before_g, r.region_after_g, ref)
+        before, after = _GAP_COLUMNS[r.gap_metric]
+        df.loc[i, "attributable_shrink"] = _closed(r[before], r[after], null_before[r.gap_metric])
     return df
 
 
