@@ -117,6 +117,17 @@ def test_effects_change_vibration_only():
     assert diff[base.time_s.between(12, 16)].max() > 0.05 and diff[base.time_s < 8].max() < 1e-6
 
 
+def test_vibration_weight_changes_the_vibration_only():
+    # 11022 flies at 16055 lb: holding the vibration's weight there changes nothing; heavier, only
+    # the acceleration changes, and its 4P grows (blade loading and its stall knee).
+    cfg = lambda w: SynthConfig(conditions=("11022",), vibration_weight_lb=w)  # noqa: E731
+    own, same, heavy = (generate(cfg(w))[1]["11022"] for w in (None, 16055.0, 21000.0))
+    pd.testing.assert_frame_equal(own, same)
+    pd.testing.assert_frame_equal(own.drop(columns="az_g"), heavy.drop(columns="az_g"))
+    p4 = lambda r: abs(np.mean(r.az_g * np.exp(-4j * np.deg2rad(r.azimuth_deg))))  # noqa: E731
+    assert p4(heavy) > 1.1 * p4(own)
+
+
 def test_hidden_effect_scenario_writes_truth_outside_the_campaign(tmp_path):
     cfg_file = tmp_path / "scenario.toml"
     cfg_file.write_text('name = "hidden-sideslip"\nseed = 2\nconditions = ["R001", "T001"]\n'
@@ -139,6 +150,7 @@ def test_hidden_effect_scenario_writes_truth_outside_the_campaign(tmp_path):
     ("[effects.dynamic_lag.params]\ntau = 1.0", "effects.dynamic_lag.params: unknown ['tau']"),
     ("[counts]\nhover = 3", "counts.hover: unknown maneuver"),
     ("sample_rate_hz = 100.0", "fewer than 64 samples per revolution"),
+    ("vibration_weight_lb = 0.0", "vibration_weight_lb: must be > 0 lb, got 0.0"),
 ])
 def test_generator_config_errors(tmp_path, text, needle):
     p = tmp_path / "s.toml"

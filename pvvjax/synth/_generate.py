@@ -49,6 +49,11 @@ class SynthConfig:
         maneuvers: generate only conditions of these maneuver kinds (empty: all).
         counts: random conditions per maneuver kind, beyond the named ones and the sweep.
         effects: per-effect overrides by name (see `pvvjax.synth.EFFECTS`).
+        vibration_weight_lb: the gross weight the vibration sees, lb. `None`: each condition's
+            own. A number holds it fixed in the blade loading of every effect, while the flight
+            (trim, controls, the `gross_weight_lb` column) keeps each condition's own: the same
+            campaign with a 4P level that does not depend on weight (the reference world of
+            a study of weight missing from a database).
     """
 
     name: str = "uh60a-synthetic"
@@ -62,8 +67,11 @@ class SynthConfig:
     maneuvers: tuple[str, ...] = ()
     counts: dict[str, int] = field(default_factory=dict)
     effects: dict[str, EffectConfig] = field(default_factory=dict)
+    vibration_weight_lb: float | None = None
 
     def __post_init__(self):
+        if self.vibration_weight_lb is not None and not self.vibration_weight_lb > 0:
+            raise ValueError(f"vibration_weight_lb: must be > 0 lb, got {self.vibration_weight_lb}")
         for name, e in self.effects.items():
             if name not in EFFECTS:
                 raise ValueError(f"effects.{name}: unknown effect; known: {', '.join(EFFECTS)}")
@@ -152,7 +160,10 @@ def generate(cfg: SynthConfig = SynthConfig()) -> tuple[pd.DataFrame, dict[str, 
     t, states = _simulate(conds, cfg)
     dt = float(t[1] - t[0])
     settings = cfg.effect_settings()
-    vstate = vibration_state(states, UH60A)
+    seen = states  # what the vibration sees; the flight and its channels keep each condition's weight
+    if cfg.vibration_weight_lb is not None:
+        seen = {**states, "gross_weight_lb": np.full_like(states["gross_weight_lb"], cfg.vibration_weight_lb)}
+    vstate = vibration_state(seen, UH60A)
     # Condition-to-condition scatter (a per-condition constant, so its order with the lag is
     # immaterial); the paper's named conditions are the calibration anchors and carry none.
     named = {c.id for c in NAMED}
