@@ -10,6 +10,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from pvvjax._strict import to_dict
+
 ROOT = Path(__file__).parents[1]
 
 
@@ -55,13 +57,15 @@ def test_attributable_shrink_is_against_the_null_of_the_seed_or_the_scenarios_ow
     assert dict(zip(out.scenario, out.attributable_ensemble))["effect"] == pytest.approx(0.5)
 
 
-def test_the_weight_scenarios_reference_is_db3_plus_the_gross_weight(bench):
-    from pvvjax.databases import DB_INPUTS
-
+def test_the_weight_scenarios_reference_is_its_world_without_the_weights_effect(bench):
     scenarios, _ = bench.scenario_configs(ROOT / "experiments" / "configs" / "discovery" / "benchmark.toml", 2)
-    (weight,) = [s for s in scenarios if s["reference_database"]]
-    ref, model = DB_INPUTS[weight["reference_database"]], DB_INPUTS[weight["database"]]
-    assert set(ref) - set(model) == {"gross_weight_lb"} and set(model) <= set(ref)
-    # the same world as the null scenario of its seed: nothing hidden in the generator
+    (weight,) = [s for s in scenarios if s["reference_world"] is not None]
+    # its world is the null world of its seed: nothing hidden in the generator, db3 lacks the weight
     (null,) = [s for s in scenarios if s["truth"] is None and s["seed"] == weight["seed"]]
     assert weight["synth"].effects == null["synth"].effects and weight["seed"] == 43
+    assert weight["database"] == "db3"
+    # the reference: the same campaign, the vibration seeing one weight
+    ref = weight["reference_world"]
+    assert ref.vibration_weight_lb == 18000.0 and weight["synth"].vibration_weight_lb is None
+    assert to_dict(ref) == {**to_dict(weight["synth"]), "name": ref.name, "vibration_weight_lb": 18000.0}
+    assert weight["reference_label"] == "vibration_weight_lb = 18000"
