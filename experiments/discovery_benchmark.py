@@ -12,6 +12,7 @@ effect: the scenario's `reference_world`).
         [--seed-offsets 0,1]   # and again with every seed shifted by 1 (a replication)
         [--set KEY=VALUE ...]  # [discovery] settings over the config's (a sensitivity run)
         [--reuse]              # read OUT's results instead of running (--docs after parallel runs)
+        [--update]             # run the --only scenarios into OUT's results, the other rows kept
 
 Writes runs/discovery-benchmark/ (results table, each scenario's discovery.json and
 report; seed offset N in runs/discovery-benchmark/seed+N/); with --docs also
@@ -21,6 +22,7 @@ docs/discovery-benchmark.md.
 from __future__ import annotations
 
 import argparse
+import json
 import time
 from pathlib import Path
 
@@ -221,10 +223,13 @@ def attributable(df: pd.DataFrame, nulls: dict, references: dict | None = None) 
     return df
 
 
-def run_all(scenarios, overrides, out: Path) -> pd.DataFrame:
+def run_all(scenarios, overrides, out: Path, update: bool = False) -> pd.DataFrame:
     """Every scenario (the null ones first: they are the references of the hidden ones with
     the same seed, unless a scenario brings its own `reference_world`), scored; writes
-    `out/results.*` and each scenario's folder."""
+    `out/results.*` and each scenario's folder. With `update`, the rows of these scenarios
+    replace theirs in the results already in `out` (same discovery settings), the others kept."""
+    cfg = ExperimentConfig(discovery=from_dict(DiscoveryConfig, overrides))
+    old = _previous(out / "results.parquet", cfg) if update else None
     out.mkdir(parents=True, exist_ok=True)
     rows, nulls, refs = [], {}, {}
     for sc in sorted(scenarios, key=lambda s: s["truth"] is not None):
@@ -241,10 +246,45 @@ def run_all(scenarios, overrides, out: Path) -> pd.DataFrame:
               f"{r['rms_after_g']:.4f} g; {r['seconds']:.0f} s", flush=True)
         pd.DataFrame(rows).to_csv(out / "partial.csv", index=False)
     df = attributable(pd.DataFrame(rows), nulls, refs)
-    write_table(df, out / "results", ExperimentConfig(discovery=from_dict(DiscoveryConfig, overrides)))
+    if old is not None:
+        df = merged(old, df)
+    write_table(df, out / "results", cfg)
     print(df.drop(columns=["generate_s"]).to_string())
     print(f"results: {out / 'results.csv'}")
     return df
+
+
+def _previous(path: Path, cfg) -> pd.DataFrame:
+    """The results an update goes into; an error unless they exist and were run with the same
+    discovery settings (rows of two settings in one table would be compared as one)."""
+    if not path.exists():
+        raise SystemExit(f"--update: no results to update at {path}")
+    old, stored = read_table(path)
+    now = json.loads(json.dumps(to_dict(cfg), sort_keys=True, default=str))
+    if stored != now:
+        raise SystemExit(f"--update: {path} was run with other settings: {stored.get('discovery')} "
+                         f"against {now.get('discovery')}")
+    return old
+
+
+def _check_update(scenarios):
+    """An updated hidden scenario's gap is measured against the null scenario of its seed run
+    beside it (unless it brings its own reference world): without it, its row would lose its
+    attributable shrink."""
+    nulls = {s["seed"] for s in scenarios if s["truth"] is None}
+    missing = [f"{s['name']} (seed {s['seed']})" for s in scenarios
+               if s["truth"] is not None and s["reference_world"] is None and s["seed"] not in nulls]
+    if missing:
+        raise SystemExit(f"--update: {', '.join(missing)} need the null scenario of their seed in --only")
+
+
+def merged(old: pd.DataFrame, new: pd.DataFrame) -> pd.DataFrame:
+    """`old`'s rows in their order, those of a scenario in `new` replaced by its row (a new
+    scenario at the end); the columns of both."""
+    order = {s: i for i, s in enumerate(old.scenario)}
+    df = pd.concat([old[~old.scenario.isin(new.scenario)], new], ignore_index=True)
+    rank = df.scenario.map(lambda v: order.get(v, len(order)))
+    return df.iloc[np.argsort(rank.to_numpy(), kind="stable")].reset_index(drop=True)
 
 
 def main():
@@ -264,7 +304,12 @@ def main():
     ap.add_argument("--reuse", action="store_true",
                     help="read each offset's results from OUT instead of running it (e.g. --docs after one process "
                          "per seed offset, side by side)")
+    ap.add_argument("--update", action="store_true",
+                    help="run the --only scenarios and put their rows into OUT's results (same settings), the other "
+                         "rows kept: re-run one scenario without the whole table")
     args = ap.parse_args()
+    if args.update and (args.reuse or not args.only):
+        raise SystemExit("--update runs the --only scenarios into OUT's results (not with --reuse)")
     offsets = [int(v) for v in args.seed_offsets.split(",")]
     tables = {}
     for off in offsets:
@@ -276,11 +321,13 @@ def main():
             keep = set(args.only.split(","))
             scenarios = [s for s in scenarios if s["name"] in keep]
         out = Path(args.out) / (f"seed+{off}" if off else "")
+        if args.update:
+            _check_update(scenarios)
         if args.reuse:
             tables[off] = read_table(out / "results.parquet")[0]
             tables[off] = tables[off][tables[off].scenario.isin([s["name"] for s in scenarios])]
         else:
-            tables[off] = run_all(scenarios, overrides, out)
+            tables[off] = run_all(scenarios, overrides, out, update=args.update)
     if args.docs:
         write_docs(tables, args.config, args.seed_offsets)
 

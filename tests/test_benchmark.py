@@ -69,3 +69,29 @@ def test_the_weight_scenarios_reference_is_its_world_without_the_weights_effect(
     assert ref.vibration_weight_lb == 18000.0 and weight["synth"].vibration_weight_lb is None
     assert to_dict(ref) == {**to_dict(weight["synth"]), "name": ref.name, "vibration_weight_lb": 18000.0}
     assert weight["reference_label"] == "vibration_weight_lb = 18000"
+
+
+def test_an_update_replaces_its_scenarios_rows_and_keeps_the_others(bench, tmp_path):
+    from pvvjax.config import DiscoveryConfig, ExperimentConfig
+    from pvvjax.io import write_table
+
+    old = pd.DataFrame(dict(scenario=["null-1", "a", "b"], seed=[1, 1, 2], x=[1.0, 2.0, 3.0]))
+    new = pd.DataFrame(dict(scenario=["c", "a"], seed=[3, 1], x=[9.0, 8.0], y=[0.5, 0.6]))
+    got = bench.merged(old, new)
+    assert list(got.scenario) == ["null-1", "a", "b", "c"] and list(got.x) == [1.0, 8.0, 3.0, 9.0]
+    assert np.isnan(got.y[0]) and got.y[1] == 0.6
+    # only into results of the same settings
+    cfg = ExperimentConfig(discovery=DiscoveryConfig(lag_test=True))
+    write_table(old, tmp_path / "results", cfg)
+    pd.testing.assert_frame_equal(bench._previous(tmp_path / "results.parquet", cfg), old)
+    with pytest.raises(SystemExit, match="other settings"):
+        bench._previous(tmp_path / "results.parquet", ExperimentConfig(discovery=DiscoveryConfig(lag_test=False)))
+    with pytest.raises(SystemExit, match="no results to update"):
+        bench._previous(tmp_path / "none.parquet", cfg)
+    # a hidden scenario measured against a null needs that null beside it
+    scenarios, _ = bench.scenario_configs(ROOT / "experiments" / "configs" / "discovery" / "benchmark.toml")
+    by = {s["name"]: s for s in scenarios}
+    bench._check_update([by["weight-missing-db3"]])  # its own reference world
+    bench._check_update([by["null-41"], by["roll-rate"]])
+    with pytest.raises(SystemExit, match=r"roll-rate \(seed 41\) need the null"):
+        bench._check_update([by["roll-rate"], by["null-31"]])
