@@ -466,15 +466,15 @@ def test_nets_trained_on_the_windows_see_every_strided_window_and_lower_the_floo
     monkeypatch.setattr(D, "fit_ensemble", recorded)
     contexts, context = [], D._context
     monkeypatch.setattr(D, "_context", lambda *a: contexts.append(context(*a)) or contexts[-1])
-    d = from_dict(DiscoveryConfig, {**_FAST, "max_effects": 0, "train_rows": "windows", "train_stride": 8})
+    d = from_dict(DiscoveryConfig, {**_FAST, "max_effects": 0, "train_rows": "windows", "train_stride": 16})
     res = D.discover(camp, ExperimentConfig(discovery=d), log=lambda m: None)
     assert len(calls) == 2  # the peaks (to calibrate the offset), then the windows
     (_, y_peaks, _), (x, y, folds) = calls
     ctx = contexts[0]
     peak_nets = res.baseline._replace(params=ctx.replay_params)  # the nets that calibrated the replay
     win = D._replay(ctx, res.baseline.offset_s)  # the windows do not depend on the nets
-    rows = (win.table.weight.to_numpy() >= 0.999) & (win.table.k.to_numpy() % 8 == 0)
-    assert len(y) == rows.sum() > 10 * len(y_peaks)
+    rows = (win.table.weight.to_numpy() >= 0.999) & (win.table.k.to_numpy() % 16 == 0)
+    assert len(y) == rows.sum() > 5 * len(y_peaks)
     np.testing.assert_allclose(y, win.table.measured_g.to_numpy()[rows], rtol=1e-6)
     np.testing.assert_allclose(x, win.table.loc[rows, list(res.baseline.inputs)].to_numpy(), rtol=1e-5)
     np.testing.assert_array_equal(folds, ctx.counter_fold[win.table.i.to_numpy()[rows]])
