@@ -825,7 +825,12 @@ def _paired_sign_flip(a: dict, b: dict, permutations: int, seed: int) -> tuple[f
         (one-sided p-value, 1 − b's squared error / a's).
     """
     both = _paired_errors(a, b)
-    return _sign_flip_p(both, permutations, seed), float(1.0 - both.e2_b.sum() / both.e2_a.sum())
+    return _sign_flip_p(both, permutations, seed), _explained(both)
+
+
+def _explained(both: pd.DataFrame) -> float:
+    """1 − the second trial's squared error / the first's (`_paired_errors`' table)."""
+    return float(1.0 - both.e2_b.sum() / both.e2_a.sum())
 
 
 def _sign_flip_p(both: pd.DataFrame, permutations: int, seed: int) -> float:
@@ -1137,7 +1142,7 @@ def _resonance_probe(ctx: _Ctx, model: Model, proposals, lib: list[Candidate], M
     gain = _selection_gain(resid[rows], M[rows, j], groups[rows], base=floor, folds=d.folds, seed=seed)
     log("resonance probe: gains by band centre " + ", ".join(
         f"{c.parameters['center']:.1f} {v:+.2f}" for (_, c), v in zip(bands, g)) + f": proposes {lib[j].name}")
-    return list(proposals) + [("all", j, _Selected(j, gain, float("nan"), float("nan")))]
+    return list(proposals) + [("all", j, _Selected(j, gain, float("nan"), float("nan"), source="probe"))]
 
 
 def _probe_test(conf: dict, current: dict, c: Candidate, seed: int) -> tuple[float, float]:
@@ -1158,8 +1163,7 @@ def _probe_test(conf: dict, current: dict, c: Candidate, seed: int) -> tuple[flo
     """
     both = _paired_errors(current, conf).merge(
         conf["win"].table[["counter", "window"]].assign(band=conf["win"].values(c)), on=["counter", "window"])
-    p = _sign_flip_p(both[both.band >= 0.5], _SIGN_FLIPS, seed)
-    return p, float(1.0 - both.e2_b.sum() / both.e2_a.sum())
+    return _sign_flip_p(both[both.band >= 0.5], _SIGN_FLIPS, seed), _explained(both)
 
 
 def _propose(win: _Windows, yhat, resid, C, rows, own, floor_all, d, seed: int, complexity, keys,
@@ -1391,7 +1395,7 @@ def discover(campaign: Campaign, cfg: ExperimentConfig = ExperimentConfig(), *, 
                                                    "gain": float(np.median(trial.params["gain"][..., -1]))})
                 ok, conf = _confirm(ctx, current, trial, c, where, d)
                 p_value, explained = s.p_value, s.explained_fraction
-                if not np.isfinite(p_value):  # the probe's band: no selection p, its retraining's by condition
+                if s.source == "probe":  # no selection p: its retraining's, by condition
                     p_value, explained = _probe_test(conf, dict(pred=pred, win=win), c, cfg.seed + rnd)
                 t_confirm += time.perf_counter() - t0
                 t0 = time.perf_counter()

@@ -38,6 +38,9 @@ class Selected(NamedTuple):
         equivalents: ((column, gain), ...) of the candidates the selection cannot tell from
             the best (`equivalent`, within `parsimony` standard errors; `index` first), simplest
             first, then by gain.
+        source: "selection" (this module), or "probe": a rotor-speed band that discovery's
+            resonance probe proposed, with no p-value or explained fraction of the selection's
+            (NaN; its retraining gives them).
     """
 
     index: int
@@ -46,6 +49,7 @@ class Selected(NamedTuple):
     p_value: float
     alternatives: tuple = ()
     equivalents: tuple = ()
+    source: str = "selection"
 
 
 def _folds(groups, k: int, seed: int) -> np.ndarray:

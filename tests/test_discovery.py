@@ -320,6 +320,7 @@ def test_the_resonance_probe_proposes_the_band_of_the_largest_gain_unless_one_is
     assert out[:1] == first and len(out) == 2
     where, j, s = out[1]
     assert (where, j, s.index) == ("all", 3, 3) and np.isnan(s.p_value) and np.isfinite(s.gain)
+    assert s.source == "probe" and first[0][2].source == "selection"
     with_band = [("all", 2, Selected(2, 0.3, 0.3, 0.01))]
     assert D._resonance_probe(None, model, with_band, lib, M, designs, resid, groups, d, 0, print) == with_band
     # Window nets (through a lag, or trained on the windows): no probe.
