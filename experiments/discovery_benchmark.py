@@ -22,7 +22,6 @@ docs/discovery-benchmark.md.
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from pathlib import Path
 
@@ -31,7 +30,7 @@ import pandas as pd
 
 from pvvjax._strict import from_dict, to_dict
 from pvvjax.campaign import campaign_from_frames
-from pvvjax.config import DiscoveryConfig, ExperimentConfig, load_toml
+from pvvjax.config import DiscoveryConfig, ExperimentConfig, config_hash, load_toml
 from pvvjax.discovery import discover, selection_gain, summary
 from pvvjax.discovery_report import write_discovery
 from pvvjax.io import markdown_table, read_table, write_table
@@ -78,8 +77,7 @@ def matches(effect: dict, accept) -> bool:
 
 def run_scenario(sc: dict, overrides: dict, out: Path, log=print):
     t0 = time.perf_counter()
-    counters, records, _truth = generate(sc["synth"])  # the truth stays here, never passed on
-    campaign = campaign_from_frames(counters, records, source=sc["synth"].name)
+    campaign = _campaign(sc["synth"])
     t_gen = time.perf_counter() - t0
     dcfg = from_dict(DiscoveryConfig, {**overrides, "database": sc["database"]})
     cfg = ExperimentConfig(name=sc["name"], discovery=dcfg)
@@ -126,6 +124,12 @@ def run_scenario(sc: dict, overrides: dict, out: Path, log=print):
     return row, res, ref
 
 
+def _campaign(synth: SynthConfig):
+    """A generated campaign; the generator's truth stays here, never passed on."""
+    counters, records, _truth = generate(synth)
+    return campaign_from_frames(counters, records, source=synth.name)
+
+
 def reference_baseline(sc: dict, overrides: dict, log=print):
     """The scenario's model on its `reference_world`, for an input taken away from the model:
     the same campaign (seed, conditions, flight) generated without the input's effect on the
@@ -134,8 +138,7 @@ def reference_baseline(sc: dict, overrides: dict, log=print):
     that has the input is another model: db2 (db3 plus the weight) was no better than db3
     on two of three worlds, since nets on ~200 peaks do not learn the weight's knee from one
     more input. Discovery with no rounds trains, calibrates and replays the baseline alone."""
-    counters, records, _truth = generate(sc["reference_world"])
-    campaign = campaign_from_frames(counters, records, source=sc["reference_world"].name)
+    campaign = _campaign(sc["reference_world"])
     dcfg = from_dict(DiscoveryConfig, {**overrides, "database": sc["database"], "max_effects": 0})
     tag = f"{sc['name']}, {sc['reference_label']}"
     return discover(campaign, ExperimentConfig(name=tag, discovery=dcfg), name=sc["reference_world"].name,
@@ -260,10 +263,9 @@ def _previous(path: Path, cfg) -> pd.DataFrame:
     if not path.exists():
         raise SystemExit(f"--update: no results to update at {path}")
     old, stored = read_table(path)
-    now = json.loads(json.dumps(to_dict(cfg), sort_keys=True, default=str))
-    if stored != now:
-        raise SystemExit(f"--update: {path} was run with other settings: {stored.get('discovery')} "
-                         f"against {now.get('discovery')}")
+    if config_hash(stored) != config_hash(cfg):  # the hash of the stored config's content, as of cfg's
+        raise SystemExit(f"--update: {path} was run with other settings: {(stored or {}).get('discovery')} "
+                         f"against {to_dict(cfg).get('discovery')}")
     return old
 
 
