@@ -168,13 +168,16 @@ def train_nets(params, data: _train.Data, group, cfg, *, chunk_evals: int = 8, o
     state = None
     active = np.arange(n)
     spent = np.zeros(n)
-    # Batch sizes are powers of two, at least the first chunk's (up to 8): few shapes, so few
-    # compilations, and no group of 4 nets (discovery's seeds) padded to 8.
-    least = min(8, _bucket(np.bincount(group, minlength=n_groups).max(), n_dev))
+    # Batch sizes are powers of two, at least the first chunk's (up to 8, not rounded up):
+    # few shapes, so few compilations, and no group of 3 or 4 nets (discovery's seeds)
+    # padded to 4 or 8 (the padded nets are computed and thrown away).
+    largest = np.bincount(group, minlength=n_groups).max()
+    least = min(_bucket(8, n_dev), -(-largest // n_dev) * n_dev)
     while active.size:
         # (G, M) table of net indices: each group's active nets, padded with repeats
         per = [active[group[active] == g] for g in range(n_groups)]
-        width = max(least, _bucket(max(len(a) for a in per), n_dev))
+        most = max(len(a) for a in per)
+        width = least if most <= least else _bucket(most, n_dev)
         table = np.stack([np.resize(a if len(a) else np.flatnonzero(group == g)[:1], width) for g, a in enumerate(per)])
         real = np.stack([np.arange(width) < len(a) for a in per])
         t0 = time.perf_counter()
