@@ -164,3 +164,32 @@ def test_sweep_axis_is_sharded_over_devices_in_a_separate_process(tmp_path, smal
     # (nets mixed up, data not replicated) would be far off.
     assert set(two.index) == set(one.index)
     np.testing.assert_allclose(two.loc[one.index].to_numpy(), one.to_numpy(), rtol=2e-2)
+
+
+@pytest.mark.parametrize("per_group, widths", [(3, {3}), (5, {5}), (12, {16, 8})])
+def test_a_groups_nets_are_not_padded_beyond_its_size_up_to_8(monkeypatch, per_group, widths):
+    # Padded nets are computed and thrown away: a group of 3 (discovery's seeds) trains as 3,
+    # not 4; above 8 the widths are powers of two (few shapes to compile as nets finish).
+    from pvvjax import sweep
+    from pvvjax.networks import mlp_init
+    from pvvjax.train import make_data
+
+    rng = np.random.default_rng(0)
+    x = rng.normal(size=(40, 2)).astype(np.float32)
+    y = np.tanh(x[:, 0]).astype(np.float32)
+    w = (np.arange(40) % 4 > 0).astype(np.float32)
+    data = jax.tree.map(lambda a: np.stack([a, a]), make_data(x, y, w, 1.0 - w))
+    n = 2 * per_group
+    params = jax.tree.map(lambda *a: np.stack(a), *[mlp_init(jax.random.key(i), 2, (3,)) for i in range(n)])
+    seen, run = [], sweep._run_chunk
+
+    def recorded(state, *args):
+        seen.append(jax.tree.leaves(state)[0].shape[:2])  # (groups, nets per group)
+        return run(state, *args)
+
+    monkeypatch.setattr(sweep, "_run_chunk", recorded)
+    # patience 1 and different seeds: nets finish in different chunks, so compaction is exercised
+    cfg = TrainConfig(learning_rate=1e-2, max_steps=400, eval_every=10, patience=1)
+    fits = sweep.train_nets(params, data, np.repeat([0, 1], per_group), cfg, chunk_evals=1)
+    assert {m for _, m in seen} == widths and all(g == 2 for g, _ in seen)
+    assert fits.best_val_rms.shape == (n,) and np.isfinite(fits.best_val_rms).all()
