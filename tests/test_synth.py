@@ -188,3 +188,30 @@ def test_shipped_scenario_configs_load_and_differ_from_default():
     hidden = {p.stem: ground_truth(load_synth_config(p))["hidden"] for p in sorted(folder.glob("*.toml"))}
     assert hidden == {"long-lag": ["dynamic_lag"], "null": [], "pitch-acceleration": ["pitch_acceleration"],
                       "sideslip": ["sideslip"]}
+
+
+def test_concurrent_callers_generate_a_cached_campaign_once(tmp_path, monkeypatch):
+    # Two test workers asking for the default campaign on a cold cache: the second waits for
+    # the first's folder instead of generating it again.
+    import threading
+    import time
+
+    from pvvjax.synth import _generate, cached_campaign
+
+    calls, write = [], _generate.write_synthetic
+
+    def slow(*args, **kwargs):
+        calls.append(1)
+        time.sleep(0.5)  # both callers are inside cached_campaign by then
+        return write(*args, **kwargs)
+
+    monkeypatch.setattr(_generate, "write_synthetic", slow)
+    cfg = SynthConfig(name="pair", conditions=("11022",))
+    got = []
+    threads = [threading.Thread(target=lambda: got.append(cached_campaign(cfg, tmp_path))) for _ in range(2)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert len(calls) == 1 and got[0] == got[1] and len(load_campaign(got[0])) == 1
+    assert cached_campaign(cfg, tmp_path) == got[0] and len(calls) == 1

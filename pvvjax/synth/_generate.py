@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
@@ -251,13 +252,38 @@ def default_cache_dir() -> Path:
 
 def cached_campaign(cfg: SynthConfig = SynthConfig(), cache_dir=None) -> Path:
     """The folder of a generated campaign, generating it once per config and generator
-    version. Safe under concurrent callers (the folder appears atomically)."""
+    version. Safe under concurrent callers (the folder appears atomically; where the OS
+    has file locks, a second caller waits for the first instead of generating it again)."""
     cache_dir = Path(cache_dir) if cache_dir else default_cache_dir()
     key = f"{cfg.name}-{config_hash(cfg)}-v{GENERATOR_VERSION}"
     final = cache_dir / "campaigns" / key
     if (final / "counters.csv").exists():
         return final
     final.parent.mkdir(parents=True, exist_ok=True)
+    with _locked(final.parent / f"{key}.lock"):
+        if not (final / "counters.csv").exists():
+            _generate_into(final, cfg, key)
+    return final
+
+
+@contextlib.contextmanager
+def _locked(path: Path):
+    """An exclusive lock on `path` (POSIX `flock`; elsewhere no lock: the atomic rename
+    still keeps concurrent generations correct, only not single)."""
+    try:
+        import fcntl
+    except ImportError:
+        yield
+        return
+    with open(path, "a") as f:
+        fcntl.flock(f, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(f, fcntl.LOCK_UN)
+
+
+def _generate_into(final: Path, cfg: SynthConfig, key: str):
     tmp = Path(tempfile.mkdtemp(dir=final.parent, prefix=".tmp-"))
     try:
         write_synthetic(tmp / "campaign", cfg, truth_path=tmp / "truth.json")
@@ -269,7 +295,6 @@ def cached_campaign(cfg: SynthConfig = SynthConfig(), cache_dir=None) -> Path:
                 raise
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
-    return final
 
 
 def describe_effects() -> pd.DataFrame:
