@@ -633,7 +633,8 @@ def _context(campaign: Campaign, cfg: ExperimentConfig, log) -> _Ctx:
     d = cfg.discovery
     dbs = build_databases(campaign, cfg.analysis)
     db = dbs[d.database]
-    folds = _train.condition_folds(db.condition, d.folds, d.split_seed)
+    folds = _train.condition_folds(db.condition, d.folds, d.split_seed,
+                                   f"discovery.folds (campaign {campaign.source or '<memory>'}, {d.database})")
     fold_of = dict(zip(db.condition, folds))
     info = campaign.counters.loc[:, ["maneuver", "condition"]]
     info = info[info.condition.isin(fold_of)]

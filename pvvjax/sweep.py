@@ -88,7 +88,8 @@ def stack_data(dbs: dict, databases, folds: int, split_seed: int):
         x = np.zeros((len(df), N_INPUTS), np.float32)
         x[:, : len(cols)] = df[cols].to_numpy(np.float32)
         mask = (np.arange(N_INPUTS) < len(cols)).astype(np.float32)
-        out[db] = (x, df[OUTPUT].to_numpy(np.float32), mask, _train.condition_folds(df.condition, folds, split_seed))
+        fold = _train.condition_folds(df.condition, folds, split_seed, f"sweep.folds ({db})")
+        out[db] = (x, df[OUTPUT].to_numpy(np.float32), mask, fold)
     return out
 
 

@@ -47,12 +47,14 @@ class Fit(NamedTuple):
     failed_step: jax.Array
 
 
-def condition_folds(conditions, k: int, seed: int) -> np.ndarray:
-    """Fold index (0..k-1) of each row, assigned per condition in a seeded random order."""
+def condition_folds(conditions, k: int, seed: int, name: str = "k") -> np.ndarray:
+    """Fold index (0..k-1) of each row, assigned per condition in a seeded random order
+    (`name`: the setting k came from, for the error)."""
     conditions = np.asarray(conditions)
     uniq = np.unique(conditions)
     if k < 3 or k > len(uniq):
-        raise ValueError(f"k-fold needs 3 <= k <= number of conditions ({len(uniq)}), got k={k}")
+        raise ValueError(f"{name} = {k}: a k-fold split by condition needs 3 <= k <= the number of conditions "
+                         f"({len(uniq)})")
     order = np.random.default_rng(seed).permutation(len(uniq))
     fold_of = {c: i % k for i, c in zip(range(len(uniq)), uniq[order])}
     return np.array([fold_of[c] for c in conditions])

@@ -47,6 +47,15 @@ def test_missing_campaign_folder_is_a_clear_error(tmp_path, capsys):
     assert "campaign folder not found" in capsys.readouterr().err
 
 
+def test_discover_on_fewer_conditions_than_folds_names_the_setting_and_the_campaign(tmp_path, capsys):
+    from conftest import write_tiny
+
+    folder = write_tiny(tmp_path / "two")  # 2 conditions, 5 folds by default
+    assert main(["discover", "--campaign", str(folder), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert f"discovery.folds (campaign {folder}, db1) = 5" in err and "number of conditions (2)" in err
+
+
 @pytest.mark.heavy
 def test_sweep_then_export_a_numpy_net(tmp_path, small_campaign_dir, capsys):
     cfg = tmp_path / "s.toml"
