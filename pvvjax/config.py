@@ -122,10 +122,10 @@ class AnalysisConfig:
         return self.hop_revs or self.window_revs
 
 
-def _check_databases(section: str, databases):
+def _check_databases(section: str, databases, field: str = "databases"):
     bad = [d for d in databases if d not in ("db1", "db2", "db3")]
     if bad or not databases:
-        raise ValueError(f"{section}.databases: unknown {bad}; use db1, db2, db3")
+        raise ValueError(f"{section}.{field}: unknown {bad}; use db1, db2, db3")
 
 
 @dataclass(frozen=True)
@@ -430,7 +430,7 @@ class DiscoveryConfig:
     resonance_probe: bool = False
 
     def __post_init__(self):
-        _check_databases("discovery", (self.database,))
+        _check_databases("discovery", (self.database,), "database")
         if (min(self.lag_test_taus, default=0.0) <= 0 or max(self.lag_test_taus, default=0.0) <= self.lag_fast_s
                 or self.lag_fast_s < 0):
             raise ValueError(f"discovery.lag_test_taus must be > 0 with at least one above discovery.lag_fast_s "
@@ -455,9 +455,11 @@ class DiscoveryConfig:
                 raise ValueError(f"discovery.{name} must be >= 1, got {getattr(self, name)}")
         if self.folds < 3:
             raise ValueError(f"discovery.folds must be >= 3, got {self.folds}")
-        for name in ("hop_revs", "offset_step_s", "alpha"):
+        for name in ("hop_revs", "offset_step_s"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"discovery.{name} must be > 0, got {getattr(self, name)}")
+        if not 0 < self.alpha < 1:
+            raise ValueError(f"discovery.alpha must lie in (0, 1), got {self.alpha}")
         for name in ("min_gain", "min_shrink", "shrink_noise"):
             if not 0 <= getattr(self, name) < 1:
                 raise ValueError(f"discovery.{name} must lie in [0, 1), got {getattr(self, name)}")

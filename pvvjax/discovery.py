@@ -43,7 +43,7 @@ import pandas as pd
 from . import train as _train
 from .batch import to_batch
 from .campaign import Campaign
-from .candidates import Candidate, library, values, window_table, window_tables
+from .candidates import Candidate, library, sample_series, values, window_table, window_tables
 from .config import ExperimentConfig
 from .databases import DB_INPUTS, OUTPUT, STATE_CHANNELS, build_databases
 from .effects import lag as _lag
@@ -638,6 +638,12 @@ def _context(campaign: Campaign, cfg: ExperimentConfig, log) -> _Ctx:
     fold_of = dict(zip(db.condition, folds))
     info = campaign.counters.loc[:, ["maneuver", "condition"]]
     info = info[info.condition.isin(fold_of)]
+    if d.exclude_channels:  # a misspelt channel would silently stay a candidate
+        known = sample_series(campaign.records[info.index[0]], campaign.aircraft)
+        unknown = sorted(set(d.exclude_channels) - set(known))
+        if unknown:
+            raise ValueError(f"discovery.exclude_channels: {unknown} are not candidate channels of campaign "
+                             f"{campaign.source or '<memory>'} (channels and derived features: {sorted(known)})")
     batch = to_batch(campaign, STATE_CHANNELS, list(info.index))
     recs = prepare(batch)
     L = cfg.analysis.window_revs

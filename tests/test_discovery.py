@@ -537,3 +537,17 @@ def test_parameter_free_candidates_are_also_tried_at_the_candidate_offsets():
     lib3, C3, _, _ = _candidate_matrix(ctx, model, win, yhat, set(), lags=False)
     assert [c.key for c in lib3] == [c.key for c in lib if c.operator != "lag"]
     np.testing.assert_array_equal(C3, C[:, [j for j, c in enumerate(lib) if c.operator != "lag"]])
+
+
+def test_a_misspelt_excluded_channel_is_an_error_naming_it_not_a_candidate_left_in():
+    from conftest import tiny_records
+
+    from pvvjax.campaign import campaign_from_frames
+    from pvvjax.config import DiscoveryConfig, ExperimentConfig
+    from pvvjax.discovery import discover
+
+    camp = campaign_from_frames(*tiny_records(n_counters=4))
+    cfg = ExperimentConfig(discovery=DiscoveryConfig(folds=3, exclude_channels=("longitudinal_pct", "longitudnal_pct")))
+    with pytest.raises(ValueError, match=r"discovery.exclude_channels: \['longitudnal_pct'\] are not candidate "
+                                         r"channels of campaign <memory> \(channels and derived features: .*'mlf'"):
+        discover(camp, cfg, log=lambda m: None)
