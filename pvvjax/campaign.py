@@ -188,7 +188,7 @@ def _check_values(df: pd.DataFrame, columns, file: str, problems: list) -> None:
             continue
         row = _first_bad(~np.isfinite(vals))
         if row is not None:
-            problems.append(Problem(file, col, row, f"missing, NaN or infinite value ({raw.iloc[row - 1]!r})"))
+            problems.append(Problem(file, col, row, f"missing, NaN or infinite value ({raw.iloc[row - 1]})"))
             continue
         lo, hi, inclusive = RANGES.get(col, (None, None, True))
         bad = np.zeros(vals.shape, bool)
@@ -284,7 +284,7 @@ def _check_counters(df: pd.DataFrame, mapping, problems: list) -> pd.DataFrame |
         row = _first_bad(bad)
         if row is not None:
             problems.append(Problem("counters.csv", "segment", row,
-                                    f"segment must be an integer >= 1, got {df['segment'].iloc[row - 1]!r}"))
+                                    f"segment must be an integer >= 1, got {df['segment'].iloc[row - 1]}"))
             seg = np.where(bad, 1, seg)
         df["segment"] = seg.astype(int)
     else:

@@ -90,8 +90,9 @@ def test_timeseries_file_without_counter(tmp_path):
     _only(_problems(write_tiny(tmp_path / "c", c.iloc[:1], r)), "timeseries/C2.csv", "no counter 'C2'")
 
 
-@pytest.mark.parametrize("value, needle", [("abc", "non-numeric value 'abc'"), (np.nan, "missing, NaN or infinite"),
-                                           (np.inf, "missing, NaN or infinite")])
+@pytest.mark.parametrize("value, needle", [("abc", "non-numeric value 'abc'"),
+                                           (np.nan, "missing, NaN or infinite value (nan)"),
+                                           (np.inf, "missing, NaN or infinite value (inf)")])
 def test_bad_values_in_required_channel(tmp_path, value, needle):
     c, r = tiny_records()
     df = r["C1"].astype({"pitch_rate_dps": object})
