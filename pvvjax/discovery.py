@@ -30,6 +30,7 @@ The workflow reads the campaign only (never a generator's ground truth).
 
 from __future__ import annotations
 
+import os
 import time
 from dataclasses import dataclass, field, replace
 from typing import NamedTuple
@@ -42,9 +43,9 @@ import pandas as pd
 
 from . import train as _train
 from .batch import to_batch
-from .campaign import Campaign
+from .campaign import Campaign, load_campaign
 from .candidates import Candidate, library, sample_series, values, window_table, window_tables
-from .config import ExperimentConfig
+from .config import DiscoveryConfig, ExperimentConfig
 from .databases import DB_INPUTS, OUTPUT, STATE_CHANNELS, build_databases
 from .effects import lag as _lag
 from .networks import mlp_apply, mlp_init, scaling
@@ -1277,19 +1278,29 @@ def _public_parameters(c: Candidate) -> dict:
     return p
 
 
-def discover(campaign: Campaign, cfg: ExperimentConfig = ExperimentConfig(), *, name: str = "", log=print,
-             progress=None) -> Discovery:
+def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | DiscoveryConfig = ExperimentConfig(), *,
+             name: str = "", log=print, progress=None) -> Discovery:
     """Run the discovery workflow on a campaign (see the module docstring).
 
     Args:
-        campaign: any campaign in the data-contract format.
-        cfg: experiment config (`analysis`, `train` and `discovery` sections).
-        name: the campaign's path or name, for the summary.
+        campaign: any campaign in the data-contract format, loaded or its folder.
+        cfg: experiment config (`analysis`, `train` and `discovery` sections), or only the
+            `DiscoveryConfig` (the other sections at their defaults).
+        name: the campaign's path or name, for the summary (default: the folder given).
         log: progress messages.
 
     Returns:
         `Discovery`.
     """
+    if isinstance(cfg, DiscoveryConfig):
+        cfg = ExperimentConfig(discovery=cfg)
+    elif not isinstance(cfg, ExperimentConfig):
+        raise TypeError(f"discover: cfg must be an ExperimentConfig or a DiscoveryConfig, got {type(cfg).__name__}")
+    if isinstance(campaign, (str, os.PathLike)):
+        name = name or str(campaign)
+        campaign = load_campaign(campaign, cfg.campaign.columns, cfg.analysis.window_revs)
+    elif not isinstance(campaign, Campaign):
+        raise TypeError(f"discover: campaign must be a Campaign or a campaign folder, got {type(campaign).__name__}")
     d = cfg.discovery
     sec = {}
     t0 = time.perf_counter()

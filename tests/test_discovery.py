@@ -551,3 +551,25 @@ def test_a_misspelt_excluded_channel_is_an_error_naming_it_not_a_candidate_left_
     with pytest.raises(ValueError, match=r"discovery.exclude_channels: \['longitudnal_pct'\] are not candidate "
                                          r"channels of campaign <memory> \(channels and derived features: .*'mlf'"):
         discover(camp, cfg, log=lambda m: None)
+
+
+def test_discover_takes_a_campaign_folder_and_a_bare_discovery_config(tmp_path, monkeypatch):
+    # The Python API as the CLI: a folder is loaded (and names the campaign), a DiscoveryConfig
+    # stands for an ExperimentConfig with it; anything else is a TypeError naming what it got.
+    from conftest import write_tiny
+
+    from pvvjax import discovery as D
+    from pvvjax.config import DiscoveryConfig, ExperimentConfig
+
+    folder = write_tiny(tmp_path / "c")
+    seen = []
+    monkeypatch.setattr(D, "_context", lambda campaign, cfg, log: seen.append((campaign, cfg)) or 1 / 0)
+    with pytest.raises(ZeroDivisionError):
+        D.discover(folder, DiscoveryConfig(folds=3), log=lambda m: None)
+    campaign, cfg = seen[0]
+    assert len(campaign) == 2 and campaign.source == str(folder)
+    assert cfg == ExperimentConfig(discovery=DiscoveryConfig(folds=3))
+    with pytest.raises(TypeError, match="cfg must be an ExperimentConfig or a DiscoveryConfig, got dict"):
+        D.discover(folder, {"folds": 3})
+    with pytest.raises(TypeError, match="campaign must be a Campaign or a campaign folder, got list"):
+        D.discover([folder])
