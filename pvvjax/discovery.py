@@ -1278,6 +1278,21 @@ def _public_parameters(c: Candidate) -> dict:
     return p
 
 
+def _inputs(caller: str, campaign, cfg, name: str = "") -> tuple[Campaign, ExperimentConfig, str]:
+    """(campaign, config, name) from what a caller may pass: a campaign or its folder (loaded
+    as the CLI loads it; the folder names it), an ExperimentConfig or a bare DiscoveryConfig."""
+    if isinstance(cfg, DiscoveryConfig):
+        cfg = ExperimentConfig(discovery=cfg)
+    elif not isinstance(cfg, ExperimentConfig):
+        raise TypeError(f"{caller}: cfg must be an ExperimentConfig or a DiscoveryConfig, got {type(cfg).__name__}")
+    if isinstance(campaign, (str, os.PathLike)):
+        name = name or str(campaign)
+        campaign = load_campaign(campaign, cfg.campaign.columns, cfg.analysis.window_revs)
+    elif not isinstance(campaign, Campaign):
+        raise TypeError(f"{caller}: campaign must be a Campaign or a campaign folder, got {type(campaign).__name__}")
+    return campaign, cfg, name
+
+
 def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | DiscoveryConfig = ExperimentConfig(), *,
              name: str = "", log=print, progress=None) -> Discovery:
     """Run the discovery workflow on a campaign (see the module docstring).
@@ -1292,15 +1307,7 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
     Returns:
         `Discovery`.
     """
-    if isinstance(cfg, DiscoveryConfig):
-        cfg = ExperimentConfig(discovery=cfg)
-    elif not isinstance(cfg, ExperimentConfig):
-        raise TypeError(f"discover: cfg must be an ExperimentConfig or a DiscoveryConfig, got {type(cfg).__name__}")
-    if isinstance(campaign, (str, os.PathLike)):
-        name = name or str(campaign)
-        campaign = load_campaign(campaign, cfg.campaign.columns, cfg.analysis.window_revs)
-    elif not isinstance(campaign, Campaign):
-        raise TypeError(f"discover: campaign must be a Campaign or a campaign folder, got {type(campaign).__name__}")
+    campaign, cfg, name = _inputs("discover", campaign, cfg, name)
     d = cfg.discovery
     sec = {}
     t0 = time.perf_counter()

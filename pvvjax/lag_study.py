@@ -13,18 +13,20 @@ and decides on them (a lag slower than `lag_fast_s`); `lag_study` reports them a
 
 from __future__ import annotations
 
+import os
+
 import pandas as pd
 
 from .campaign import Campaign
-from .config import ExperimentConfig
+from .config import DiscoveryConfig, ExperimentConfig
 from .databases import DB_INPUTS
-from .discovery import Model, _context, _fit_offset, _lag_trials, _train_model
+from .discovery import Model, _context, _fit_offset, _inputs, _lag_trials, _train_model
 
 __all__ = ["lag_study"]
 
 
-def lag_study(campaign: Campaign, cfg: ExperimentConfig, taus=(1.0, 2.0, 3.0), reference_offsets=(0.0, 0.5),
-              log=print) -> pd.DataFrame:
+def lag_study(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | DiscoveryConfig, taus=(1.0, 2.0, 3.0),
+              reference_offsets=(0.0, 0.5), log=print) -> pd.DataFrame:
     """Nets trained on the windows through a lag of each τ, against nets trained without one.
 
     The peak nets of `discover` calibrate the offset δ. The reference (τ = 0) is trained at δ
@@ -36,7 +38,8 @@ def lag_study(campaign: Campaign, cfg: ExperimentConfig, taus=(1.0, 2.0, 3.0), r
     test of `discover` (`discovery.lag_test`), every row reported.
 
     Args:
-        campaign: any campaign. cfg: its `discovery` and `train` sections are used.
+        campaign: any campaign, or its folder. cfg: its `discovery` and `train` sections
+            are used (or a bare `DiscoveryConfig`).
         taus: lag time constants tried, s (> 0). reference_offsets: training offsets of the
             reference nets besides δ, s (inside `discovery.offset_bounds`).
         log: progress messages.
@@ -47,6 +50,7 @@ def lag_study(campaign: Campaign, cfg: ExperimentConfig, taus=(1.0, 2.0, 3.0), r
         and peak_error_g (`discovery.metrics`), and drop (1 − its ensemble RMS / the best
         reference's).
     """
+    campaign, cfg, _ = _inputs("lag_study", campaign, cfg)
     d = cfg.discovery
     lo, hi = d.offset_bounds
     bad = [o for o in reference_offsets if not lo <= o <= hi]

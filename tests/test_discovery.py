@@ -573,3 +573,7 @@ def test_discover_takes_a_campaign_folder_and_a_bare_discovery_config(tmp_path, 
         D.discover(folder, {"folds": 3})
     with pytest.raises(TypeError, match="campaign must be a Campaign or a campaign folder, got list"):
         D.discover([folder])
+    from pvvjax.lag_study import lag_study  # the same inputs
+
+    with pytest.raises(TypeError, match="lag_study: cfg must be an ExperimentConfig or a DiscoveryConfig, got dict"):
+        lag_study(folder, {"folds": 3})
