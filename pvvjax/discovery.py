@@ -1278,7 +1278,7 @@ def _public_parameters(c: Candidate) -> dict:
     return p
 
 
-def _inputs(caller: str, campaign, cfg, name: str = "") -> tuple[Campaign, ExperimentConfig, str]:
+def _workflow_inputs(caller: str, campaign, cfg, name: str = "") -> tuple[Campaign, ExperimentConfig, str]:
     """(campaign, config, name) from what a caller may pass: a campaign or its folder (loaded
     as the CLI loads it; the folder names it), an ExperimentConfig or a bare DiscoveryConfig."""
     if isinstance(cfg, DiscoveryConfig):
@@ -1307,7 +1307,7 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
     Returns:
         `Discovery`.
     """
-    campaign, cfg, name = _inputs("discover", campaign, cfg, name)
+    campaign, cfg, name = _workflow_inputs("discover", campaign, cfg, name)
     d = cfg.discovery
     sec = {}
     t0 = time.perf_counter()

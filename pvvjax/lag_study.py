@@ -20,7 +20,7 @@ import pandas as pd
 from .campaign import Campaign
 from .config import DiscoveryConfig, ExperimentConfig
 from .databases import DB_INPUTS
-from .discovery import Model, _context, _fit_offset, _inputs, _lag_trials, _train_model
+from .discovery import Model, _context, _fit_offset, _lag_trials, _train_model, _workflow_inputs
 
 __all__ = ["lag_study"]
 
@@ -50,7 +50,7 @@ def lag_study(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Di
         and peak_error_g (`discovery.metrics`), and drop (1 − its ensemble RMS / the best
         reference's).
     """
-    campaign, cfg, _ = _inputs("lag_study", campaign, cfg)
+    campaign, cfg, _ = _workflow_inputs("lag_study", campaign, cfg)
     d = cfg.discovery
     lo, hi = d.offset_bounds
     bad = [o for o in reference_offsets if not lo <= o <= hi]
