@@ -165,3 +165,18 @@ def test_api_reference_is_current_and_covers_every_public_module():
     public = {p.stem for p in package.glob("*.py") if not p.stem.startswith("_")} | {"synth"}
     assert public - {"__main__"} == set(MODULES), "add the new module to pvvjax._apidoc.MODULES"
     assert "### `discovery.discover` (function; also `pvvjax.discover`)" in text
+
+
+def test_no_module_defines_a_name_twice():
+    # A second `def` of a module-level name silently replaces the first for every caller (a
+    # helper added under a name the module already used broke every discovery once).
+    import ast
+    from collections import Counter
+
+    package = Path(__file__).parents[1] / "pvvjax"
+    twice = {}
+    for path in package.rglob("*.py"):
+        body = ast.parse(path.read_text()).body
+        names = Counter(n.name for n in body if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)))
+        twice.update({f"{path.relative_to(package)}:{k}": v for k, v in names.items() if v > 1})
+    assert not twice, twice
