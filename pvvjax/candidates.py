@@ -227,7 +227,7 @@ def window_tables(campaign: Campaign, intervals: list[pd.DataFrame], exclude=(),
     for iv in intervals[1:]:
         if not (iv.index.equals(first.index) and (iv.counter.to_numpy() == first.counter.to_numpy()).all()):
             raise ValueError("window_tables: interval sets must share their index and counters")
-    parts, names, signed = [[] for _ in intervals], None, {}
+    parts, names, signed, order = [[] for _ in intervals], None, {}, []
     for counter, rows in first.groupby("counter", sort=False).indices.items():
         rec = campaign.records[counter]
         ser = sample_series(rec, campaign.aircraft, exclude)
@@ -258,18 +258,19 @@ def window_tables(campaign: Campaign, intervals: list[pd.DataFrame], exclude=(),
         cum = _cumulative(cols, t)
         for k, v in ser.items():
             signed[k] = signed.get(k, False) or _signed(v)
+        order.append(rows)
         for iv, out_parts in zip(intervals, parts):
-            g = iv.iloc[rows]
-            m = interval_means(cols, t, g.t0.to_numpy(), g.t1.to_numpy(), cum).reshape(len(g), len(names), 5)
-            out = {}
-            for j, k in enumerate(names):
-                out[f"x:{k}"], out[f"abs:{k}"], out[f"rate:{k}"], out[f"abs_rate:{k}"] = (m[:, j, 0], m[:, j, 1],
-                                                                                         m[:, j, 2], m[:, j, 3])
-                out[f"spread:{k}"] = np.sqrt(np.maximum(m[:, j, 4] - (m[:, j, 0] - centre[j]) ** 2, 0.0))
-            out_parts.append(pd.DataFrame(out, index=g.index))
+            m = interval_means(cols, t, iv.t0.to_numpy()[rows], iv.t1.to_numpy()[rows], cum)
+            m = m.reshape(len(rows), len(names), 5)
+            m[:, :, 4] = np.sqrt(np.maximum(m[:, :, 4] - (m[:, :, 0] - centre) ** 2, 0.0))  # mean square -> spread
+            out_parts.append(m.reshape(len(rows), -1))
+    # One frame per interval set (a frame per record and a column per array cost more than the means).
+    columns = [f"{kind}:{k}" for k in names or () for kind in ("x", "abs", "rate", "abs_rate", "spread")]
+    index = first.index[np.concatenate(order)] if order else first.index[:0]
     tables = []
     for iv, out_parts in zip(intervals, parts):
-        table = pd.concat(out_parts).loc[iv.index]
+        data = np.concatenate(out_parts) if out_parts else np.zeros((0, len(columns)))
+        table = pd.DataFrame(data, index=index, columns=columns).loc[iv.index]
         table.attrs["signed"] = sorted(k for k, v in signed.items() if v)
         tables.append(table)
     return tables
