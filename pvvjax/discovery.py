@@ -634,8 +634,9 @@ def _context(campaign: Campaign, cfg: ExperimentConfig, log) -> _Ctx:
     d = cfg.discovery
     dbs = build_databases(campaign, cfg.analysis)
     db = dbs[d.database]
-    folds = _train.condition_folds(db.condition, d.folds, d.split_seed,
-                                   f"discovery.folds (campaign {campaign.source or '<memory>'}, {d.database})")
+    source = campaign.source or "<memory>"  # for the errors below
+    folds = _train.condition_folds(db.condition, d.folds, d.split_seed, f"discovery.folds (campaign {source}, "
+                                   f"{d.database})")
     fold_of = dict(zip(db.condition, folds))
     info = campaign.counters.loc[:, ["maneuver", "condition"]]
     info = info[info.condition.isin(fold_of)]
@@ -644,7 +645,7 @@ def _context(campaign: Campaign, cfg: ExperimentConfig, log) -> _Ctx:
         unknown = sorted(set(d.exclude_channels) - set(known))
         if unknown:
             raise ValueError(f"discovery.exclude_channels: {unknown} are not candidate channels of campaign "
-                             f"{campaign.source or '<memory>'} (channels and derived features: {sorted(known)})")
+                             f"{source} (channels and derived features: {sorted(known)})")
     batch = to_batch(campaign, STATE_CHANNELS, list(info.index))
     recs = prepare(batch)
     L = cfg.analysis.window_revs
