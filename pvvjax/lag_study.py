@@ -20,7 +20,11 @@ import pandas as pd
 from .campaign import Campaign
 from .config import DiscoveryConfig, ExperimentConfig
 from .databases import DB_INPUTS
-from .discovery import Model, _context, _fit_offset, _lag_trials, _train_model, _workflow_inputs
+from .discovery import Model
+from .discovery._confirm import _train_model
+from .discovery._fits import _fit_offset
+from .discovery._lag import _lag_trials
+from .discovery._workflow import _context, _workflow_inputs
 
 __all__ = ["lag_study"]
 

@@ -123,7 +123,7 @@ def test_rate_of_many_columns_equals_numpys_interpolation_column_by_column():
 
 def test_window_tables_of_several_offsets_equal_one_table_each(tiny):
     from pvvjax.candidates import window_tables
-    from pvvjax.discovery import _Windows
+    from pvvjax.discovery._model import _Windows
 
     c = _campaign(tiny)
     rows = []

@@ -9,7 +9,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pvvjax.discovery import _fit_tau, _lag_identified, _lag_windows, _Windows, floor_features, knn_floor, metrics
+from pvvjax.discovery import floor_features, knn_floor, metrics
+from pvvjax.discovery._fits import _fit_tau, _lag_identified
+from pvvjax.discovery._model import _lag_windows, _Windows
 
 
 def _windows(n_counters=3, W=12, seed=0):
@@ -72,7 +74,7 @@ def test_knn_floor_against_brute_force():
 
 def test_a_knee_of_the_models_own_inputs_joins_the_floor_and_is_not_named_through_a_channel_that_follows_it():
     from pvvjax.config import DiscoveryConfig
-    from pvvjax.discovery import _propose
+    from pvvjax.discovery._propose import _propose
 
     # Own input x per condition; the map misses a knee of it (the floor). A measured channel
     # p follows x (a stick that tracks the speed): its knee stands in for the floor's unless
@@ -106,12 +108,12 @@ def test_a_knee_of_the_models_own_inputs_joins_the_floor_and_is_not_named_throug
 
 @pytest.mark.heavy
 def test_refine_recovers_a_knee_and_a_band_and_keeps_a_band_in_its_grid_cell(monkeypatch):
-    from pvvjax import discovery as D
     from pvvjax.candidates import Candidate
-    from pvvjax.discovery import _refine
+    from pvvjax.discovery import _fits
+    from pvvjax.discovery._fits import _refine
 
-    calls, residuals = [], D._refine_residuals
-    monkeypatch.setattr(D, "_refine_residuals", lambda th, args: calls.append(1) or residuals(th, args))
+    calls, residuals = [], _fits._refine_residuals
+    monkeypatch.setattr(_fits, "_refine_residuals", lambda th, args: calls.append(1) or residuals(th, args))
 
     rng = np.random.default_rng(4)
     n = 3000
@@ -145,7 +147,7 @@ def test_refine_recovers_a_knee_and_a_band_and_keeps_a_band_in_its_grid_cell(mon
 
 def test_a_refined_candidate_is_kept_only_if_the_selections_design_credits_it_with_more_gain():
     from pvvjax.candidates import Candidate
-    from pvvjax.discovery import _keep_better
+    from pvvjax.discovery._fits import _keep_better
 
     # Rotor speed per condition; the residual holds a resonance band at 270 rpm (the effect)
     # and one at 250 rpm that the floor covariates already carry (the map's floor).
@@ -171,7 +173,7 @@ def test_a_refined_candidate_is_kept_only_if_the_selections_design_credits_it_wi
 def test_a_proposed_band_brings_the_adjacent_cell_the_design_credits_more():
     from pvvjax.candidates import Candidate
     from pvvjax.config import DiscoveryConfig
-    from pvvjax.discovery import _neighbour_cells
+    from pvvjax.discovery._propose import _neighbour_cells
     from pvvjax.selection import Selected, gains
 
     # A mode at 273 rpm between grid centres 3 rpm apart: the band at 267 is proposed; of its
@@ -231,7 +233,7 @@ def test_floor_features_are_what_the_inputs_determine():
 def test_airspeed_is_determined_by_advance_ratio_and_rotor_speed():
     from pvvjax.constants import KT_TO_FT_S, RPM_TO_RAD_S
     from pvvjax.databases import DB_INPUTS
-    from pvvjax.discovery import _determined
+    from pvvjax.discovery._model import _determined
     from pvvjax.features import advance_ratio
 
     rng = np.random.default_rng(0)
@@ -293,12 +295,13 @@ def test_gains_on_every_band_at_once_find_the_mode_the_nets_input_already_carrie
 
 
 def test_the_resonance_probe_proposes_the_band_of_the_largest_gain_unless_one_is_proposed(monkeypatch):
-    import pvvjax.discovery as D
+    import pvvjax.discovery._propose as P
     from pvvjax.candidates import Candidate
     from pvvjax.config import DiscoveryConfig
+    from pvvjax.discovery import Model
     from pvvjax.selection import Selected
 
-    model = D.Model(params={}, inputs=("rotor_rpm",), offset_s=1.0)
+    model = Model(params={}, inputs=("rotor_rpm",), offset_s=1.0)
     band = lambda c, off=1.0: Candidate("resonance", ("rotor_rpm",), {"center": c, "width": 3.0, "offset_s": off})  # noqa: E731
     lib = [Candidate("input", ("sideslip_deg",), {"offset_s": 1.0}), band(250.0), band(260.0), band(270.0),
            band(270.0, 0.5)]
@@ -308,29 +311,29 @@ def test_the_resonance_probe_proposes_the_band_of_the_largest_gain_unless_one_is
         seen.append([c.parameters["center"] for c in bands])
         return np.array([0.1, 0.2, 0.9])
 
-    monkeypatch.setattr(D, "_probe_gains", fake)
+    monkeypatch.setattr(P, "_probe_gains", fake)
     rng = np.random.default_rng(0)
     n = 200
     M, resid, groups = rng.normal(size=(n, len(lib))), rng.normal(size=n), np.arange(n) // 4
     designs = {"all": (np.ones(n, bool), np.ones((n, 1)))}
     d = DiscoveryConfig()
     first = [("all", 0, Selected(0, 0.3, 0.3, 0.01))]
-    out = D._resonance_probe(None, model, first, lib, M, designs, resid, groups, d, 0, lambda m: None)
+    out = P._resonance_probe(None, model, first, lib, M, designs, resid, groups, d, 0, lambda m: None)
     assert seen == [[250.0, 260.0, 270.0]]  # the bands at the model's offset only
     assert out[:1] == first and len(out) == 2
     where, j, s = out[1]
     assert (where, j, s.index) == ("all", 3, 3) and np.isnan(s.p_value) and np.isfinite(s.gain)
     assert s.source == "probe" and first[0][2].source == "selection"
     with_band = [("all", 2, Selected(2, 0.3, 0.3, 0.01))]
-    assert D._resonance_probe(None, model, with_band, lib, M, designs, resid, groups, d, 0, print) == with_band
+    assert P._resonance_probe(None, model, with_band, lib, M, designs, resid, groups, d, 0, print) == with_band
     # Window nets (through a lag, or trained on the windows): no probe.
     for m, dd in ((model._replace(through_lag=True, lag_tau_s=2.0), d), (model, DiscoveryConfig(train_rows="windows"))):
-        assert D._resonance_probe(None, m, first, lib, M, designs, resid, groups, dd, 0, lambda m: None) == first
+        assert P._resonance_probe(None, m, first, lib, M, designs, resid, groups, dd, 0, lambda m: None) == first
     assert len(seen) == 1
 
 
 def test_a_probes_band_gets_the_p_value_of_its_retraining_by_condition_where_it_acts():
-    import pvvjax.discovery as D
+    import pvvjax.discovery._propose as P
 
     win = _windows(n_counters=30)
     k = win.table.i.to_numpy()
@@ -341,7 +344,7 @@ def test_a_probes_band_gets_the_p_value_of_its_retraining_by_condition_where_it_
 
     def p(better):  # the current prediction with the error halved on the `better` windows
         trial = dict(pred=np.where(better, (y + current["pred"][0]) / 2, current["pred"][0])[None], win=win)
-        p, explained = D._probe_test(trial, current, None, 0)
+        p, explained = P._probe_test(trial, current, None, 0)
         e2 = lambda t: np.sum((t["pred"][0] - y) ** 2)  # noqa: E731
         assert explained == pytest.approx(1 - e2(trial) / e2(current))
         return p
@@ -353,7 +356,7 @@ def test_a_probes_band_gets_the_p_value_of_its_retraining_by_condition_where_it_
 
 
 def test_candidates_the_selection_cannot_tell_apart_are_retrained_simplest_then_best():
-    from pvvjax.discovery import _try_order
+    from pvvjax.discovery._propose import _try_order
 
     assert _try_order([(1, 0.1), (2, 0.2), (3, 0.3)]) == [(1, 0.1), (3, 0.3), (2, 0.2)]
     assert _try_order([(1, 0.5), (2, 0.3), (3, 0.1)]) == [(1, 0.5), (2, 0.3), (3, 0.1)]
@@ -361,7 +364,7 @@ def test_candidates_the_selection_cannot_tell_apart_are_retrained_simplest_then_
 
 
 def test_confirmed_tries_the_retraining_cannot_tell_apart_are_told_apart_by_the_selection():
-    from pvvjax.discovery import _choose
+    from pvvjax.discovery._confirm import _choose
 
     # (shrink over all windows, selection gain, p that the largest shrink's try beats it) per try.
     tries = [(0.026, 0.050, 1.0), (0.021, 0.053, 0.001), (0.004, 0.090, 0.001)]
@@ -455,6 +458,7 @@ def test_nets_trained_on_the_windows_see_every_strided_window_and_lower_the_floo
     from pvvjax._strict import from_dict
     from pvvjax.campaign import campaign_from_frames
     from pvvjax.config import DiscoveryConfig, ExperimentConfig
+    from pvvjax.discovery import _confirm, _model, _workflow
     from pvvjax.synth import SynthConfig, generate
 
     camp = campaign_from_frames(*generate(from_dict(SynthConfig, {**_BASE, "name": "null", "seed": 51}))[:2])
@@ -464,23 +468,23 @@ def test_nets_trained_on_the_windows_see_every_strided_window_and_lower_the_floo
         calls.append((x, y, folds))
         return fit(x, y, folds, **kw)
 
-    monkeypatch.setattr(D, "fit_ensemble", recorded)
-    contexts, context = [], D._context
-    monkeypatch.setattr(D, "_context", lambda *a: contexts.append(context(*a)) or contexts[-1])
+    monkeypatch.setattr(_confirm, "fit_ensemble", recorded)
+    contexts, context = [], _workflow._context
+    monkeypatch.setattr(_workflow, "_context", lambda *a: contexts.append(context(*a)) or contexts[-1])
     d = from_dict(DiscoveryConfig, {**_FAST, "max_effects": 0, "train_rows": "windows", "train_stride": 16})
     res = D.discover(camp, ExperimentConfig(discovery=d), log=lambda m: None)
     assert len(calls) == 2  # the peaks (to calibrate the offset), then the windows
     (_, y_peaks, _), (x, y, folds) = calls
     ctx = contexts[0]
     peak_nets = res.baseline._replace(params=ctx.replay_params)  # the nets that calibrated the replay
-    win = D._replay(ctx, res.baseline.offset_s)  # the windows do not depend on the nets
+    win = _model._replay(ctx, res.baseline.offset_s)  # the windows do not depend on the nets
     rows = (win.table.weight.to_numpy() >= 0.999) & (win.table.k.to_numpy() % 16 == 0)
     assert len(y) == rows.sum() > 5 * len(y_peaks)
     np.testing.assert_allclose(y, win.table.measured_g.to_numpy()[rows], rtol=1e-6)
     np.testing.assert_allclose(x, win.table.loc[rows, list(res.baseline.inputs)].to_numpy(), rtol=1e-5)
     np.testing.assert_array_equal(folds, ctx.counter_fold[win.table.i.to_numpy()[rows]])
-    assert res.before["rms_g"] == D.metrics(D.predictions(ctx, res.baseline, win), win)["rms_g"]
-    assert res.before["rms_g"] < 0.9 * D.metrics(D.predictions(ctx, peak_nets, win), win)["rms_g"]
+    assert res.before["rms_g"] == D.metrics(_model.predictions(ctx, res.baseline, win), win)["rms_g"]
+    assert res.before["rms_g"] < 0.9 * D.metrics(_model.predictions(ctx, peak_nets, win), win)["rms_g"]
 
 
 def test_parameter_free_candidates_are_also_tried_at_the_candidate_offsets():
@@ -496,7 +500,8 @@ def test_parameter_free_candidates_are_also_tried_at_the_candidate_offsets():
     from pvvjax.campaign import campaign_from_frames
     from pvvjax.candidates import values, window_table
     from pvvjax.config import DiscoveryConfig, ExperimentConfig
-    from pvvjax.discovery import Model, _candidate_matrix, _unaligned_key
+    from pvvjax.discovery import Model
+    from pvvjax.discovery._propose import _candidate_matrix, _unaligned_key
 
     counters, recs = tiny_records(seconds=10.0)
     for j, r in enumerate(recs.values()):
@@ -560,10 +565,11 @@ def test_discover_takes_a_campaign_folder_and_a_bare_discovery_config(tmp_path, 
 
     from pvvjax import discovery as D
     from pvvjax.config import DiscoveryConfig, ExperimentConfig
+    from pvvjax.discovery import _workflow
 
     folder = write_tiny(tmp_path / "c")
     seen = []
-    monkeypatch.setattr(D, "_context", lambda campaign, cfg, log: seen.append((campaign, cfg)) or 1 / 0)
+    monkeypatch.setattr(_workflow, "_context", lambda campaign, cfg, log: seen.append((campaign, cfg)) or 1 / 0)
     with pytest.raises(ZeroDivisionError):
         D.discover(folder, DiscoveryConfig(folds=3), log=lambda m: None)
     campaign, cfg = seen[0]

@@ -5,7 +5,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pvvjax.discovery import _lag_windows, _Windows, delag
+from pvvjax.discovery import delag
+from pvvjax.discovery._model import _lag_windows, _Windows
 from pvvjax.lag_study import lag_study
 
 
@@ -40,6 +41,7 @@ def test_a_world_without_a_hidden_lag_gains_nothing_from_nets_trained_through_on
     from pvvjax._strict import from_dict
     from pvvjax.campaign import campaign_from_frames
     from pvvjax.config import DiscoveryConfig, ExperimentConfig
+    from pvvjax.discovery import _confirm, _fits, _lag, _model
     from pvvjax.synth import SynthConfig, generate
 
     camp = campaign_from_frames(*generate(from_dict(SynthConfig, {**_BASE, "name": "null", "seed": 51}))[:2])
@@ -49,9 +51,10 @@ def test_a_world_without_a_hidden_lag_gains_nothing_from_nets_trained_through_on
         calls.append(y)
         return fit(x, y, folds, **kw)
 
-    monkeypatch.setattr(D, "fit_ensemble", recorded)
-    replays, replay = {}, D._replay
-    monkeypatch.setattr(D, "_replay", lambda ctx, off: replays.setdefault(off, replay(ctx, off)))
+    monkeypatch.setattr(_confirm, "fit_ensemble", recorded)
+    replays, replay = {}, _model._replay
+    for module in (_confirm, _fits, _lag):  # every caller of lag_study's replays
+        monkeypatch.setattr(module, "_replay", lambda ctx, off: replays.setdefault(off, replay(ctx, off)))
     cfg = ExperimentConfig(discovery=from_dict(DiscoveryConfig, {**_FAST, "train_stride": 32}))
     with pytest.raises(ValueError, match="reference_offsets inside discovery.offset_bounds"):
         lag_study(camp, cfg, reference_offsets=(5.0,))
@@ -72,7 +75,7 @@ def test_sign_flip_test_against_exact_enumeration():
     # difference of squared errors; the random sign flips estimate it.
     from itertools import product
 
-    from pvvjax.discovery import _paired_sign_flip
+    from pvvjax.discovery._confirm import _paired_sign_flip
 
     rng = np.random.default_rng(3)
     rows = pd.DataFrame([dict(counter=c, window=w, condition=f"c{c}", maneuver="level", weight=1.0, measured_g=0.0)
@@ -98,6 +101,7 @@ def test_lag_test_weighs_the_slow_lag_against_the_best_fast_one(monkeypatch):
     from pvvjax import discovery as D
     from pvvjax._strict import from_dict
     from pvvjax.config import DiscoveryConfig, ExperimentConfig
+    from pvvjax.discovery import _lag
 
     rng = np.random.default_rng(0)
     rows = pd.DataFrame([dict(counter=c, window=w, condition=f"c{c}", maneuver="pullup" if c % 2 else "level",
@@ -122,8 +126,8 @@ def test_lag_test_weighs_the_slow_lag_against_the_best_fast_one(monkeypatch):
         cfg = ExperimentConfig(discovery=from_dict(DiscoveryConfig, {"lag_test": True}))
 
     lagged = {(0.0, 0.0): 0.03, (0.0, 1.0): 0.025, (1.0, 0.0): 0.02, (2.0, 0.0): 0.012, (3.0, 0.0): 0.016}
-    monkeypatch.setattr(D, "_lag_trials", lambda *a, **k: trials(lagged))
-    got = D._lag_test(Ctx(), 1.0, log=lambda m: None)
+    monkeypatch.setattr(_lag, "_lag_trials", lambda *a, **k: trials(lagged))
+    got = _lag._lag_test(Ctx(), 1.0, log=lambda m: None)
     assert got["confirmed"] and not got["why"] and got["p_value"] <= 0.01  # consistent over the conditions
     assert got["reference"]["tau_s"] == 1.0 and got["slow"]["tau_s"] == 2.0  # against the fast lag, not τ = 0
     assert got["judged_in"] == "pullup" and got["local"] > 0.3
@@ -133,15 +137,15 @@ def test_lag_test_weighs_the_slow_lag_against_the_best_fast_one(monkeypatch):
 
     # A fast lag that fits better than the slow one: the base dynamics, nothing to name.
     fast = {**lagged, (1.0, 0.0): 0.011}
-    monkeypatch.setattr(D, "_lag_trials", lambda *a, **k: trials(fast))
-    got = D._lag_test(Ctx(), 1.0, log=lambda m: None)
+    monkeypatch.setattr(_lag, "_lag_trials", lambda *a, **k: trials(fast))
+    got = _lag._lag_test(Ctx(), 1.0, log=lambda m: None)
     assert not got["confirmed"] and "less than min_shrink 5%" in got["why"]
 
     # A slow lag that gains in steady flight only, where a lag changes nothing: clear over
     # all windows, not where it acts.
     steady = {**lagged, (2.0, 0.0): (0.02, 0.004)}
-    monkeypatch.setattr(D, "_lag_trials", lambda *a, **k: trials(steady))
-    got = D._lag_test(Ctx(), 1.0, log=lambda m: None)
+    monkeypatch.setattr(_lag, "_lag_trials", lambda *a, **k: trials(steady))
+    got = _lag._lag_test(Ctx(), 1.0, log=lambda m: None)
     assert got["drop"] > 0.2 and abs(got["local"]) < 0.05 and not got["confirmed"], got["why"]
     assert "where it acts (pullup)" in got["why"]
 
@@ -160,13 +164,14 @@ def test_discover_names_a_long_lag_first_with_nets_trained_through_it(monkeypatc
     from pvvjax._strict import from_dict
     from pvvjax.campaign import campaign_from_frames
     from pvvjax.config import DiscoveryConfig, ExperimentConfig
+    from pvvjax.discovery import _lag
     from pvvjax.discovery_report import write_discovery
     from pvvjax.synth import SynthConfig, generate
 
     effects = {**_BASE["effects"], "dynamic_lag": {"params": {"tau_s": 2.0}}}
     camp = campaign_from_frames(*generate(from_dict(SynthConfig, {**_BASE, "effects": effects, "name": "lag",
                                                                   "seed": 31}))[:2])
-    monkeypatch.setattr(D, "_LAG_REFERENCE_OFFSETS", ())
+    monkeypatch.setattr(_lag, "_LAG_REFERENCE_OFFSETS", ())
     cfg = ExperimentConfig(discovery=from_dict(DiscoveryConfig, {**_FAST, "train_stride": 16, "lag_test": True,
                                                                  "lag_test_taus": [3.0]}))
     res = D.discover(camp, cfg, log=lambda m: None)

@@ -1,0 +1,371 @@
+"""The discovery workflow: its context, `discover` and the data-contract §3 summary."""
+
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass, replace
+from typing import NamedTuple
+
+import numpy as np
+import pandas as pd
+
+from .. import train as _train
+from ..batch import to_batch
+from ..campaign import Campaign, load_campaign
+from ..candidates import Candidate, sample_series, window_table
+from ..config import DiscoveryConfig, ExperimentConfig
+from ..databases import DB_INPUTS, STATE_CHANNELS, build_databases
+from ..replay import make_settings, prepare
+from ..residuals import localize
+from ..selection import gain as _selection_gain
+from ._confirm import _SIGN_FLIPS, _augment, _choose, _confirm, _paired_sign_flip, _train_model
+from ._fits import _fit_offset, _keep_better, _refine
+from ._lag import _lag_round, _lag_test
+from ._model import Model, _Ctx, _lag_windows, _replay, _selection_column, floor_features, metrics, predictions
+from ._propose import (
+    _candidate_matrix,
+    _floor,
+    _neighbour_cells,
+    _probe_test,
+    _propose,
+    _resonance_probe,
+    _unaligned_key,
+)
+
+
+class Residual(NamedTuple):
+    """A round's selection design: the residual (measured − predicted, per window), the
+    windows that enter the selection, the floor covariates on those windows, the condition
+    of each window, and the folds and seed of the split."""
+
+    residual: np.ndarray
+    rows: np.ndarray
+    floor: np.ndarray
+    groups: np.ndarray
+    folds: int
+    seed: int
+
+
+@dataclass
+class Discovery:
+    """The outcome of `discover` (`summary` turns it into data-contract §3).
+
+    Attributes:
+        campaign: path or name. database: the model's database.
+        baseline, final: the baseline and the final (augmented) `Model`.
+        before, after: their held-out metrics (`metrics`: medians over seeds, `rms_by_seed`
+            per seed, `ensemble_rms_g` of the median prediction).
+        effects: one dict per confirmed effect, ranked (see `summary`).
+        rounds: every tried proposal (a table).
+        localized: `residuals.localize` tables of the baseline.
+        windows: the baseline replay windows with `predicted_before_g`, `predicted_after_g` and
+            `effect_<rank>`, each effect's column as the selection saw it (a resonance times
+            the prediction, a lag as the lagged minus the plain prediction).
+        seconds: wall time per stage.
+        residual: the first round's selection design (`Residual`), for `selection_gain`.
+        lag_test: with `lag_test`, one row per ensemble of the test (`_lag_test`): tau_s,
+            train_offset_s, offset_s (refitted), ensemble_rms_g, rms_g, peak_error_g,
+            phase_error_s, role (reference or slow), drop (against the reference), chosen.
+    """
+
+    campaign: str
+    database: str
+    baseline: Model
+    final: Model
+    before: dict
+    after: dict
+    effects: list
+    rounds: pd.DataFrame
+    localized: dict
+    windows: pd.DataFrame
+    seconds: dict
+    residual: Residual | None = None
+    lag_test: pd.DataFrame | None = None
+
+
+def selection_gain(res: Discovery, values) -> float:
+    """The held-out gain the first round's selection would credit a per-window column with
+    (`selection.gain`: the same residual, floor covariates, rows and folds): e.g. the true
+    per-window effect of a synthetic campaign, to ask whether the baseline's residual could
+    have named it at all, or a candidate, to compare with the one named.
+
+    Args:
+        res: a `Discovery` with at least one round (`max_effects` ≥ 1).
+        values: (n,) one value per row of `res.windows` (the baseline's windows).
+
+    Returns:
+        The relative drop of the held-out squared error.
+    """
+    e = res.residual
+    if e is None:
+        raise ValueError("selection_gain: the discovery ran no round (max_effects = 0)")
+    v = np.asarray(values, float)
+    if v.shape != e.residual.shape or not np.all(np.isfinite(v[e.rows])):
+        raise ValueError(f"selection_gain: values must be {e.residual.shape[0]} finite numbers, one per window "
+                         f"of res.windows; got shape {v.shape}")
+    return _selection_gain(e.residual[e.rows], v[e.rows], e.groups[e.rows], base=e.floor, folds=e.folds, seed=e.seed)
+
+
+def _context(campaign: Campaign, cfg: ExperimentConfig, log) -> _Ctx:
+    d = cfg.discovery
+    dbs = build_databases(campaign, cfg.analysis)
+    db = dbs[d.database]
+    source = campaign.source or "<memory>"  # for the errors below
+    folds = _train.condition_folds(db.condition, d.folds, d.split_seed, f"discovery.folds (campaign {source}, "
+                                   f"{d.database})")
+    fold_of = dict(zip(db.condition, folds))
+    info = campaign.counters.loc[:, ["maneuver", "condition"]]
+    info = info[info.condition.isin(fold_of)]
+    if d.exclude_channels:  # a misspelt channel would silently stay a candidate
+        known = sample_series(campaign.records[info.index[0]], campaign.aircraft)
+        unknown = sorted(set(d.exclude_channels) - set(known))
+        if unknown:
+            raise ValueError(f"discovery.exclude_channels: {unknown} are not candidate channels of campaign "
+                             f"{source} (channels and derived features: {sorted(known)})")
+    batch = to_batch(campaign, STATE_CHANNELS, list(info.index))
+    recs = prepare(batch)
+    L = cfg.analysis.window_revs
+    lo, hi = d.offset_bounds if d.calibrate_offset else (min(0.0, d.offset_s), max(0.0, d.offset_s))
+    settings = make_settings(batch, max_window_revs=L, min_window_revs=L, hop_revs=d.hop_revs,
+                             offset_bounds=(float(min(lo, 0.0)), float(max(hi, 0.0))))
+    # Each database row's peak window (zero offset), where extra inputs are taken for training.
+    rows, row_of = [], {c: i for i, c in enumerate(info.index)}
+    for r in db.itertuples():
+        rec = campaign.records[r.counter]
+        m = np.asarray(batch.mask[row_of[r.counter]])
+        rev = np.asarray(batch.rev[row_of[r.counter]])[m]
+        t = rec.time_s.to_numpy()
+        mid = np.interp(r.peak_time_s, t, rev)
+        rows.append((r.counter, np.interp(mid - L / 2, rev, t), np.interp(mid + L / 2, rev, t)))
+    train_iv = pd.DataFrame(rows, columns=["counter", "t0", "t1"])
+    log(f"discovery: {d.database} on {len(db)} conditions, {len(info)} counters replayed "
+        f"({d.folds}-fold by condition x {d.seeds} seeds)")
+    return _Ctx(campaign, cfg, db, db[list(DB_INPUTS[d.database])].to_numpy(np.float64), folds, info,
+                np.array([fold_of[c] for c in info.condition]), batch, recs, settings,
+                window_table(campaign, train_iv, d.exclude_channels), replay_params={})
+
+
+def _public_parameters(c: Candidate) -> dict:
+    p = dict(c.parameters)
+    p.pop("softness", None)
+    return p
+
+
+def _workflow_inputs(caller: str, campaign, cfg, name: str = "") -> tuple[Campaign, ExperimentConfig, str]:
+    """(campaign, config, name) from what a caller may pass: a campaign or its folder (loaded
+    as the CLI loads it; the folder names it), an ExperimentConfig or a bare DiscoveryConfig."""
+    if isinstance(cfg, DiscoveryConfig):
+        cfg = ExperimentConfig(discovery=cfg)
+    elif not isinstance(cfg, ExperimentConfig):
+        raise TypeError(f"{caller}: cfg must be an ExperimentConfig or a DiscoveryConfig, got {type(cfg).__name__}")
+    if isinstance(campaign, (str, os.PathLike)):
+        name = name or str(campaign)
+        campaign = load_campaign(campaign, cfg.campaign.columns, cfg.analysis.window_revs)
+    elif not isinstance(campaign, Campaign):
+        raise TypeError(f"{caller}: campaign must be a Campaign or a campaign folder, got {type(campaign).__name__}")
+    return campaign, cfg, name
+
+
+def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | DiscoveryConfig = ExperimentConfig(), *,
+             name: str = "", log=print, progress=None) -> Discovery:
+    """Run the discovery workflow on a campaign (see the module docstring).
+
+    Args:
+        campaign: any campaign in the data-contract format, loaded or its folder.
+        cfg: experiment config (`analysis`, `train` and `discovery` sections), or only the
+            `DiscoveryConfig` (the other sections at their defaults).
+        name: the campaign's path or name, for the summary (default: the folder given).
+        log: progress messages.
+
+    Returns:
+        `Discovery`.
+    """
+    campaign, cfg, name = _workflow_inputs("discover", campaign, cfg, name)
+    d = cfg.discovery
+    sec = {}
+    t0 = time.perf_counter()
+    ctx = _context(campaign, cfg, log)
+    sec["prepare"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    params = _train_model(ctx, Model({}, tuple(DB_INPUTS[d.database])), rows="peaks")  # they calibrate the replay
+    ctx.replay_params = params
+    sec["train_baseline"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    model = _fit_offset(ctx, Model(params, tuple(DB_INPUTS[d.database])), with_lag=False)
+    if d.train_rows == "windows":  # on the windows at the offset the peak nets calibrated
+        t1 = time.perf_counter()
+        model = model._replace(params=_train_model(ctx, model))
+        sec["train_baseline"] += time.perf_counter() - t1
+    lag = None
+    if d.lag_test and d.max_effects > 0:
+        t1 = time.perf_counter()
+        lag = _lag_test(ctx, model.offset_s, log)
+        sec["lag_test"] = time.perf_counter() - t1
+        if lag["confirmed"]:  # the baseline is then the test's reference: before/after measures the lag
+            model = lag["reference"]["model"]
+    win = _replay(ctx, model.offset_s)
+    full = win.table.weight.to_numpy() >= 0.999
+    pred0 = predictions(ctx, model, win)
+    before = metrics(pred0, win)
+    sec["offset_and_replay"] = time.perf_counter() - t0
+    log(f"baseline {d.database}: offset {model.offset_s:.2f} s, held-out RMS {before['rms_g']:.4f} g, peak error "
+        f"{before['peak_error_g']:.4f} g, phase error {before['phase_error_s']:.2f} s")
+    loc_windows = win.table.assign(database=d.database, predicted_g=np.median(pred0, axis=0))
+    localized = localize(loc_windows[full])
+    log("residual by maneuver (share of the squared residual): " + ", ".join(
+        f"{k} {v:.0%}" for k, v in localized["maneuver"].share_sq.head(4).items()))
+
+    baseline, current, pred, cur_metrics = model, model, pred0, before
+    effects, rounds, used, first = [], [], set(), None
+    t_explain = t_confirm = 0.0
+    if lag is not None:
+        row, effect = _lag_round(ctx, lag, current.inputs)
+        rounds.append(row)
+        if effect is not None:
+            effects.append(effect)
+            current, pred, cur_metrics = lag["slow"]["model"], lag["slow"]["pred"], lag["slow"]["metrics"]
+    for rnd in range(d.max_effects - len(effects)):
+        t0 = time.perf_counter()
+        win = _replay(ctx, current.offset_s)
+        full = win.table.weight.to_numpy() >= 0.999
+        yhat = np.median(pred, axis=0)
+        resid = win.table.measured_g.to_numpy() - yhat
+        # A lag test that ran is the lag's judge: its trainings through the lag are the finer
+        # test, and a lag of the prediction that a round confirms after it rejected one is a
+        # smoother of the nets' transients (measured on a null world: τ 2.1 s, −2.9 %).
+        lib, C, flib, F = _candidate_matrix(ctx, current, win, yhat, used, lags=lag is None)
+        sel_rows = full & (win.table.k.to_numpy() % d.selection_stride == 0)
+        own = floor_features(current.inputs)
+        groups = win.table.condition.to_numpy()
+        floor = _floor(win, yhat, resid, sel_rows, own, groups)
+        both, M = lib + flib, np.column_stack([C, F])
+        proposals, absorbed, designs = _propose(win, yhat, resid, M, sel_rows, own, floor, d,
+                                                seed=cfg.seed + rnd, complexity=np.array([c.complexity for c in both]),
+                                                keys=[_unaligned_key(c) for c in both],
+                                                is_floor=np.arange(len(both)) >= len(lib))
+        lib = both  # proposals and their runners-up index both
+        proposals = _neighbour_cells(proposals, lib, M, designs, resid, groups, d, seed=cfg.seed + rnd)
+        if d.resonance_probe:
+            proposals = _resonance_probe(ctx, current, proposals, lib, M, designs, resid, groups, d, cfg.seed + rnd,
+                                         lambda m: log(f"round {rnd + 1}: {m}"))
+        if rnd == 0:  # the selection's design: its floor with the refinements it took over all windows
+            taken = [M[sel_rows, j] for where, j, _ in absorbed if where == "all"]
+            first = Residual(resid, sel_rows, np.column_stack([floor, *taken]) if taken else floor,
+                             groups, d.folds, cfg.seed)
+        floor_terms = "; ".join(f"{lib[j].name} in {where} ({g:.3f})" for where, j, g in absorbed)
+        if absorbed:
+            log(f"round {rnd + 1}: the floor takes {floor_terms}")
+        t_explain += time.perf_counter() - t0
+        log(f"round {rnd + 1}: {len(lib) - len(flib)} candidates, {len(proposals)} proposed: "
+            + (", ".join(f"{lib[j].name} in {where} (p={s.p_value:.4f}, gain {s.gain:.3f})"
+                         for where, j, s in proposals) or "none")
+            + "".join(f"; {len(s.equivalents)} equivalent to the best in {where}: "
+                      + ", ".join(lib[a].name for a, _ in s.equivalents[:10]) for where, _, s in proposals[:1]))
+        confirmed = []
+        tried = set()
+        for where, j, s in proposals:
+            t0 = time.perf_counter()
+            rows, fl = designs[where]
+            refined = _keep_better(lib[j], _refine(lib[j], resid[rows], win.at(
+                lib[j].parameters.get("offset_s", win.offset))[rows], yhat[rows], base=fl), win, yhat, resid,
+                rows, fl, d.folds, cfg.seed + rnd, log)
+            used.add(_unaligned_key(lib[j]))
+            if refined.key in tried:  # two grid knees refined to the same one: retrained already
+                log(f"  {lib[j].name}: refined to {refined.name}, tried already")
+                continue
+            tried.add(refined.key)
+            modes = {"lag": ("lag",), "resonance": ("gain",)}.get(
+                refined.operator, ("additive", "input") if d.augment == "auto" else (d.augment,))
+            alts = "; ".join(f"{lib[a].name} ({g:.3f})" for a, g in s.alternatives)
+            for mode in modes:
+                c = refined
+                if mode == "lag":
+                    trial = _fit_offset(ctx, current, with_lag=True)
+                    c = replace(c, parameters={"tau_s": trial.lag_tau_s})
+                else:
+                    trial = _augment(ctx, current, c, mode)
+                    if trial.terms and trial.terms[-1][0] is c:
+                        c = replace(c, parameters={**c.parameters,
+                                                   "coefficient": float(np.median(trial.terms[-1][1][:, 1]))})
+                    if mode == "gain":
+                        c = replace(c, parameters={**c.parameters,
+                                                   "gain": float(np.median(trial.params["gain"][..., -1]))})
+                ok, conf = _confirm(ctx, current, trial, c, where, d)
+                p_value, explained = s.p_value, s.explained_fraction
+                if s.source == "probe":  # no selection p: its retraining's, by condition
+                    p_value, explained = _probe_test(conf, dict(pred=pred, win=win), c, cfg.seed + rnd)
+                t_confirm += time.perf_counter() - t0
+                t0 = time.perf_counter()
+                rounds.append(dict(round=rnd + 1, where=where, candidate=c.key, name=c.name, operator=c.operator,
+                                   channels=",".join(c.channels), augment=mode, p_value=p_value, cv_gain=s.gain,
+                                   runners_up=alts, explained_fraction=explained,
+                                   rms_before_g=cur_metrics["rms_g"], rms_after_g=conf["metrics"]["rms_g"],
+                                   ensemble_rms_before_g=conf["ensemble"][0], ensemble_rms_after_g=conf["ensemble"][1],
+                                   floor_terms=floor_terms, shrink=conf["shrink"], judged_in=conf["judged_in"],
+                                   region_shrink=conf["local"], confirmed=ok, why_not=conf["why"],
+                                   p_best_better=np.nan, chosen=False))
+                log(f"  {c.name} ({mode}): held-out RMS {cur_metrics['rms_g']:.4f} -> {conf['metrics']['rms_g']:.4f} "
+                    f"g (median over seeds); ensemble's {conf['ensemble'][0]:.4f} -> {conf['ensemble'][1]:.4f} g, "
+                    f"shrink {conf['shrink']:+.1%} (all), {conf['local']:+.1%} "
+                    f"({conf['judged_in']}): "
+                    f"{'confirmed' if ok else 'not confirmed (' + conf['why'] + ')'}")
+                if ok:  # "auto" tries both ways and keeps the better
+                    confirmed.append((conf["shrink"], len(rounds) - 1, where,
+                                      s._replace(p_value=p_value, explained_fraction=explained), c, trial, conf))
+        if not confirmed:
+            break
+        top = max(confirmed, key=lambda t: t[0])[-1]
+        ps = [1.0 if t[-1] is top else _paired_sign_flip(t[-1], top, _SIGN_FLIPS, cfg.seed + rnd)[0] for t in confirmed]
+        for t, p in zip(confirmed, ps):
+            rounds[t[1]]["p_best_better"] = p
+        k = _choose([(t[0], t[3].gain, p) for t, p in zip(confirmed, ps)], d.shrink_noise, d.alpha)
+        _, row, where, s, c, trial, conf = confirmed[k]
+        effects.append(dict(rank=len(effects) + 1, round=rnd + 1, name=c.name, operator=c.operator,
+                            channels=list(c.channels) or list(current.inputs), parameters=_public_parameters(c),
+                            explained_fraction=s.explained_fraction, p_value=s.p_value, region=conf["region"],
+                            key=c.key, candidate=c, found_in=where))
+        rounds[row]["chosen"] = True
+        current, pred, cur_metrics = trial, conf["pred"], conf["metrics"]
+    sec["explain"], sec["confirm"] = t_explain, t_confirm
+
+    # Before and after on the final model's windows (the same counters and windows; the
+    # baseline re-predicted there if the offset moved).
+    win = _replay(ctx, current.offset_s)
+    final_pred = predictions(ctx, current, win)
+    base_win = _replay(ctx, baseline.offset_s)
+    after = metrics(final_pred, win)
+    table = base_win.table.assign(predicted_before_g=np.median(pred0, axis=0))
+    table = table.merge(win.table[["counter", "window"]].assign(predicted_after_g=np.median(final_pred, axis=0)),
+                        on=["counter", "window"], how="left")
+    yb = np.median(pred0, axis=0)
+    for e in effects:  # each effect's column as the selection saw it, for its partial-dependence plot
+        c = e["candidate"]
+        if c.operator == "lag":
+            table[f"effect_{e['rank']}"] = _lag_windows(yb[None], base_win, c.parameters["tau_s"])[0] - yb
+        else:
+            table[f"effect_{e['rank']}"] = _selection_column(c, base_win.values(c), yb)
+    log(f"final: {len(effects)} effect(s); held-out RMS {before['rms_g']:.4f} -> {after['rms_g']:.4f} g")
+    return Discovery(name or str(campaign.source), d.database, baseline, current, before, after, effects,
+                     pd.DataFrame(rounds), localized, table, sec, first, None if lag is None else lag["table"])
+
+
+def summary(res: Discovery) -> dict:
+    """The data-contract §3 summary (`discovery.json`)."""
+    m = lambda x: {k: round(float(x[k]), 6) for k in ("rms_g", "peak_error_g", "phase_error_s")}  # noqa: E731
+    effects = []
+    for e in res.effects:
+        effects.append({k: e[k] for k in ("rank", "name", "operator", "channels")}
+                       | {"parameters": {k: (round(v, 6) if isinstance(v, float) else v)
+                                         for k, v in e["parameters"].items()},
+                          "explained_fraction": round(float(e["explained_fraction"]), 4),
+                          "p_value": round(float(e["p_value"]), 4),
+                          "region": {k: (round(v, 6) if isinstance(v, float) else v) for k, v in e["region"].items()}})
+    return {
+        "campaign": res.campaign,
+        "baseline": {"database": res.database, "metrics": m(res.before)},
+        "effects": effects,
+        "augmented": {"added": [e["name"] for e in res.effects], "metrics": m(res.after)},
+        "gap_shrink": round(1.0 - res.after["rms_g"] / res.before["rms_g"], 4),
+    }
