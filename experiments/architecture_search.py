@@ -10,8 +10,8 @@ import shutil
 from pathlib import Path
 
 from pvvjax import plots
-from pvvjax.cli import prepare_sweep
 from pvvjax.evaluation import search_architecture
+from pvvjax.experiment import prepare_sweep
 
 
 def main():

@@ -13,7 +13,7 @@ import argparse
 import shutil
 from pathlib import Path
 
-from pvvjax.cli import prepare_sweep
+from pvvjax.experiment import prepare_sweep
 from pvvjax.paper import networks_results
 
 

@@ -17,8 +17,8 @@ import time
 from pathlib import Path
 
 from pvvjax import studies
-from pvvjax.cli import enable_compilation_cache, resolve_campaign
 from pvvjax.config import load_config
+from pvvjax.experiment import enable_compilation_cache, resolve_campaign
 from pvvjax.io import markdown_table, write_table
 from pvvjax.paper import PAPER_REPLAY, PULLUP, pullup_replays
 from pvvjax.replay_tables import load_replay_set, select_counters, take_counters

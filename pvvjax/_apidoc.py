@@ -10,7 +10,7 @@ import re
 MODULES = ["campaign", "units", "batch", "constants", "features", "harmonics", "databases", "networks", "train",
            "sweep", "evaluation", "npnet", "replay", "calibration", "replay_tables", "studies", "residuals",
            "candidates", "selection", "discovery", "lag_study", "discovery_report", "effects", "realtime", "rtelement",
-           "synth", "config", "io", "plots", "paper", "cli"]
+           "synth", "config", "io", "plots", "paper", "experiment", "cli"]
 
 
 def _signature(name: str, obj) -> str:
