@@ -30,7 +30,17 @@ __all__ = [
 
 def resolve_campaign(cfg, campaign_dir=None, log=print):
     """The campaign an experiment uses: a folder, or the embedded synthetic campaign
-    (generated once and cached). Returns (Campaign, folder)."""
+    (generated once and cached).
+
+    Args:
+        cfg: `ExperimentConfig` (`campaign` section: folder, column mapping or synthetic
+            config; `analysis.window_revs`; `seed` of the default synthetic campaign).
+        campaign_dir: a folder that replaces `cfg.campaign.path`.
+        log: progress messages.
+
+    Returns:
+        (Campaign, its folder).
+    """
     from .campaign import load_campaign
 
     folder = campaign_dir or cfg.campaign.path
