@@ -343,10 +343,10 @@ class DiscoveryConfig:
         shrink_noise: confirmed tries of a round whose shrinks (over all windows) are within
             this of the best are tied with it, as are those it does not beat at p < `alpha`
             (a sign-flip test by condition); of tied tries, the one the selection credits with
-            the largest gain is named (`discovery._choose`).
+            the largest gain is named (`discovery._confirm._choose`).
         floor_refinements: knees and products of the model's own inputs that join each
             selection's floor covariates before any candidate is asked, the best first while it
-            gains `min_gain` (`discovery._propose`): the map's floor where ~200 peaks did not
+            gains `min_gain` (`discovery._propose._propose`): the map's floor where ~200 peaks did not
             teach the nets a knee of their own inputs, which a channel that follows them (a
             stick, the shaft power) would otherwise be named for. 0: the fixed floor only.
         augment: how a candidate joins the model: "additive" (a term b·candidate fitted on the
@@ -372,7 +372,7 @@ class DiscoveryConfig:
             which overlap by nothing and carry the whole measured series at that resolution;
             the lag test's trainings use it too).
         lag_test: before the first round, test for a lag slower than `lag_fast_s` with window
-            nets trained through it (`discovery._lag_test`; up to six window trainings). A
+            nets trained through it (`discovery._lag._lag_test`; up to six window trainings). A
             confirmed lag is the first effect, and every later model trains through it.
             Either way the rounds then propose no lag of the prediction: the test decided.
         lag_test_taus: time constants the lag test tries, s (> 0; at least one above
