@@ -393,6 +393,13 @@ class DiscoveryConfig:
             the peaks: window nets (after a confirmed lag, or `train_rows = "windows"`)
             under-learn the lowest rotor speed, and a band there confirmed on two of three
             long-lag worlds. Off by default.
+        gain_unit: the unit, 1 / gain_unit, in which the nets train the gain of a resonance
+            band that the selection proposed (its permutation test found the magnification
+            in the residual): Adam moves every parameter by about one step, and in unit steps
+            the nets' many weights take the mode's top rotor-speed level additively before the
+            one gain grows (learned 0.6-0.7, the truth ~1.2). The resonance probe's band, a
+            forced guess without a test, trains in unit steps (1): in steps of 10 it confirms a
+            band on a world without a mode (`docs/discovery.md`).
     """
 
     database: str = "db1"
@@ -428,6 +435,7 @@ class DiscoveryConfig:
     lag_fast_s: float = 1.0
     candidate_offsets_s: tuple[float, ...] = (0.5,)
     resonance_probe: bool = False
+    gain_unit: float = 10.0
 
     def __post_init__(self):
         _check_databases("discovery", (self.database,), "database")
@@ -455,7 +463,7 @@ class DiscoveryConfig:
                 raise ValueError(f"discovery.{name} must be >= 1, got {getattr(self, name)}")
         if self.folds < 3:
             raise ValueError(f"discovery.folds must be >= 3, got {self.folds}")
-        for name in ("hop_revs", "offset_step_s"):
+        for name in ("hop_revs", "offset_step_s", "gain_unit"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"discovery.{name} must be > 0, got {getattr(self, name)}")
         if not 0 < self.alpha < 1:

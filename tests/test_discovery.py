@@ -583,3 +583,26 @@ def test_discover_takes_a_campaign_folder_and_a_bare_discovery_config(tmp_path, 
 
     with pytest.raises(TypeError, match="lag_study: cfg must be an ExperimentConfig or a DiscoveryConfig, got dict"):
         lag_study(folder, {"folds": 3})
+
+
+def test_a_gains_column_is_its_band_in_units_of_its_gain_unit():
+    # The nets train a gain column of u·band as a gain in steps of 1/u (u = gain_unit): the
+    # selection's bands in steps of DiscoveryConfig.gain_unit, the probe's (no unit) in 1.
+    from pvvjax._strict import from_dict
+    from pvvjax.candidates import Candidate
+    from pvvjax.config import ConfigError, DiscoveryConfig
+    from pvvjax.discovery import Model
+    from pvvjax.discovery._model import _inputs
+
+    win = _windows()
+    rng = np.random.default_rng(2)
+    win.table["beta"], win.table["rpm"] = rng.random(len(win.table)), rng.random(len(win.table))
+    vals = {"beta": win.table.beta.to_numpy(), "rpm": win.table.rpm.to_numpy()}
+    win.values = lambda c: vals[c.channels[0]]
+    extra = Candidate("input", ("beta",))
+    band = lambda **p: Candidate("resonance", ("rpm",), {"center": 0.5, "width": 0.1, **p})  # noqa: E731
+    x = _inputs(Model({}, ("i",), extra=(extra,), gains=(band(gain_unit=10.0), band())), win)
+    np.testing.assert_array_equal(x, np.column_stack([win.table.i, vals["beta"], 10.0 * vals["rpm"], vals["rpm"]]))
+    assert DiscoveryConfig().gain_unit == 10.0
+    with pytest.raises((ConfigError, ValueError), match="discovery.gain_unit must be > 0"):
+        from_dict(DiscoveryConfig, {"gain_unit": 0.0})

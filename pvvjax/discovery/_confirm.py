@@ -11,6 +11,7 @@ from ..databases import OUTPUT
 from ._fits import _lag_identified
 from ._model import (
     Model,
+    _columns,
     _Ctx,
     _inputs,
     _lag_windows,
@@ -42,9 +43,7 @@ def _train_model(ctx: _Ctx, model: Model, rows: str = "") -> dict:
         y, folds = y[sel], ctx.counter_fold[t.i.to_numpy()[sel]]
     else:
         value = lambda c: values(c, ctx.train_table)  # noqa: E731
-        x, y, folds = ctx.x_db, ctx.db[OUTPUT].to_numpy(np.float64), ctx.folds
-        if model.extra or model.gains:
-            x = np.column_stack([x] + [value(c) for c in model.extra + model.gains])
+        x, y, folds = _columns(ctx.x_db, model, value), ctx.db[OUTPUT].to_numpy(np.float64), ctx.folds
     if model.terms:
         y = np.stack([y - _terms(model, value, np.full(len(y), f)) for f in range(d.folds)])
     return fit_ensemble(x, y, folds, k=d.folds, seeds=d.seeds, hidden=d.hidden, train_cfg=ctx.cfg.train,

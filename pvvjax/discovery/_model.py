@@ -315,10 +315,17 @@ def delag(y, time_s, counter, tau_s: float, span: int = 4) -> np.ndarray:
 
 def _inputs(model: Model, win: _Windows) -> np.ndarray:
     """The nets' columns: database inputs, extra inputs, then the gains' candidates."""
-    x = win.table[list(model.inputs)].to_numpy(np.float64)
-    if model.extra or model.gains:
-        x = np.column_stack([x] + [win.values(c) for c in model.extra + model.gains])
-    return x
+    return _columns(win.table[list(model.inputs)].to_numpy(np.float64), model, win.values)
+
+
+def _columns(x, model: Model, value) -> np.ndarray:
+    """x beside the model's extra inputs and its gains' columns, `value(candidate)` each. A
+    gain's column is its candidate times its `gain_unit` parameter (default 1), so that the
+    nets learn the gain in steps of that unit (`DiscoveryConfig.gain_unit`)."""
+    if not (model.extra or model.gains):
+        return x
+    return np.column_stack([x] + [value(c) for c in model.extra]
+                           + [c.parameters.get("gain_unit", 1.0) * value(c) for c in model.gains])
 
 
 def _terms(model: Model, value, fold) -> np.ndarray:

@@ -149,6 +149,7 @@ def _context(campaign: Campaign, cfg: ExperimentConfig, log) -> _Ctx:
 def _public_parameters(c: Candidate) -> dict:
     p = dict(c.parameters)
     p.pop("softness", None)
+    p.pop("gain_unit", None)  # how the gain was trained, not a parameter of the effect
     return p
 
 
@@ -285,13 +286,16 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
                     trial = _fit_offset(ctx, current, with_lag=True)
                     c = replace(c, parameters={"tau_s": trial.lag_tau_s})
                 else:
+                    if mode == "gain" and s.source != "probe":  # a tested band: its gain in steps of gain_unit
+                        c = replace(c, parameters={**c.parameters, "gain_unit": d.gain_unit})
                     trial = _augment(ctx, current, c, mode)
                     if trial.terms and trial.terms[-1][0] is c:
                         c = replace(c, parameters={**c.parameters,
                                                    "coefficient": float(np.median(trial.terms[-1][1][:, 1]))})
                     if mode == "gain":
+                        unit = c.parameters.get("gain_unit", 1.0)
                         c = replace(c, parameters={**c.parameters,
-                                                   "gain": float(np.median(trial.params["gain"][..., -1]))})
+                                                   "gain": float(unit * np.median(trial.params["gain"][..., -1]))})
                 ok, conf = _confirm(ctx, current, trial, c, where, d)
                 p_value, explained = s.p_value, s.explained_fraction
                 if s.source == "probe":  # no selection p: its retraining's, by condition
