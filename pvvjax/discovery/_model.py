@@ -120,7 +120,8 @@ class Model(NamedTuple):
         network inputs. terms: (candidate, (k, 2) intercept and coefficient per fold)
         added to the nets' output (the nets are trained on the peaks minus the terms).
         gains: candidates whose learned gain multiplies the nets' output (`gain_apply`; the
-        coefficients are in `params["gain"]`).
+        coefficients are in `params["gain"]`, in units of 1 / the candidate's `gain_unit`
+        parameter, default 1: see `_columns`).
         offset_s: input-to-vibration offset, s. lag_tau_s: first-order lag of the replayed
         prediction, s (0: none). through_lag: the nets train on the replay windows with the
         lag undone in their targets (`delag`), as the lag test trains them, whatever
