@@ -388,7 +388,7 @@ A fast subset runs in `make test`, on the benchmark's base world with lighter se
 | null (51) | `test_cli_on_a_world_without_hidden_effects_names_nothing` | `pvvjax discover` names nothing |
 | long lag, τ = 2 s (31) | `test_discover_names_a_long_lag_first_with_nets_trained_through_it` | the lag first |
 | null (51) | `test_a_world_without_a_hidden_lag_gains_nothing_from_nets_trained_through_one` | a 2 s lag gains < 5 % |
-| null (51) | `test_nets_trained_on_the_windows_see_every_strided_window_and_lower_the_floor` | a lower floor |
+| null (51) | the same test | nets trained on the windows: a lower floor than the peak nets |
 
 The benchmark's own bookkeeping (attributable shrink against the seed's null or the
 scenario's reference world, `--update`) is tested in `tests/test_benchmark.py`.

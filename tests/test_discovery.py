@@ -447,21 +447,16 @@ def test_a_lag_fit_measures_a_lag_and_runs_to_the_grid_end_on_prediction_noise()
     assert tau == max(taus) and not _lag_identified(tau, taus)
 
 
-@pytest.mark.heavy
-def test_nets_trained_on_the_windows_see_every_strided_window_and_lower_the_floor(monkeypatch):
+def test_nets_trained_on_the_windows_see_every_strided_window(monkeypatch, small_campaign_dir):
     # train_rows = "windows": after the peak nets calibrate the offset, the baseline is
     # retrained on every train_stride-th fully weighted window of the replay at that offset
-    # (targets: the measured windows). A map of the whole maneuvers, not only their peaks,
-    # has a lower held-out error floor on a world with nothing hidden than the peak nets
-    # of the same run at the same offset (what train_rows = "peaks" would report).
+    # (targets: the measured windows), and the metrics are the window nets'. (That such nets
+    # have a lower error floor than the peak nets: the lag study's test on a null world.)
     from pvvjax import discovery as D
-    from pvvjax._strict import from_dict
-    from pvvjax.campaign import campaign_from_frames
-    from pvvjax.config import DiscoveryConfig, ExperimentConfig
+    from pvvjax.campaign import load_campaign
+    from pvvjax.config import DiscoveryConfig, ExperimentConfig, TrainConfig
     from pvvjax.discovery import _confirm, _model, _workflow
-    from pvvjax.synth import SynthConfig, generate
 
-    camp = campaign_from_frames(*generate(from_dict(SynthConfig, {**_BASE, "name": "null", "seed": 51}))[:2])
     calls, fit = [], D.fit_ensemble
 
     def recorded(x, y, folds, **kw):
@@ -471,12 +466,12 @@ def test_nets_trained_on_the_windows_see_every_strided_window_and_lower_the_floo
     monkeypatch.setattr(_confirm, "fit_ensemble", recorded)
     contexts, context = [], _workflow._context
     monkeypatch.setattr(_workflow, "_context", lambda *a: contexts.append(context(*a)) or contexts[-1])
-    d = from_dict(DiscoveryConfig, {**_FAST, "max_effects": 0, "train_rows": "windows", "train_stride": 16})
-    res = D.discover(camp, ExperimentConfig(discovery=d), log=lambda m: None)
+    d = DiscoveryConfig(seeds=1, folds=3, max_effects=0, train_rows="windows", train_stride=16, offset_step_s=0.5)
+    res = D.discover(load_campaign(small_campaign_dir), ExperimentConfig(train=TrainConfig(max_steps=100),
+                                                                         discovery=d), log=lambda m: None)
     assert len(calls) == 2  # the peaks (to calibrate the offset), then the windows
     (_, y_peaks, _), (x, y, folds) = calls
     ctx = contexts[0]
-    peak_nets = res.baseline._replace(params=ctx.replay_params)  # the nets that calibrated the replay
     win = _model._replay(ctx, res.baseline.offset_s)  # the windows do not depend on the nets
     rows = (win.table.weight.to_numpy() >= 0.999) & (win.table.k.to_numpy() % 16 == 0)
     assert len(y) == rows.sum() > 5 * len(y_peaks)
@@ -484,7 +479,8 @@ def test_nets_trained_on_the_windows_see_every_strided_window_and_lower_the_floo
     np.testing.assert_allclose(x, win.table.loc[rows, list(res.baseline.inputs)].to_numpy(), rtol=1e-5)
     np.testing.assert_array_equal(folds, ctx.counter_fold[win.table.i.to_numpy()[rows]])
     assert res.before["rms_g"] == D.metrics(_model.predictions(ctx, res.baseline, win), win)["rms_g"]
-    assert res.before["rms_g"] < 0.9 * D.metrics(_model.predictions(ctx, peak_nets, win), win)["rms_g"]
+    peak_nets = res.baseline._replace(params=ctx.replay_params)  # the nets that calibrated the replay
+    assert res.before["rms_g"] != D.metrics(_model.predictions(ctx, peak_nets, win), win)["rms_g"]
 
 
 def test_parameter_free_candidates_are_also_tried_at_the_candidate_offsets():
