@@ -42,7 +42,6 @@ def test_a_world_without_a_hidden_lag_gains_nothing_from_nets_trained_through_on
     from test_discovery import _BASE, _FAST
 
     from pvvjax import discovery as D
-    lag_study_module = importlib.import_module("pvvjax.lag_study")  # the module (the package exports its function)
     from pvvjax._strict import from_dict
     from pvvjax.campaign import campaign_from_frames
     from pvvjax.config import DiscoveryConfig, ExperimentConfig
@@ -50,6 +49,7 @@ def test_a_world_without_a_hidden_lag_gains_nothing_from_nets_trained_through_on
     from pvvjax.discovery import _confirm, _fits, _lag, _model
     from pvvjax.synth import SynthConfig, generate
 
+    lag_study_module = importlib.import_module("pvvjax.lag_study")  # the module (the package exports its function)
     camp = campaign_from_frames(*generate(from_dict(SynthConfig, {**_BASE, "name": "null", "seed": 51}))[:2])
     calls, fit = [], D.fit_ensemble
 
