@@ -76,9 +76,9 @@ def test_a_world_without_a_hidden_lag_gains_nothing_from_nets_trained_through_on
     want = delag(win.measured_g.to_numpy(), win.time_s.to_numpy(), win.i.to_numpy(), 2.0)[rows]
     np.testing.assert_allclose(calls[2], want, rtol=1e-5)
     assert t["drop"][1] < 0.05, t
-    win = replays[t.train_offset_s[0]]
-    rows = (win.table.weight.to_numpy() >= 0.999) & (win.table.k.to_numpy() % 32 == 0)
-    np.testing.assert_allclose(calls[1], win.table.measured_g.to_numpy()[rows], rtol=1e-6)  # τ = 0: as measured
+    win = replays[t.train_offset_s[0]].table
+    rows = (win.weight.to_numpy() >= 0.999) & (win.k.to_numpy() % 32 == 0)
+    np.testing.assert_allclose(calls[1], win.measured_g.to_numpy()[rows], rtol=1e-6)  # τ = 0: as measured
     peak_nets = D.Model(contexts[0].replay_params, tuple(DB_INPUTS["db1"]))  # the nets that calibrated the offset
     at = replays[t.offset_s[0]]  # the window nets' refitted offset
     floor = D.metrics(_model.predictions(contexts[0], peak_nets, at), at)["rms_g"]

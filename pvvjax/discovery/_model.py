@@ -325,8 +325,12 @@ def _columns(x, model: Model, value) -> np.ndarray:
     nets learn the gain in steps of that unit (`DiscoveryConfig.gain_unit`)."""
     if not (model.extra or model.gains):
         return x
-    return np.column_stack([x] + [value(c) for c in model.extra]
-                           + [c.parameters.get("gain_unit", 1.0) * value(c) for c in model.gains])
+    return np.column_stack([x] + [value(c) for c in model.extra] + [_gain_unit(c) * value(c) for c in model.gains])
+
+
+def _gain_unit(c: Candidate) -> float:
+    """The unit a gain candidate's coefficient is learned in (`_columns`): 1 unless given."""
+    return c.parameters.get("gain_unit", 1.0)
 
 
 def _terms(model: Model, value, fold) -> np.ndarray:

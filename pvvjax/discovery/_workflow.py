@@ -22,7 +22,17 @@ from ..selection import gain as _selection_gain
 from ._confirm import _SIGN_FLIPS, _augment, _choose, _confirm, _paired_sign_flip, _train_model
 from ._fits import _fit_offset, _keep_better, _refine
 from ._lag import _lag_round, _lag_test
-from ._model import Model, _Ctx, _lag_windows, _replay, _selection_column, floor_features, metrics, predictions
+from ._model import (
+    Model,
+    _Ctx,
+    _gain_unit,
+    _lag_windows,
+    _replay,
+    _selection_column,
+    floor_features,
+    metrics,
+    predictions,
+)
 from ._propose import (
     _candidate_matrix,
     _floor,
@@ -293,9 +303,8 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
                         c = replace(c, parameters={**c.parameters,
                                                    "coefficient": float(np.median(trial.terms[-1][1][:, 1]))})
                     if mode == "gain":
-                        unit = c.parameters.get("gain_unit", 1.0)
-                        c = replace(c, parameters={**c.parameters,
-                                                   "gain": float(unit * np.median(trial.params["gain"][..., -1]))})
+                        gain = _gain_unit(c) * np.median(trial.params["gain"][..., -1])
+                        c = replace(c, parameters={**c.parameters, "gain": float(gain)})
                 ok, conf = _confirm(ctx, current, trial, c, where, d)
                 p_value, explained = s.p_value, s.explained_fraction
                 if s.source == "probe":  # no selection p: its retraining's, by condition
