@@ -53,6 +53,7 @@ def test_full_config_round_trip(tmp_path):
     ("[discovery]\nshrink_noise = 1.5", "discovery.shrink_noise must lie in [0, 1), got 1.5"),
     ("[discovery]\nfloor_refinements = -1", "discovery.floor_refinements must be >= 0, got -1"),
     ("[discovery]\nalpha = 1.5", "discovery.alpha must lie in (0, 1), got 1.5"),
+    ("[discovery]\nprobe_alpha = 0", "discovery.probe_alpha must lie in (0, 1), got 0"),
     ("[discovery]\ndatabase = 'db4'", "discovery.database: unknown ['db4']; use db1, db2, db3"),
     ("[discovery]\ncandidate_offsets_s = [0.5, -1.0]", "discovery.candidate_offsets_s must be >= 0 s, got [0.5, -1.0]"),
     ("name = ", "not valid TOML"),

@@ -344,9 +344,11 @@ def test_a_probes_band_gets_the_p_value_of_its_retraining_by_condition_where_it_
 
     def p(better):  # the current prediction with the error halved on the `better` windows
         trial = dict(pred=np.where(better, (y + current["pred"][0]) / 2, current["pred"][0])[None], win=win)
-        p, explained = P._probe_test(trial, current, None, 0)
+        p, explained, why = P._probe_test(trial, current, None, 0, 0.05)
         e2 = lambda t: np.sum((t["pred"][0] - y) ** 2)  # noqa: E731
         assert explained == pytest.approx(1 - e2(trial) / e2(current))
+        assert (why == "") == (p <= 0.05)  # required at probe_alpha
+        assert why == "" or why == f"its retraining's p = {p:.3f} by condition where it acts, above probe_alpha 0.05"
         return p
 
     assert p(k < 15) < 1e-3  # better on every condition where it acts
@@ -376,6 +378,23 @@ def test_confirmed_tries_the_retraining_cannot_tell_apart_are_told_apart_by_the_
     assert _choose([(0.22, 0.239, 1.0), (0.17, 0.250, 0.005), (0.19, 0.233, 0.05)], 0.02, 0.01) == 0
     assert _choose([(0.15, 0.1, 1.0), (0.10, 0.1, 0.5)], 0.1, 0.01) == 0  # the same gain: the larger shrink
     assert _choose([(0.05, 0.2, 1.0)], 0.02, 0.01) == 0
+
+
+def test_a_tie_with_a_try_the_selection_did_not_rank_is_decided_by_the_retraining():
+    from pvvjax.discovery._confirm import _choose
+
+    nan = float("nan")
+    # The seeds + 4 resonance world's round 1: a collective knee (4.3 %, gain 0.071, p 0.0107),
+    # the stick (4.5 %, 0.030, p 0.0146) and the probe's band (16.5 %, no selection gain): all
+    # tied at alpha 0.01; the selection's pick (the knee) against the band on the shrink.
+    tries = [(0.043, 0.071, 0.0107), (0.045, 0.030, 0.0146), (0.165, nan, 1.0)]
+    assert _choose(tries, 0.02, 0.01) == 2
+    assert _choose(tries, 0.02, 0.02) == 2  # the band beats both at 0.02: no tie
+    # A band tied with a better-credited try of a larger shrink: that try.
+    assert _choose([(0.026, nan, 0.3), (0.08, 0.05, 1.0), (0.07, 0.06, 0.2)], 0.02, 0.01) == 2
+    assert _choose([(0.026, nan, 0.3), (0.08, 0.05, 1.0)], 0.02, 0.01) == 1
+    assert _choose([(0.10, nan, 1.0)], 0.02, 0.01) == 0  # a band alone
+    assert _choose([(0.10, nan, 1.0), (0.09, nan, 0.5)], 0.02, 0.01) == 0  # two bands: the larger shrink
 
 
 # --------------------------------------------------------------------------- end to end

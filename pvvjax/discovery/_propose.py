@@ -213,25 +213,29 @@ def _resonance_probe(ctx: _Ctx, model: Model, proposals, lib: list[Candidate], M
     return list(proposals) + [("all", j, _Selected(j, gain, float("nan"), float("nan"), source="probe"))]
 
 
-def _probe_test(conf: dict, current: dict, c: Candidate, seed: int) -> tuple[float, float]:
+def _probe_test(conf: dict, current: dict, c: Candidate, seed: int, alpha: float) -> tuple[float, float, str]:
     """The p-value and explained fraction of a probe's band (`_resonance_probe`), which the
     selection gives none, from its retraining. p: that the retrained ensemble predicts better
     than the current one by condition where the band acts (its value ≥ 0.5: a mode magnifies
-    the conditions at its rotor speeds), one-sided sign flips. Reported, not required, like
-    the lag test's: measured, the mode of the seeds + 2 resonance world scores 0.018 (0.013
-    over all conditions), a band that confirmed at the threshold beside a sideslip effect
-    0.802 (0.021 over all): at `alpha` = 0.01 it would reject both.
+    the conditions at its rotor speeds), one-sided sign flips. Required at `probe_alpha`, not
+    `alpha`: measured, the modes of two resonance worlds score 0.018 (seeds + 2; 0.013 over
+    all conditions) and 0.029 (seeds + 4), bands that confirmed on their shrink without a
+    mode 0.802 (beside a sideslip effect; 0.021 over all) and 0.41 (a null world, seeds + 3).
 
     Args:
         conf: `_confirm`'s (the trial's predictions and windows). current: the current
             model's predictions (`pred`) and windows (`win`). c: the band. seed: of the flips.
+        alpha: the level p must reach (`probe_alpha`).
 
     Returns:
-        (p, 1 − the trial's squared error / the current model's, over all windows).
+        (p, 1 − the trial's squared error / the current model's over all windows, why the band
+        is not confirmed: "" if p ≤ alpha).
     """
     both = _paired_errors(current, conf).merge(
         conf["win"].table[["counter", "window"]].assign(band=conf["win"].values(c)), on=["counter", "window"])
-    return _sign_flip_p(both[both.band >= 0.5], _SIGN_FLIPS, seed), _explained(both)
+    p = _sign_flip_p(both[both.band >= 0.5], _SIGN_FLIPS, seed)
+    why = "" if p <= alpha else f"its retraining's p = {p:.3f} by condition where it acts, above probe_alpha {alpha:g}"
+    return p, _explained(both), why
 
 
 def _propose(win: _Windows, yhat, resid, C, rows, own, floor_all, d, seed: int, complexity, keys,

@@ -308,7 +308,10 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
                 ok, conf = _confirm(ctx, current, trial, c, where, d)
                 p_value, explained = s.p_value, s.explained_fraction
                 if s.source == "probe":  # no selection p: its retraining's, by condition
-                    p_value, explained = _probe_test(conf, dict(pred=pred, win=win), c, cfg.seed + rnd)
+                    p_value, explained, why = _probe_test(conf, dict(pred=pred, win=win), c, cfg.seed + rnd,
+                                                          d.probe_alpha)
+                    if ok and why:
+                        ok, conf["why"] = False, why
                 t_confirm += time.perf_counter() - t0
                 t0 = time.perf_counter()
                 rounds.append(dict(round=rnd + 1, where=where, candidate=c.key, name=c.name, operator=c.operator,
@@ -333,7 +336,8 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
         ps = [1.0 if t[-1] is top else _paired_sign_flip(t[-1], top, _SIGN_FLIPS, cfg.seed + rnd)[0] for t in confirmed]
         for t, p in zip(confirmed, ps):
             rounds[t[1]]["p_best_better"] = p
-        k = _choose([(t[0], t[3].gain, p) for t, p in zip(confirmed, ps)], d.shrink_noise, d.alpha)
+        k = _choose([(t[0], np.nan if t[3].source == "probe" else t[3].gain, p) for t, p in zip(confirmed, ps)],
+                    d.shrink_noise, d.alpha)
         _, row, where, s, c, trial, conf = confirmed[k]
         effects.append(dict(rank=len(effects) + 1, round=rnd + 1, name=c.name, operator=c.operator,
                             channels=list(c.channels) or list(current.inputs), parameters=_public_parameters(c),
