@@ -205,19 +205,22 @@ def attributable(df: pd.DataFrame, nulls: dict, references: dict | None = None) 
         null = references.get(r.scenario, nulls.get(r.seed))
         if r.hidden == "none" or null is None:
             continue
-        null_before = null.before
-        if r.lag_baseline:  # a lag test's reference nets: the null world's reference of the same test
+        null_before, null_lagged = null.before, bool(getattr(getattr(null, "baseline", None), "through_lag", False))
+        if r.lag_baseline != null_lagged:  # the null's nets of the scenario's kind, from its lag test's table
             if null.lag_test is None:
                 continue
-            ref = null.lag_test[(null.lag_test.role == "reference") & null.lag_test.chosen].iloc[0]
-            null_before = {k: float(ref[k]) for k in ("rms_g", "peak_error_g", "phase_error_s")}
-            null_before["ensemble_rms_g"] = float(ref["ensemble_rms_g"])
+            t = null.lag_test
+            ref = t[(t.role == "reference") & t.chosen] if r.lag_baseline else t[t.role == "baseline"]
+            if not len(ref):  # a table written before the baseline row
+                continue
+            null_before = {k: float(ref.iloc[0][k]) for k in ("rms_g", "peak_error_g", "phase_error_s",
+                                                              "ensemble_rms_g")}
         df.loc[i, "rms_null_g"] = null_before["rms_g"]
         df.loc[i, "attributable_rms"] = _closed(r.rms_before_g, r.rms_after_g, null_before["rms_g"])
         df.loc[i, "ensemble_null_g"] = null_before["ensemble_rms_g"]
         df.loc[i, "attributable_ensemble"] = _closed(r.ensemble_before_g, r.ensemble_after_g,
                                                      null_before["ensemble_rms_g"])
-        if r.region and not r.lag_baseline:
+        if r.region and not r.lag_baseline and not null_lagged:
             ref = _rms_in(null, r.region.split(", "))
             df.loc[i, "region_null_g"] = ref
             df.loc[i, "attributable_region"] = _closed(r.region_before_g, r.region_after_g, ref)

@@ -57,6 +57,28 @@ def test_attributable_shrink_is_against_the_null_of_the_seed_or_the_scenarios_ow
     assert dict(zip(out.scenario, out.attributable_ensemble))["effect"] == pytest.approx(0.5)
 
 
+def test_a_null_whose_lag_test_confirmed_is_measured_by_the_nets_of_the_scenarios_kind(bench):
+    # The seed-46 null: its lag test confirmed, so its `before` is the test's window reference
+    # (0.0207 g), not the peak nets that the seed's roll-rate world starts from. A scenario
+    # without a lag baseline takes the null's "baseline" row of the lag table; a lag-baseline
+    # scenario its reference, which is then the null's `before`.
+    table = pd.DataFrame([
+        dict(role="baseline", chosen=False, rms_g=0.045, peak_error_g=0.03, phase_error_s=4.0, ensemble_rms_g=0.040),
+        dict(role="reference", chosen=True, rms_g=0.028, peak_error_g=0.02, phase_error_s=1.5, ensemble_rms_g=0.021),
+        dict(role="slow", chosen=True, rms_g=0.025, peak_error_g=0.02, phase_error_s=1.1, ensemble_rms_g=0.019)])
+    null = SimpleNamespace(before=dict(rms_g=0.028, peak_error_g=0.02, phase_error_s=1.5, ensemble_rms_g=0.021),
+                           baseline=SimpleNamespace(through_lag=True), lag_test=table, windows=None)
+    rows = pd.DataFrame([_row("effect", 0.060, 0.050, gap_metric="ensemble_rms_g", ensemble=(0.050, 0.045)),
+                         _row("lagged", 0.040, 0.030, lag_baseline=True)])
+    out = bench.attributable(rows, {1: null}).set_index("scenario")
+    assert out.loc["effect", "ensemble_null_g"] == 0.040
+    assert out.loc["effect", "attributable_shrink"] == pytest.approx(0.5)  # not (0.05 - 0.045) / (0.05 - 0.021)
+    assert out.loc["lagged", "rms_null_g"] == 0.028
+    # A table written before the baseline row: no reference, no attributable shrink (not a wrong one).
+    null.lag_test = table[table.role != "baseline"]
+    assert np.isnan(bench.attributable(rows, {1: null}).set_index("scenario").loc["effect", "attributable_shrink"])
+
+
 def test_the_weight_scenarios_reference_is_its_world_without_the_weights_effect(bench):
     scenarios, _ = bench.scenario_configs(ROOT / "experiments" / "configs" / "discovery" / "benchmark.toml", 2)
     (weight,) = [s for s in scenarios if s["reference_world"] is not None]

@@ -193,8 +193,13 @@ def test_discover_names_a_long_lag_first_with_nets_trained_through_it(monkeypatc
     js = D.summary(res)
     assert [e["operator"] for e in js["effects"]] == ["lag"], (res.lag_test, res.rounds.iloc[0])
     assert js["effects"][0]["parameters"] == {"tau_s": 3.0} and 0.0 < js["effects"][0]["p_value"] <= 1.0
-    t = res.lag_test
+    base, t = res.lag_test.iloc[0], res.lag_test.iloc[1:].reset_index(drop=True)
     assert list(t.tau_s) == [0.0, 3.0] and t["drop"][1] >= cfg.discovery.min_shrink
+    # The first row: the peak nets the test started from, at their offset (the window nets
+    # learn the maneuvers: a lower RMS).
+    assert base.role == "baseline" and np.isnan(base.tau_s) and not base.chosen
+    assert base.ensemble_rms_g > t.ensemble_rms_g[0] and base["drop"] == pytest.approx(
+        1 - base.ensemble_rms_g / t.ensemble_rms_g[0])
     assert res.baseline.through_lag and res.baseline.lag_tau_s == 0.0
     assert res.final.through_lag and res.final.lag_tau_s == 3.0 and res.final.offset_s == t.offset_s[1]
     row = res.rounds.iloc[0]
@@ -203,4 +208,4 @@ def test_discover_names_a_long_lag_first_with_nets_trained_through_it(monkeypatc
     assert res.after["rms_g"] < res.before["rms_g"]
     report = write_discovery(res, tmp_path, cfg).read_text()
     assert "## Lag test (round 0)" in report and "the lag test's reference: window nets" in report
-    assert pd.read_csv(tmp_path / "lag_test.csv").shape == (2, 10)
+    assert pd.read_csv(tmp_path / "lag_test.csv").shape == (3, 10)

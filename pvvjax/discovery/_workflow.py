@@ -76,7 +76,8 @@ class Discovery:
         residual: the first round's selection design (`Residual`), for `selection_gain`.
         lag_test: with `lag_test`, one row per ensemble of the test (`_lag_test`): tau_s,
             train_offset_s, offset_s (refitted), ensemble_rms_g, rms_g, peak_error_g,
-            phase_error_s, role (reference or slow), drop (against the reference), chosen.
+            phase_error_s, role (reference or slow; a first row "baseline": the peak nets the test
+            started from), drop (against the reference), chosen.
     """
 
     campaign: str
@@ -92,6 +93,19 @@ class Discovery:
     seconds: dict
     residual: Residual | None = None
     lag_test: pd.DataFrame | None = None
+
+
+def _with_baseline_row(table: pd.DataFrame, ctx: _Ctx, model: Model, reference_rms: float) -> pd.DataFrame:
+    """The lag test's table with a first row for the nets the test started from (role
+    "baseline": the peak nets at their offset, no lag), so that a world whose lag test
+    confirmed still reports the plain baseline that worlds without a lag are measured by
+    (e.g. a null world as the reference of its seed's hidden worlds)."""
+    win = _replay(ctx, model.offset_s)
+    m = metrics(predictions(ctx, model, win), win)
+    row = dict(tau_s=np.nan, train_offset_s=np.nan, ensemble_rms_g=m["ensemble_rms_g"], offset_s=model.offset_s,
+               rms_g=m["rms_g"], peak_error_g=m["peak_error_g"], phase_error_s=m["phase_error_s"], role="baseline",
+               drop=1.0 - m["ensemble_rms_g"] / reference_rms, chosen=False)
+    return pd.concat([pd.DataFrame([row]), table], ignore_index=True)
 
 
 def selection_gain(res: Discovery, values) -> float:
@@ -213,6 +227,7 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
     if d.lag_test and d.max_effects > 0:
         t1 = time.perf_counter()
         lag = _lag_test(ctx, model.offset_s, log)
+        lag["table"] = _with_baseline_row(lag["table"], ctx, model, lag["reference"]["ensemble_rms_g"])
         sec["lag_test"] = time.perf_counter() - t1
         if lag["confirmed"]:  # the baseline is then the test's reference: before/after measures the lag
             model = lag["reference"]["model"]
