@@ -204,7 +204,7 @@ def _choose(tries, noise: float, alpha: float) -> int:
     alone: a probe's band is a column the selection cannot credit (a mode the nets learned as
     a mean per rotor-speed level leaves no prediction × band residual), so its gain, ~0, says
     nothing. Measured on a held-out resonance world (seed 35): the mode lowers the RMS 16.5 %,
-    a collective knee 4.3 %, p = 0.011 by condition; by the gains (−0.026 against 0.064) the
+    a collective knee 4.3 %, p = 0.011 by condition; by the gains (−0.026 against 0.071) the
     knee was named.
     """
     best = max(sh for sh, _, _ in tries)
