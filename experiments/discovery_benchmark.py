@@ -205,7 +205,7 @@ def attributable(df: pd.DataFrame, nulls: dict, references: dict | None = None) 
         null = references.get(r.scenario, nulls.get(r.seed))
         if r.hidden == "none" or null is None:
             continue
-        null_before, null_lagged = null.before, bool(getattr(getattr(null, "baseline", None), "through_lag", False))
+        null_before, null_lagged = null.before, null.baseline.through_lag
         if r.lag_baseline != null_lagged:  # the null's nets of the scenario's kind, from its lag test's table
             if null.lag_test is None:
                 continue

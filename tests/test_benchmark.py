@@ -26,7 +26,7 @@ def bench():
 
 def _baseline(rms, peak=0.03):  # the ensemble's RMS 10 % below the seeds' median
     return SimpleNamespace(before=dict(rms_g=rms, peak_error_g=peak, phase_error_s=4.0, ensemble_rms_g=0.9 * rms),
-                           lag_test=None)
+                           baseline=SimpleNamespace(through_lag=False), lag_test=None)
 
 
 def _row(scenario, rms_before, rms_after, lag_baseline=False, gap_metric="rms_g", ensemble=None):

@@ -95,14 +95,12 @@ class Discovery:
     lag_test: pd.DataFrame | None = None
 
 
-def _with_baseline_row(table: pd.DataFrame, ctx: _Ctx, model: Model, reference_rms: float) -> pd.DataFrame:
+def _with_baseline_row(table: pd.DataFrame, offset_s: float, m: dict, reference_rms: float) -> pd.DataFrame:
     """The lag test's table with a first row for the nets the test started from (role
-    "baseline": the peak nets at their offset, no lag), so that a world whose lag test
-    confirmed still reports the plain baseline that worlds without a lag are measured by
-    (e.g. a null world as the reference of its seed's hidden worlds)."""
-    win = _replay(ctx, model.offset_s)
-    m = metrics(predictions(ctx, model, win), win)
-    row = dict(tau_s=np.nan, train_offset_s=np.nan, ensemble_rms_g=m["ensemble_rms_g"], offset_s=model.offset_s,
+    "baseline": the peak nets at their offset, no lag; `m` their `metrics`), so that a world
+    whose lag test confirmed still reports the plain baseline that worlds without a lag are
+    measured by (e.g. a null world as the reference of its seed's hidden worlds)."""
+    row = dict(tau_s=np.nan, train_offset_s=np.nan, ensemble_rms_g=m["ensemble_rms_g"], offset_s=offset_s,
                rms_g=m["rms_g"], peak_error_g=m["peak_error_g"], phase_error_s=m["phase_error_s"], role="baseline",
                drop=1.0 - m["ensemble_rms_g"] / reference_rms, chosen=False)
     return pd.concat([pd.DataFrame([row]), table], ignore_index=True)
@@ -223,18 +221,21 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
         t1 = time.perf_counter()
         model = model._replace(params=_train_model(ctx, model))
         sec["train_baseline"] += time.perf_counter() - t1
+    win = _replay(ctx, model.offset_s)
+    pred0 = predictions(ctx, model, win)
+    before = metrics(pred0, win)
     lag = None
     if d.lag_test and d.max_effects > 0:
         t1 = time.perf_counter()
         lag = _lag_test(ctx, model.offset_s, log)
-        lag["table"] = _with_baseline_row(lag["table"], ctx, model, lag["reference"]["ensemble_rms_g"])
+        lag["table"] = _with_baseline_row(lag["table"], model.offset_s, before, lag["reference"]["ensemble_rms_g"])
         sec["lag_test"] = time.perf_counter() - t1
         if lag["confirmed"]:  # the baseline is then the test's reference: before/after measures the lag
             model = lag["reference"]["model"]
-    win = _replay(ctx, model.offset_s)
+            win = _replay(ctx, model.offset_s)
+            pred0 = predictions(ctx, model, win)
+            before = metrics(pred0, win)
     full = win.table.weight.to_numpy() >= 0.999
-    pred0 = predictions(ctx, model, win)
-    before = metrics(pred0, win)
     sec["offset_and_replay"] = time.perf_counter() - t0
     log(f"baseline {d.database}: offset {model.offset_s:.2f} s, held-out RMS {before['rms_g']:.4f} g, peak error "
         f"{before['peak_error_g']:.4f} g, phase error {before['phase_error_s']:.2f} s")
