@@ -1,0 +1,102 @@
+"""A lag learned inside one training: window nets with a first-order lag of learnable time
+constant between their output and the measured PVV, fitted jointly by gradient.
+
+The lag test's judge (`_lag._lag_test`). Choosing a lag between separate trainings (with and
+without one) rests on the difference of two noisy trainings; learning τ inside one does not.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+
+from ..effects import lag as _first_order_lag
+from ..networks import mlp_apply, mlp_init, scaling
+from ._model import _grid, _Windows
+
+_lag_rows = jax.vmap(_first_order_lag, in_axes=(0, 0, None))
+
+
+def window_layout(win: _Windows) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The (N, W) layout that `_model._lag_windows` lags along, as indices.
+
+    Returns:
+        src (N, W): 1 + the window (row of `win.table`) whose value each cell holds, 0 for
+        none (a gap: value 0; a counter's leading cells hold its first window, so that the
+        lag starts at rest). times (N, W): increasing cell times, s. i, k: (n,) the cell of
+        each window.
+    """
+    i, k, to_grid, times = _grid(win)
+    src = np.rint(to_grid(np.arange(1, len(i) + 1, dtype=float))).astype(np.int32)
+    return src, times, i, k
+
+
+def lagged_windows(u, layout, tau_s):
+    """u (..., n) per-window values lagged by a first-order lag of τ along each counter's
+    windows (zero-order hold between window times): `_model._lag_windows`, pure and
+    differentiable in τ. layout: (src, times, i, k) from `window_layout`."""
+    src, times, i, k = layout
+    cells = jnp.where(src > 0, jnp.take(u, jnp.maximum(src - 1, 0), axis=-1), 0.0)
+    lag = _lag_rows if u.ndim == 1 else jax.vmap(_lag_rows, in_axes=(0, None, None))
+    return lag(cells, times, tau_s)[..., i, k]
+
+
+def _loss(trainable, fixed, x, y, w, layout):
+    net = {**fixed, "layers": trainable["layers"]}
+    pred = lagged_windows(mlp_apply(net, x), layout, jnp.exp(trainable["log_tau"]))
+    return jnp.sum(w * (pred - y) ** 2) / (jnp.sum(w) * fixed["y_scale"] ** 2)
+
+
+def _fit_one(trainable, fixed, x, y, w, layout, steps: int, learning_rate: float):
+    opt = optax.adam(learning_rate)
+    grad = jax.grad(_loss)
+
+    def step(carry, _):
+        p, st = carry
+        up, st = opt.update(grad(p, fixed, x, y, w, layout), st, p)
+        return (optax.apply_updates(p, up), st), None
+
+    return jax.lax.scan(step, (trainable, opt.init(trainable)), None, length=steps)[0][0]
+
+
+_fit_all = jax.jit(jax.vmap(_fit_one, in_axes=(0, 0, None, None, 0, None, None, None)), static_argnums=(6, 7))
+
+
+def fit_learned_lag(x, y, train_w, layout, folds: int, *, seeds: int, hidden, seed: int = 0, steps: int = 3000,
+                    learning_rate: float = 0.01, tau0_s: float = 1.0) -> dict:
+    """Nets and the time constant of a first-order lag between their output and `y`, fitted
+    jointly (Adam on the mean squared error), for each fold × seed at once.
+
+    Args:
+        x: (n, d) inputs of every window of `layout`. y: (n,) measured PVV, g.
+        train_w: (folds, n) training weight of each window per fold (0 for the held-out
+            fold's windows, and for windows not trained on).
+        layout: `window_layout` of the windows.
+        seeds, hidden: nets per fold and their hidden widths. seed: the first seed.
+        steps, learning_rate: Adam's. tau0_s: the time constant every fit starts from, s.
+
+    Returns:
+        dict: tau_s (folds, seeds) learned time constants; pred (folds, seeds, n) every
+        window's lagged prediction by each net; nets (the parameters, stacked likewise).
+    """
+    x, y = jnp.asarray(x, jnp.float32), jnp.asarray(y, jnp.float32)
+    w = np.asarray(train_w, np.float32)
+    nets = []
+    for f in range(folds):
+        on = w[f] > 0
+        sc = scaling(x[on], y[on])
+        nets += [mlp_init(jax.random.key(seed + s), x.shape[1], tuple(hidden), scale=sc) for s in range(seeds)]
+    nets = jax.tree.map(lambda *a: jnp.stack(a), *nets)
+    trainable = {"layers": nets.pop("layers"), "log_tau": jnp.full(folds * seeds, np.log(tau0_s), jnp.float32)}
+    lay = tuple(jnp.asarray(a) for a in layout)
+    out = _fit_all(trainable, nets, x, y, jnp.asarray(np.repeat(w, seeds, axis=0)), lay, int(steps),
+                   float(learning_rate))
+    nets = {**nets, "layers": out["layers"]}
+    tau = jnp.exp(out["log_tau"])
+    pred = jax.vmap(lambda n, t: lagged_windows(mlp_apply(n, x), lay, t))(nets, tau)
+    shape = (folds, seeds)
+    return dict(tau_s=np.asarray(tau, np.float64).reshape(shape),
+                pred=np.asarray(pred, np.float64).reshape(shape + (len(y),)),
+                nets=jax.tree.map(lambda a: np.asarray(a).reshape(shape + a.shape[1:]), nets))
