@@ -371,15 +371,23 @@ class DiscoveryConfig:
         train_stride: see `train_rows` (8: adjacent windows of 8 revolutions at a hop of 1,
             which overlap by nothing and carry the whole measured series at that resolution;
             the lag test's trainings use it too).
-        lag_test: before the first round, test for a lag slower than `lag_fast_s` with window
-            nets trained through it (`discovery._lag._lag_test`; up to six window trainings). A
-            confirmed lag is the first effect, and every later model trains through it.
-            Either way the rounds then propose no lag of the prediction: the test decided.
-        lag_test_taus: time constants the lag test tries, s (> 0; at least one above
-            `lag_fast_s`).
+        lag_test: before the first round, test for a slow lag (`discovery._lag._lag_test`):
+            window nets on the flight state (db1's inputs, whatever the database) and a lag
+            of learnable τ between them and the measured PVV, trained jointly at the lowest
+            offset, judge it (`lag_slow_s`); window nets trained through
+            lags of `lag_test_taus` (up to six trainings) add it. A confirmed lag is the
+            first effect, and every later model trains through it. Either way the rounds
+            then propose no lag of the prediction: the test decided.
+        lag_test_taus: time constants the lag test trains through, s (> 0; at least one
+            above `lag_fast_s`).
         lag_fast_s: the fast dynamics every world has (rotor inflow and wake settle within
             about a second): lags up to this count as the lag test's reference, not as a
             discovery.
+        lag_slow_s: the learned τ (median over folds × seeds) from which the lag test
+            confirms a slow lag, s. The learned τ takes the delay and the fast dynamics as
+            well: 1.0-1.4 s on the benchmark's worlds without a slow lag, 2.8-3.4 s with a
+            2 s lag.
+        lag_learn_steps: Adam steps of the learned lag's training.
         candidate_offsets_s: further alignments (input-to-vibration offsets, s, >= 0) of the
             candidates without a fitted parameter (a channel, its rate, its spread), beside
             the model's own offset: the static map's offset matches the slow, quasi-static
@@ -438,6 +446,8 @@ class DiscoveryConfig:
     lag_test: bool = False
     lag_test_taus: tuple[float, ...] = (1.0, 2.0, 3.0)
     lag_fast_s: float = 1.0
+    lag_slow_s: float = 2.0
+    lag_learn_steps: int = 2000
     candidate_offsets_s: tuple[float, ...] = (0.5,)
     resonance_probe: bool = False
     gain_unit: float = 10.0
@@ -464,7 +474,9 @@ class DiscoveryConfig:
         if self.min_subset_conditions < self.folds:
             raise ValueError(f"discovery.min_subset_conditions must be >= folds ({self.folds}), "
                              f"got {self.min_subset_conditions}")
-        for name in ("seeds", "proposals", "selection_stride", "permutations", "train_stride"):
+        if not self.lag_slow_s > 0:
+            raise ValueError(f"discovery.lag_slow_s must be > 0 s, got {self.lag_slow_s}")
+        for name in ("seeds", "proposals", "selection_stride", "permutations", "train_stride", "lag_learn_steps"):
             if getattr(self, name) < 1:
                 raise ValueError(f"discovery.{name} must be >= 1, got {getattr(self, name)}")
         if self.folds < 3:

@@ -121,11 +121,13 @@ def write_discovery(res: Discovery, out, cfg=None, worst: int = 4) -> Path:
                   "campaign as well as its error floor allows.", ""]
     if res.lag_test is not None:
         lines += ["## Lag test (round 0)", "",
-                  "Window nets trained through a lag of each τ (the targets de-lagged), replayed with it, their "
-                  "offset refitted. The reference is the best without a lag or with one of at most `lag_fast_s` "
-                  "(the fast dynamics of inflow and wake); a slower lag is named if it lowers the reference's "
-                  "held-out ensemble RMS by `min_shrink` (round 0 below; its p-value: a sign-flip test by "
-                  "condition).", "", _md(res.lag_test), ""]
+                  "A lag is named if the time constant learned jointly with window nets at the lowest offset "
+                  "(row `learned`: the median over folds × seeds, and its range) is at least `lag_slow_s`: it "
+                  "takes the delay and the fast dynamics of inflow and wake as well. Window nets trained through "
+                  "a lag of each τ (the targets de-lagged), replayed with it, their offset refitted, add it: the "
+                  "reference is the best without a lag or with one of at most `lag_fast_s`, the slow lag the "
+                  "best above it (round 0 below; its gain and a sign-flip test by condition are reported, not "
+                  "required).", "", _md(res.lag_test), ""]
     if not res.rounds.empty:
         lines += ["## Every proposal tried", "",
                   "A round proposes the candidates the selection cannot tell apart (held-out errors within one "

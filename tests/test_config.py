@@ -50,6 +50,8 @@ def test_full_config_round_trip(tmp_path):
     ("[discovery]\nlag_test_taus = [0.5, 1.0]", "discovery.lag_test_taus must be > 0 with at least one above "
                                                "discovery.lag_fast_s (1.0), got [0.5, 1.0]"),
     ("[discovery]\nlag_test = 'yes'", "discovery.lag_test: expected"),
+    ("[discovery]\nlag_slow_s = 0.0", "discovery.lag_slow_s must be > 0 s, got 0.0"),
+    ("[discovery]\nlag_learn_steps = 0", "discovery.lag_learn_steps must be >= 1, got 0"),
     ("[discovery]\nshrink_noise = 1.5", "discovery.shrink_noise must lie in [0, 1), got 1.5"),
     ("[discovery]\nfloor_refinements = -1", "discovery.floor_refinements must be >= 0, got -1"),
     ("[discovery]\nalpha = 1.5", "discovery.alpha must lie in (0, 1), got 1.5"),

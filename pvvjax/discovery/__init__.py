@@ -5,10 +5,12 @@ it to the model and show the gap shrink (data-contract §3).
    (`fit_ensemble`) on its peak rows. Every counter is replayed by the nets that held its
    condition out; the input-to-vibration offset is fitted on the held-out windows. (With
    `train_rows = "windows"` the nets are then retrained on the replay windows at that offset.)
-   With `lag_test`, window nets trained *through* lags of several time constants (`delag`)
-   then ask whether the vibration lags the state more slowly than the fast dynamics the
-   offset stands for (`_lag_test`); a confirmed slow lag is the first effect, its reference
-   (the best nets without one) the baseline, and every later model trains through it.
+   With `lag_test`, window nets and a lag of learnable τ between them and the measured PVV,
+   trained jointly (`_learned`), then ask whether the vibration lags the state more slowly
+   than the fast dynamics the offset stands for (`_lag_test`); window nets trained *through*
+   lags of several time constants (`delag`) add a confirmed slow lag as the first effect,
+   their reference (the best nets without one) the baseline, and every later model trains
+   through it.
 2. **Localize.** Window residuals (measured − predicted, median over seeds) by maneuver
    kind, flight regime and position inside the maneuvers (`residuals.localize`).
 3. **Explain.** The candidate library (`candidates`) and lags of the model's own

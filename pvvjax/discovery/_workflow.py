@@ -77,7 +77,9 @@ class Discovery:
         lag_test: with `lag_test`, one row per ensemble of the test (`_lag_test`): tau_s,
             train_offset_s, offset_s (refitted), ensemble_rms_g, rms_g, peak_error_g,
             phase_error_s, role (reference or slow; a first row "baseline": the peak nets the test
-            started from), drop (against the reference), chosen.
+            started from, a second "learned": the lag learned inside one training, with its
+            tau_s the median and tau_min_s, tau_max_s the range over folds × seeds), drop
+            (against the reference), chosen.
     """
 
     campaign: str
