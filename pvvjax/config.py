@@ -385,7 +385,7 @@ class DiscoveryConfig:
             discovery.
         lag_slow_s: the learned τ (median over folds × seeds) from which the lag test
             confirms a slow lag, s. The learned τ takes the delay and the fast dynamics as
-            well: 0.9-1.6 s on the benchmark's worlds without a slow lag, 2.6-3.2 s with a
+            well: 0.9-1.7 s on the benchmark's worlds without a slow lag, 2.6-3.2 s with a
             2 s lag.
         lag_learn_steps: Adam steps of the learned lag's training.
         candidate_offsets_s: further alignments (input-to-vibration offsets, s, >= 0) of the
