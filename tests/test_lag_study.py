@@ -134,7 +134,7 @@ def test_lag_test_is_judged_by_the_learned_tau_and_adds_the_slow_lag_against_the
             pred = rows.measured_g.to_numpy() + sd * rng.standard_normal((3, len(rows)))
             ens = float(np.sqrt(np.mean((np.median(pred, 0) - rows.measured_g.to_numpy()) ** 2)))
             out.append(dict(tau_s=tau, train_offset_s=off, model=D.Model({}, (), offset_s=off, lag_tau_s=tau), win=win,
-                            pred=pred, metrics=dict(rms_g=ens, peak_error_g=0.0, phase_error_s=0.0),
+                            pred=pred, metrics=dict(rms_g=ens, peak_error_g=0.0, phase_error_s=0.0, ensemble_rms_g=ens),
                             ensemble_rms_g=ens))
         return out
 

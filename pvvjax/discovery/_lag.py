@@ -86,6 +86,12 @@ def _learned_lag(ctx: _Ctx, log=print) -> dict:
     return out
 
 
+def _table_row(tau_s: float, train_offset_s: float, offset_s: float, m: dict) -> dict:
+    """One ensemble's row of the lag test's table: its lag, offsets and `metrics`."""
+    return dict(tau_s=tau_s, train_offset_s=train_offset_s, ensemble_rms_g=m["ensemble_rms_g"], offset_s=offset_s,
+                rms_g=m["rms_g"], peak_error_g=m["peak_error_g"], phase_error_s=m["phase_error_s"])
+
+
 def _lag_test(ctx: _Ctx, delta: float, log) -> dict:
     """Is there a lag slower than the fast dynamics the offset stands for? Judged by a lag
     learned inside one training (`_learned_lag`): confirmed if its τ, the median over folds
@@ -130,14 +136,9 @@ def _lag_test(ctx: _Ctx, delta: float, log) -> dict:
     why = ("" if tau >= d.lag_slow_s else
            f"the learned τ {tau:.2f} s (folds × seeds {tau_all.min():.2f}-{tau_all.max():.2f} s) is below "
            f"lag_slow_s {d.lag_slow_s:g} s")
-    lm = learned["metrics"]
-    row = dict(tau_s=tau, train_offset_s=learned["offset_s"], ensemble_rms_g=lm["ensemble_rms_g"],
-               offset_s=learned["offset_s"], rms_g=lm["rms_g"], peak_error_g=lm["peak_error_g"],
-               phase_error_s=lm["phase_error_s"])
-    table = pd.DataFrame([row] + [{k: t[k] for k in ("tau_s", "train_offset_s", "ensemble_rms_g")}
-                                  | {"offset_s": t["model"].offset_s} | {k: t["metrics"][k] for k in
-                                                                          ("rms_g", "peak_error_g", "phase_error_s")}
-                                  for t in trials])
+    table = pd.DataFrame([_table_row(tau, learned["offset_s"], learned["offset_s"], learned["metrics"])]
+                         + [_table_row(t["tau_s"], t["train_offset_s"], t["model"].offset_s, t["metrics"])
+                            for t in trials])
     table = table.assign(role=["learned"] + ["reference" if t["tau_s"] <= d.lag_fast_s else "slow" for t in trials],
                          drop=1.0 - table.ensemble_rms_g / ref["ensemble_rms_g"],
                          chosen=[False] + [t is ref or t is slow for t in trials],

@@ -21,7 +21,7 @@ from ..residuals import localize
 from ..selection import gain as _selection_gain
 from ._confirm import _SIGN_FLIPS, _augment, _choose, _confirm, _paired_sign_flip, _train_model
 from ._fits import _fit_offset, _keep_better, _refine
-from ._lag import _lag_round, _lag_test
+from ._lag import _lag_round, _lag_test, _table_row
 from ._model import (
     Model,
     _Ctx,
@@ -102,9 +102,8 @@ def _with_baseline_row(table: pd.DataFrame, offset_s: float, m: dict, reference_
     "baseline": the peak nets at their offset, no lag; `m` their `metrics`), so that a world
     whose lag test confirmed still reports the plain baseline that worlds without a lag are
     measured by (e.g. a null world as the reference of its seed's hidden worlds)."""
-    row = dict(tau_s=np.nan, train_offset_s=np.nan, ensemble_rms_g=m["ensemble_rms_g"], offset_s=offset_s,
-               rms_g=m["rms_g"], peak_error_g=m["peak_error_g"], phase_error_s=m["phase_error_s"], role="baseline",
-               drop=1.0 - m["ensemble_rms_g"] / reference_rms, chosen=False)
+    row = _table_row(np.nan, np.nan, offset_s, m) | dict(
+        role="baseline", drop=1.0 - m["ensemble_rms_g"] / reference_rms, chosen=False)
     return pd.concat([pd.DataFrame([row]), table], ignore_index=True)
 
 
