@@ -1,6 +1,7 @@
 """The lag learned inside one training (`discovery._learned`): the lag it trains through is
-the model's (`_lag_windows`), its gradient in τ matches finite differences, and it recovers
-the time constant of a known lag and finds none where there is none."""
+the model's (`_lag_windows`) and an exact window-by-window loop, its gradient in τ matches
+finite differences, and it recovers the time constant of a known lag and finds none where
+there is none."""
 
 import jax
 import jax.numpy as jnp
@@ -8,8 +9,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pvvjax.discovery._learned import fit_learned_lag, lagged_windows, window_layout
-from pvvjax.discovery._model import _lag_windows, _Windows
+from pvvjax.discovery._learned import fit_learned_lag
+from pvvjax.discovery._model import _lag_windows, _Windows, lagged_windows, window_layout
 
 
 def _windows(first_k=(0, 3, 1), n=(40, 30, 25), dt=0.25, seed=0):
@@ -24,16 +25,34 @@ def _windows(first_k=(0, 3, 1), n=(40, 30, 25), dt=0.25, seed=0):
     return _Windows(t, (len(n), int(t.k.max()) + 1), (), None)
 
 
-def test_the_lag_trained_through_is_the_models_lag():
+def _lag_loop(u, table, tau):
+    """The exact first-order lag of a held input, window by window along each counter in
+    time order, from rest at its first window (float64)."""
+    out = np.empty_like(u, dtype=float)
+    for _, rows in table.groupby("i").groups.items():
+        rows = np.asarray(rows)[np.argsort(table.k.to_numpy()[rows])]
+        t = table.time_s.to_numpy()[rows]
+        y = u[..., rows[0]].astype(float)
+        out[..., rows[0]] = y
+        for j in range(1, len(rows)):
+            a = np.exp(-(t[j] - t[j - 1]) / tau)
+            y = a * y + (1.0 - a) * u[..., rows[j]]
+            out[..., rows[j]] = y
+    return out
+
+
+def test_the_lag_trained_through_is_the_models_lag_and_an_exact_window_loop():
     win = _windows()
     u = np.random.default_rng(1).standard_normal((2, len(win.table)))
     layout = window_layout(win)
     for tau in (0.3, 2.0):
-        want = _lag_windows(u, win, tau)
+        want = _lag_loop(u, win.table, tau)
+        np.testing.assert_allclose(_lag_windows(u, win, tau), want, atol=2e-6)
         got = np.asarray(lagged_windows(jnp.asarray(u, jnp.float32), layout, tau))
         np.testing.assert_allclose(got, want, atol=2e-6)
         np.testing.assert_allclose(np.asarray(lagged_windows(jnp.asarray(u[0], jnp.float32), layout, tau)), want[0],
                                    atol=2e-6)
+    assert np.array_equal(_lag_windows(u, win, 0.0), u)
 
 
 def test_the_gradient_in_tau_matches_finite_differences():

@@ -9,8 +9,8 @@ from ..candidates import Candidate
 from ..databases import DB_INPUTS
 from ._confirm import _SIGN_FLIPS, _active_kinds, _paired_errors, _paired_sign_flip, _region, _train_model
 from ._fits import _fit_offset
-from ._learned import fit_learned_lag, window_layout
-from ._model import Model, _Ctx, _inputs, _lag_windows, _replay, _Windows, metrics, predictions
+from ._learned import fit_learned_lag
+from ._model import Model, _Ctx, _inputs, _lag_windows, _replay, _Windows, metrics, predictions, window_layout
 
 
 def _lag_trials(ctx: _Ctx, delta: float, taus, reference_offsets, log=print) -> list[dict]:

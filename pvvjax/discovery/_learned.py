@@ -12,35 +12,8 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from ..effects import lag as _first_order_lag
 from ..networks import mlp_apply, mlp_init, scaling
-from ._model import _grid, _Windows
-
-_lag_rows = jax.vmap(_first_order_lag, in_axes=(0, 0, None))
-
-
-def window_layout(win: _Windows) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The (N, W) layout that `_model._lag_windows` lags along, as indices.
-
-    Returns:
-        src (N, W): 1 + the window (row of `win.table`) whose value each cell holds, 0 for
-        none (a gap: value 0; a counter's leading cells hold its first window, so that the
-        lag starts at rest). times (N, W): increasing cell times, s. i, k: (n,) the cell of
-        each window.
-    """
-    i, k, to_grid, times = _grid(win)
-    src = np.rint(to_grid(np.arange(1, len(i) + 1, dtype=float))).astype(np.int32)
-    return src, times, i, k
-
-
-def lagged_windows(u, layout, tau_s):
-    """u (..., n) per-window values lagged by a first-order lag of τ along each counter's
-    windows (zero-order hold between window times): `_model._lag_windows`, pure and
-    differentiable in τ. layout: (src, times, i, k) from `window_layout`."""
-    src, times, i, k = layout
-    cells = jnp.where(src > 0, jnp.take(u, jnp.maximum(src - 1, 0), axis=-1), 0.0)
-    lag = _lag_rows if u.ndim == 1 else jax.vmap(_lag_rows, in_axes=(0, None, None))
-    return lag(cells, times, tau_s)[..., i, k]
+from ._model import lagged_windows
 
 
 def _loss(trainable, fixed, x, y, w, layout):

@@ -272,18 +272,44 @@ def _grid(win: _Windows):
     return i, k, to_grid, times  # padding past the last window: increasing times
 
 
+def window_layout(win: _Windows) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The (N, W) layout that `lagged_windows` lags along, as indices.
+
+    Returns:
+        src (N, W): 1 + the window (row of `win.table`) whose value each cell holds, 0 for
+        none (a gap: value 0; a counter's leading cells hold its first window, so that the
+        lag starts at rest). times (N, W): increasing cell times, s. i, k: (n,) the cell of
+        each window.
+    """
+    i, k, to_grid, times = _grid(win)
+    src = np.rint(to_grid(np.arange(1, len(i) + 1, dtype=float))).astype(np.int32)
+    return src, times, i, k
+
+
+_lag_rows = jax.vmap(_first_order_lag, in_axes=(0, 0, None))
+
+
+def lagged_windows(u, layout, tau_s):
+    """u (..., n) per-window values lagged by a first-order lag of τ along each counter's
+    windows (zero-order hold between window times), pure and differentiable in τ.
+    layout: (src, times, i, k) from `window_layout`."""
+    src, times, i, k = layout
+    cells = jnp.where(src > 0, jnp.take(u, jnp.maximum(src - 1, 0), axis=-1), 0.0)
+    lag = _lag_rows if u.ndim == 1 else jax.vmap(_lag_rows, in_axes=(0, None, None))
+    return lag(cells, times, tau_s)[..., i, k]
+
+
+_lagged_windows = jax.jit(lagged_windows)
+
+
 def _lag_windows(pred, win: _Windows, tau: float) -> np.ndarray:
     """A first-order lag of (S, n) window predictions along each counter's window times."""
     if tau <= 0:
         return pred
-    i, k, to_grid, times = _grid(win)
-    out = np.empty_like(pred)
-    for s in range(pred.shape[0]):
-        out[s] = np.asarray(_lag_grid(jnp.asarray(to_grid(pred[s])), jnp.asarray(times), tau))[i, k]
-    return out
+    return np.asarray(_lagged_windows(jnp.asarray(pred), window_layout(win), tau), dtype=np.asarray(pred).dtype)
 
 
-_lag_grid = jax.jit(jax.vmap(_first_order_lag, in_axes=(0, 0, None)))
+_lag_grid = jax.jit(_lag_rows)
 
 
 def delag(y, time_s, counter, tau_s: float, span: int = 4) -> np.ndarray:
