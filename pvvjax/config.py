@@ -349,6 +349,12 @@ class DiscoveryConfig:
             gains `min_gain` (`discovery._propose._propose`): the map's floor where ~200 peaks did not
             teach the nets a knee of their own inputs, which a channel that follows them (a
             stick, the shaft power) would otherwise be named for. 0: the fixed floor only.
+        floor_control: each round also retrains the model with the refinements its selection
+            took over all windows as extra network inputs (the floor's own model, in which
+            the nets may combine them, e.g. a climb-rate knee with the speed), and a try
+            that confirms against the current model must confirm again, added the same way,
+            against that control (`discovery._confirm._floor_control`; one more retraining
+            per round and per confirmed try). Off: the current model alone.
         augment: how a candidate joins the model: "additive" (a term b·candidate fitted on the
             windows, cross-fitted by fold, the nets retrained on the peaks minus it),
             "input" (an extra network input: the nets learn its shape and its interactions),
@@ -434,6 +440,7 @@ class DiscoveryConfig:
     min_shrink: float = 0.05
     shrink_noise: float = 0.02
     floor_refinements: int = 4
+    floor_control: bool = False
     augment: Literal["additive", "input", "auto"] = "auto"
     selection_stride: int = 4
     local_selection: bool = False

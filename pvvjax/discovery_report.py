@@ -129,6 +129,7 @@ def write_discovery(res: Discovery, out, cfg=None, worst: int = 4) -> Path:
                   "best above it (round 0 below; its gain and a sign-flip test by condition are reported, not "
                   "required).", "", _md(res.lag_test), ""]
     if not res.rounds.empty:
+        controlled = "control_shrink" in res.rounds and bool(res.rounds.control_shrink.notna().any())
         lines += ["## Every proposal tried", "",
                   "A round proposes the candidates the selection cannot tell apart (held-out errors within one "
                   "standard error of the best's: the simplest, the one that explains most, then the others); each is "
@@ -141,10 +142,14 @@ def write_discovery(res: Discovery, out, cfg=None, worst: int = 4) -> Path:
                   "`rms_*`: held-out RMS, median over seeds (as the metrics above); `ensemble_rms_*`: the RMS of "
                   "the ensemble's prediction (the median over seeds), whose change `shrink` (all windows) and "
                   "`region_shrink` (where the effect acts, `judged_in`) decide the confirmation; `why_not`: "
-                  "why a try is not confirmed.", "",
+                  "why a try is not confirmed." + (
+                      " `control_shrink`, `control_region_shrink`: the same try added to the floor control (the "
+                      "model retrained with its selection's floor refinements as inputs), where it must confirm "
+                      "again (`floor_control`)." if controlled else ""), "",
                   _md(res.rounds[["round", "name", "augment", "p_value", "cv_gain", "rms_before_g", "rms_after_g",
                                   "ensemble_rms_before_g", "ensemble_rms_after_g", "shrink", "judged_in",
-                                  "region_shrink", "confirmed", "why_not", "p_best_better", "chosen"]]), "",
+                                  "region_shrink", *(["control_shrink", "control_region_shrink"] if controlled else []),
+                                  "confirmed", "why_not", "p_best_better", "chosen"]]), "",
                   "Runners-up of each proposal (held-out gain):", ""]
         lines += [f"- round {r.round}, {r.name} ({r.cv_gain:.3f}): {r.runners_up}"
                   for r in res.rounds.drop_duplicates(["round", "name"]).itertuples()]

@@ -357,6 +357,24 @@ def test_a_probes_band_gets_the_p_value_of_its_retraining_by_condition_where_it_
     assert p(k < 2) == p(k < 2)  # seeded
 
 
+def test_the_floor_control_is_the_model_retrained_with_its_refinements_as_inputs(monkeypatch):
+    import pvvjax.discovery._confirm as C
+    from pvvjax.candidates import Candidate
+    from pvvjax.discovery._model import Model
+
+    trained = []
+    monkeypatch.setattr(C, "_train_model", lambda ctx, m: trained.append(m) or {"nets": len(trained)})
+    roll = Candidate("input", ("roll_rate_dps",))
+    knees = [Candidate("threshold", ("climb_rate_fpm",), {"knee": -900.0, "above": False}),
+             Candidate("threshold", ("advance_ratio",), {"knee": 0.07, "above": False})]
+    current = Model({"nets": 0}, ("advance_ratio", "climb_rate_fpm"), extra=(roll,), offset_s=0.9)
+    control = C._floor_control(None, current, knees)
+    assert control.extra == (roll, *knees) and control.params == {"nets": 1}  # retrained with them
+    assert control._replace(extra=current.extra, params=current.params) == current  # all else kept
+    assert trained == [control._replace(params=current.params)]
+    assert C._floor_control(None, current, []) is None and len(trained) == 1  # nothing to control with
+
+
 def test_candidates_the_selection_cannot_tell_apart_are_retrained_simplest_then_best():
     from pvvjax.discovery._propose import _try_order
 

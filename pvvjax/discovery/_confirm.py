@@ -132,6 +132,22 @@ def _confirm(ctx: _Ctx, current: Model, trial: Model, c: Candidate, where: str, 
                          region=region, judged_in=", ".join(kinds), ensemble=ens, why=why)
 
 
+def _floor_control(ctx: _Ctx, current: Model, refinements) -> Model | None:
+    """The current model retrained with the selection's floor refinements (knees and
+    products of its own inputs) as extra network inputs; None without refinements.
+
+    The selection asks a candidate beside those refinements, but the retraining that
+    confirms it compares it with a model that has none: a misfit of the model's own inputs
+    that the refinements describe, and a channel that follows those inputs (the shaft power,
+    a stick, below a knee in descents and flares), both lower the current model's RMS. A try
+    is also confirmed on top of this control (`_confirm` of the control with the try added
+    the same way), where only an effect still lowers it."""
+    if not refinements:
+        return None
+    control = current._replace(extra=current.extra + tuple(refinements))
+    return control._replace(params=_train_model(ctx, control))
+
+
 def _paired_errors(a: dict, b: dict) -> pd.DataFrame:
     """The squared errors of trials `a`'s and `b`'s ensembles (the median over seeds) on the
     windows both hold in full: counter, window, condition, maneuver, e2_a, e2_b."""

@@ -19,7 +19,15 @@ from ..databases import DB_INPUTS, STATE_CHANNELS, build_databases
 from ..replay import make_settings, prepare
 from ..residuals import localize
 from ..selection import gain as _selection_gain
-from ._confirm import _SIGN_FLIPS, _augment, _choose, _confirm, _paired_sign_flip, _train_model
+from ._confirm import (
+    _SIGN_FLIPS,
+    _augment,
+    _choose,
+    _confirm,
+    _floor_control,
+    _paired_sign_flip,
+    _train_model,
+)
 from ._fits import _fit_offset, _keep_better, _refine
 from ._lag import _lag_round, _lag_test, _table_row
 from ._model import (
@@ -291,6 +299,15 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
                          for where, j, s in proposals) or "none")
             + "".join(f"; {len(s.equivalents)} equivalent to the best in {where}: "
                       + ", ".join(lib[a].name for a, _ in s.equivalents[:10]) for where, _, s in proposals[:1]))
+        control = None
+        if d.floor_control and proposals:
+            t0 = time.perf_counter()
+            control = _floor_control(ctx, current, [lib[j] for where, j, _ in absorbed if where == "all"])
+            if control is not None:
+                log(f"round {rnd + 1}: floor control (its refinements as inputs): ensemble's RMS "
+                    f"{metrics(pred, win)['ensemble_rms_g']:.4f} -> "
+                    f"{metrics(predictions(ctx, control, win), win)['ensemble_rms_g']:.4f} g")
+            t_confirm += time.perf_counter() - t0
         confirmed = []
         tried = set()
         for where, j, s in proposals:
@@ -315,6 +332,7 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
                 else:
                     if mode == "gain" and s.source != "probe":  # a tested band: its gain in steps of gain_unit
                         c = replace(c, parameters={**c.parameters, "gain_unit": d.gain_unit})
+                    added = c
                     trial = _augment(ctx, current, c, mode)
                     if trial.terms and trial.terms[-1][0] is c:
                         c = replace(c, parameters={**c.parameters,
@@ -329,6 +347,13 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
                                                           d.probe_alpha)
                     if ok and why:
                         ok, conf["why"] = False, why
+                on_control = dict(shrink=np.nan, local=np.nan)
+                if ok and control is not None and mode != "lag":  # the same try on top of the floor control
+                    ok, on_control = _confirm(ctx, control, _augment(ctx, control, added, mode), added, where, d)
+                    if not ok:
+                        conf["why"] = (f"not confirmed on top of the floor control: {on_control['why']} (shrink "
+                                       f"{on_control['shrink']:+.1%} (all), {on_control['local']:+.1%} "
+                                       f"({on_control['judged_in']}))")
                 t_confirm += time.perf_counter() - t0
                 t0 = time.perf_counter()
                 rounds.append(dict(round=rnd + 1, where=where, candidate=c.key, name=c.name, operator=c.operator,
@@ -337,7 +362,9 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
                                    rms_before_g=cur_metrics["rms_g"], rms_after_g=conf["metrics"]["rms_g"],
                                    ensemble_rms_before_g=conf["ensemble"][0], ensemble_rms_after_g=conf["ensemble"][1],
                                    floor_terms=floor_terms, shrink=conf["shrink"], judged_in=conf["judged_in"],
-                                   region_shrink=conf["local"], confirmed=ok, why_not=conf["why"],
+                                   region_shrink=conf["local"], control_shrink=on_control["shrink"],
+                                   control_region_shrink=on_control["local"],
+                                   confirmed=ok, why_not=conf["why"],
                                    p_best_better=np.nan, chosen=False))
                 log(f"  {c.name} ({mode}): held-out RMS {cur_metrics['rms_g']:.4f} -> {conf['metrics']['rms_g']:.4f} "
                     f"g (median over seeds); ensemble's {conf['ensemble'][0]:.4f} -> {conf['ensemble'][1]:.4f} g, "
