@@ -305,7 +305,7 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
             control = _floor_control(ctx, current, [lib[j] for where, j, _ in absorbed if where == "all"])
             if control is not None:
                 log(f"round {rnd + 1}: floor control (its refinements as inputs): ensemble's RMS "
-                    f"{metrics(pred, win)['ensemble_rms_g']:.4f} -> "
+                    f"{cur_metrics['ensemble_rms_g']:.4f} -> "
                     f"{metrics(predictions(ctx, control, win), win)['ensemble_rms_g']:.4f} g")
             t_confirm += time.perf_counter() - t0
         confirmed = []
