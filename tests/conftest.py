@@ -52,6 +52,23 @@ def tiny_records(n_counters=2, seconds=12.0, spr=64, rpm=257.8, seed=0):
     return pd.DataFrame(rows), recs
 
 
+def lag_loop(u, table, tau):
+    """The exact first-order lag of a held input, window by window along each counter (`table.i`)
+    in window order (`table.k`), from rest at its first window (float64): the reference of
+    the discovery's lag of window series."""
+    out = np.empty_like(u, dtype=float)
+    for _, rows in table.groupby("i").groups.items():
+        rows = np.asarray(rows)[np.argsort(table.k.to_numpy()[rows])]
+        t = table.time_s.to_numpy()[rows]
+        y = u[..., rows[0]].astype(float)
+        out[..., rows[0]] = y
+        for j in range(1, len(rows)):
+            a = np.exp(-(t[j] - t[j - 1]) / tau)
+            y = a * y + (1.0 - a) * u[..., rows[j]]
+            out[..., rows[j]] = y
+    return out
+
+
 def write_tiny(folder, counters=None, recs=None, fmt="csv"):
     """Write a tiny campaign folder (optionally from modified tables)."""
     from pvvjax.campaign import write_campaign

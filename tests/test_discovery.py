@@ -45,18 +45,11 @@ def test_metrics_against_a_loop():
 
 
 def test_lag_of_window_series_is_the_exact_recursion():
+    from conftest import lag_loop
+
     win = _windows()
-    rng = np.random.default_rng(2)
-    x = rng.random(len(win.table))
-    tau = 0.7
-    got = _lag_windows(x[None], win, tau)[0]
-    for i, g in win.table.groupby("i"):
-        xs, ts = x[g.index], g.time_s.to_numpy()
-        y = [xs[0]]
-        for n in range(1, len(xs)):
-            a = np.exp(-(ts[n] - ts[n - 1]) / tau)
-            y.append(a * y[-1] + (1 - a) * xs[n])
-        np.testing.assert_allclose(got[g.index], y, rtol=1e-5)
+    x = np.random.default_rng(2).random(len(win.table))
+    np.testing.assert_allclose(_lag_windows(x[None], win, 0.7)[0], lag_loop(x, win.table, 0.7), rtol=1e-5)
 
 
 def test_knn_floor_against_brute_force():

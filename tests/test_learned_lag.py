@@ -8,6 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 import pandas as pd
 import pytest
+from conftest import lag_loop
 
 from pvvjax.discovery._learned import fit_learned_lag
 from pvvjax.discovery._model import _lag_windows, _Windows, lagged_windows, window_layout
@@ -25,28 +26,12 @@ def _windows(first_k=(0, 3, 1), n=(40, 30, 25), dt=0.25, seed=0):
     return _Windows(t, (len(n), int(t.k.max()) + 1), (), None)
 
 
-def _lag_loop(u, table, tau):
-    """The exact first-order lag of a held input, window by window along each counter in
-    time order, from rest at its first window (float64)."""
-    out = np.empty_like(u, dtype=float)
-    for _, rows in table.groupby("i").groups.items():
-        rows = np.asarray(rows)[np.argsort(table.k.to_numpy()[rows])]
-        t = table.time_s.to_numpy()[rows]
-        y = u[..., rows[0]].astype(float)
-        out[..., rows[0]] = y
-        for j in range(1, len(rows)):
-            a = np.exp(-(t[j] - t[j - 1]) / tau)
-            y = a * y + (1.0 - a) * u[..., rows[j]]
-            out[..., rows[j]] = y
-    return out
-
-
 def test_the_lag_trained_through_is_the_models_lag_and_an_exact_window_loop():
     win = _windows()
     u = np.random.default_rng(1).standard_normal((2, len(win.table)))
     layout = window_layout(win)
     for tau in (0.3, 2.0):
-        want = _lag_loop(u, win.table, tau)
+        want = lag_loop(u, win.table, tau)
         np.testing.assert_allclose(_lag_windows(u, win, tau), want, atol=2e-6)
         got = np.asarray(lagged_windows(jnp.asarray(u, jnp.float32), layout, tau))
         np.testing.assert_allclose(got, want, atol=2e-6)
