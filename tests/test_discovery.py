@@ -632,3 +632,49 @@ def test_a_gains_column_is_its_band_in_units_of_its_gain_unit():
     assert DiscoveryConfig().gain_unit == 10.0
     with pytest.raises((ConfigError, ValueError), match="discovery.gain_unit must be > 0"):
         from_dict(DiscoveryConfig, {"gain_unit": 0.0})
+
+
+def test_a_try_must_confirm_again_on_top_of_the_floor_control(monkeypatch, tmp_path, small_campaign_dir):
+    # floor_control: a round's floor refinements (the selection's, taken over all windows) are
+    # added to the current model as inputs and it is retrained (the control); a try confirmed
+    # against the current model is added to the control the same way and must confirm again
+    # there. The round's proposal and refinement are forced here (the selection is tested
+    # above); training, replay and the confirmations are the workflow's own.
+    from pvvjax.campaign import load_campaign
+    from pvvjax.config import DiscoveryConfig, ExperimentConfig, TrainConfig
+    from pvvjax.discovery import _workflow, discover
+    from pvvjax.discovery_report import write_discovery
+    from pvvjax.selection import Selected
+
+    picked = {}
+
+    def propose(win, yhat, resid, M, rows, own, floor, d, seed, complexity, keys, is_floor):
+        j = next(i for i, k in enumerate(keys) if k.startswith("input:") and not is_floor[i])
+        f = int(np.flatnonzero(is_floor)[0])
+        picked.update(j=j, f=f)
+        return ([("all", j, Selected(j, 0.1, 0.1, 0.001))], [("all", f, 0.05)],
+                {"all": (rows, np.column_stack([floor, M[rows, f]]))})
+
+    asked, confirm = [], _workflow._confirm
+
+    def confirm_twice(ctx, current, trial, c, where, d):
+        ok, out = confirm(ctx, current, trial, c, where, d)
+        asked.append((current, trial, ok, out))
+        return (False, {**out, "why": "too small a shrink"}) if len(asked) == 2 else (True, out)
+
+    monkeypatch.setattr(_workflow, "_propose", propose)
+    monkeypatch.setattr(_workflow, "_confirm", confirm_twice)
+    d = DiscoveryConfig(seeds=1, folds=3, max_effects=1, floor_control=True, augment="input", offset_step_s=0.5)
+    cfg = ExperimentConfig(train=TrainConfig(max_steps=100), discovery=d)
+    res = discover(load_campaign(small_campaign_dir), cfg, log=lambda m: None)
+
+    (cur, trial, _, _), (control, on_control, _, out) = asked  # the try on the current model, then on the control
+    assert cur.extra == () and [c.key for c in trial.extra] == [res.rounds.candidate[0]]
+    assert len(control.extra) == 1 and control.extra[0].channels and control.params is not cur.params
+    assert on_control.extra == control.extra + trial.extra  # the same try, added to the control
+    row = res.rounds.iloc[0]
+    assert row.control_shrink == out["shrink"] and row.control_region_shrink == out["local"]
+    assert not row.confirmed and row.why_not.startswith("not confirmed on top of the floor control: too small")
+    assert res.effects == [] and res.after == res.before  # confirmed on the current model only: not named
+    report = write_discovery(res, tmp_path / "out", cfg).read_text()
+    assert "control_region_shrink" in report and "(`floor_control`)" in report
