@@ -381,7 +381,7 @@ class DiscoveryConfig:
             window nets on the flight state (db1's inputs, whatever the database) and a lag
             of learnable τ between them and the measured PVV, trained jointly at the lowest
             offset, judge it (`lag_slow_s`); window nets trained through
-            lags of `lag_test_taus` (up to six trainings) add it. A confirmed lag is the
+            lags of `lag_test_taus` (up to six trainings) add a confirmed lag, which is the
             first effect, and every later model trains through it. Either way the rounds
             then propose no lag of the prediction: the test decided.
         lag_test_taus: time constants the lag test trains through, s (> 0; at least one
@@ -394,6 +394,11 @@ class DiscoveryConfig:
             well: 0.9-1.7 s on the benchmark's worlds without a slow lag, 2.6-3.2 s with a
             2 s lag.
         lag_learn_steps: Adam steps of the learned lag's training.
+        lag_trials_always: run the lag test's trainings through lags even where the learned
+            τ confirms no lag: they decide nothing then (their gains are reported in
+            `lag_test.csv`, as `lag_study` reports them for any world), and they are about
+            two thirds of a discovery's time with `lag_test` (the benchmark runs them on the
+            null worlds whose window nets measure its lag worlds' gap).
         candidate_offsets_s: further alignments (input-to-vibration offsets, s, >= 0) of the
             candidates without a fitted parameter (a channel, its rate, its spread), beside
             the model's own offset: the static map's offset matches the slow, quasi-static
@@ -455,6 +460,7 @@ class DiscoveryConfig:
     lag_fast_s: float = 1.0
     lag_slow_s: float = 2.0
     lag_learn_steps: int = 2000
+    lag_trials_always: bool = False
     candidate_offsets_s: tuple[float, ...] = (0.5,)
     resonance_probe: bool = False
     gain_unit: float = 10.0

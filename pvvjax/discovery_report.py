@@ -127,7 +127,8 @@ def write_discovery(res: Discovery, out, cfg=None, worst: int = 4) -> Path:
                   "a lag of each τ (the targets de-lagged), replayed with it, their offset refitted, add it: the "
                   "reference is the best without a lag or with one of at most `lag_fast_s`, the slow lag the "
                   "best above it (round 0 below; its gain and a sign-flip test by condition are reported, not "
-                  "required).", "", _md(res.lag_test), ""]
+                  "required). Where no lag is confirmed those trainings decide nothing and are skipped, unless "
+                  "`lag_trials_always` (`pvvjax.lag_study` runs them on any campaign).", "", _md(res.lag_test), ""]
     if not res.rounds.empty:
         controlled = "control_shrink" in res.rounds and bool(res.rounds.control_shrink.notna().any())
         lines += ["## Every proposal tried", "",

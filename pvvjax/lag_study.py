@@ -7,8 +7,9 @@ undone in their targets (`discovery.delag`: the static vibration a first-order l
 measured one), their lagged replay is compared with nets trained without a lag, and both
 get the same freedom of offset: a fair test of a lag against a pure delay.
 
-With `[discovery] lag_test = true`, `discover` runs the same trainings as its first step,
-after a lag learned inside one training has decided (`lag_slow_s`); `lag_study` reports
+With `[discovery] lag_test = true`, `discover` runs the same trainings as its first step
+where a lag learned inside one training has confirmed a slow lag (`lag_slow_s`), to add it
+(on every world with `lag_trials_always`); `lag_study` runs them on any world and reports
 them all.
 """
 

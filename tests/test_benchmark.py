@@ -79,6 +79,22 @@ def test_a_null_whose_lag_test_confirmed_is_measured_by_the_nets_of_the_scenario
     assert np.isnan(bench.attributable(rows, {1: null}).set_index("scenario").loc["effect", "attributable_shrink"])
 
 
+def test_the_nulls_of_the_lag_scenarios_seeds_run_the_trainings_through_lags(bench, monkeypatch):
+    # A lag scenario's gap is measured by its null's window nets (the lag test's reference
+    # row, above), which discover trains only where it confirms a lag, unless told to.
+    scenarios, overrides = bench.scenario_configs(ROOT / "experiments" / "configs" / "discovery" / "benchmark.toml", 3)
+    by = {s["name"]: s for s in scenarios}
+    assert [s["name"] for s in scenarios if s["discovery"]] == ["null-31"]
+    assert by["null-31"]["seed"] == by["long-lag"]["seed"] == 34
+    seen = []
+    monkeypatch.setattr(bench, "_campaign", lambda synth: None)
+    monkeypatch.setattr(bench, "discover", lambda campaign, cfg, **kw: seen.append(cfg.discovery) or 1 / 0)
+    for name in ("null-31", "null-41"):
+        with pytest.raises(ZeroDivisionError):
+            bench.run_scenario(by[name], overrides, None)
+    assert [d.lag_trials_always for d in seen] == [True, False] and all(d.lag_test for d in seen)
+
+
 def test_the_weight_scenarios_reference_is_its_world_without_the_weights_effect(bench):
     scenarios, _ = bench.scenario_configs(ROOT / "experiments" / "configs" / "discovery" / "benchmark.toml", 2)
     (weight,) = [s for s in scenarios if s["reference_world"] is not None]

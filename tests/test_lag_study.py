@@ -160,12 +160,29 @@ def test_lag_test_is_judged_by_the_learned_tau_and_adds_the_slow_lag_against_the
     assert t.ensemble_rms_g[0] == 0.009 and t.tau_min_s[1:].isna().all()
     assert got["drop"] == pytest.approx(t["drop"][4]) and t["drop"][3] == 0.0
 
-    # The same trainings with a learned τ of the fast dynamics (the seed-46 null: the slow
-    # lag's trainings gained 6.7 % there): nothing to name, whatever the trainings' gain.
+    # A learned τ of the fast dynamics (the seed-46 null: the slow lag's trainings gained
+    # 6.7 % there): nothing to name, whatever the trainings would gain, so they do not run;
+    # the table and round 0 hold the learned lag alone. With lag_trials_always they run.
+    columns = list(t.columns)
+    ran = []
+    monkeypatch.setattr(_lag, "_lag_trials", lambda *a, **k: ran.append(1) or trials(lagged))
     monkeypatch.setattr(_lag, "_learned_lag", learned(np.linspace(1.0, 1.4, 10)))
     got = _lag._lag_test(Ctx(), 1.0, log=lambda m: None)
-    assert not got["confirmed"] and got["drop"] > 0.3
+    assert not got["confirmed"] and ran == [] and got["reference"] is None and np.isnan(got["drop"])
     assert got["why"] == "the learned τ 1.20 s (folds × seeds 1.00-1.40 s) is below lag_slow_s 2 s"
+    t = got["table"]
+    assert list(t.columns) == columns and list(t.role) == ["learned"] and not t.chosen[0] and np.isnan(t["drop"][0])
+    assert t.tau_s[0] == pytest.approx(1.2) and (t.tau_min_s[0], t.tau_max_s[0]) == pytest.approx((1.0, 1.4))
+    row, effect = _lag._lag_round(None, got, ("advance_ratio",))
+    assert effect is None and not row["confirmed"] and row["why_not"] == got["why"]
+    assert row["augment"] == "learned" and row["runners_up"] == "learned τ 1.20 s" and np.isnan(row["shrink"])
+
+    class Always:
+        cfg = ExperimentConfig(discovery=from_dict(DiscoveryConfig, {"lag_test": True, "lag_slow_s": 2.0,
+                                                                     "lag_trials_always": True}))
+
+    got = _lag._lag_test(Always(), 1.0, log=lambda m: None)
+    assert ran == [1] and not got["confirmed"] and got["drop"] > 0.3 and len(got["table"]) == 6
 
     # A learned slow lag whose trainings through it gain nothing (held-out lags 35, 36:
     # +7.3 % and −1.2 %): the lag is named, the trainings' gain reported as it is.

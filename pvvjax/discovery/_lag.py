@@ -92,6 +92,22 @@ def _table_row(tau_s: float, train_offset_s: float, offset_s: float, m: dict) ->
                 rms_g=m["rms_g"], peak_error_g=m["peak_error_g"], phase_error_s=m["phase_error_s"])
 
 
+def _lag_table(learned: dict, trials: list, ref: dict | None, slow: dict | None, lag_fast_s: float) -> pd.DataFrame:
+    """The lag test's table: the learned lag's row (its τ the median over folds × seeds, with
+    their range), then one row per training through a lag (role reference or slow), each
+    with its drop against the reference and whether it was chosen (NaN drops without one)."""
+    tau = learned["tau_s"]
+    table = pd.DataFrame([_table_row(learned["tau_median_s"], learned["offset_s"], learned["offset_s"],
+                                     learned["metrics"])]
+                         + [_table_row(t["tau_s"], t["train_offset_s"], t["model"].offset_s, t["metrics"])
+                            for t in trials])
+    return table.assign(role=["learned"] + ["reference" if t["tau_s"] <= lag_fast_s else "slow" for t in trials],
+                        drop=1.0 - table.ensemble_rms_g / (ref["ensemble_rms_g"] if ref else np.nan),
+                        chosen=[False] + [t is ref or t is slow for t in trials],
+                        tau_min_s=[tau.min()] + [np.nan] * len(trials),
+                        tau_max_s=[tau.max()] + [np.nan] * len(trials))
+
+
 def _lag_test(ctx: _Ctx, delta: float, log) -> dict:
     """Is there a lag slower than the fast dynamics the offset stands for? Judged by a lag
     learned inside one training (`_learned_lag`): confirmed if its τ, the median over folds
@@ -108,17 +124,29 @@ def _lag_test(ctx: _Ctx, delta: float, log) -> dict:
     p-value of a sign-flip test by condition (`_paired_sign_flip`). It is not required: the
     difference of two window trainings moves by up to 18 points with the nets'
     initialization, and a null world's nets trained through a 2 s lag gained as much as a
-    lag world's (docs/discovery.md), where the learned τ separates them.
+    lag world's (docs/discovery.md), where the learned τ separates them. So where the
+    learned τ confirms no lag the trainings, which would decide nothing, are skipped unless
+    `lag_trials_always` (`lag_study` runs them on any world).
 
     Returns:
         dict: table (one row per ensemble, the learned lag's first), learned
-        (`_learned_lag`), reference and slow (their `_lag_trials` dicts), drop, local (the
-        drop where the lag acts, on the windows both hold in full), judged_in (those kinds),
-        p_value, explained_fraction (1 − the slow lag's squared error / the reference's,
-        full windows of both), confirmed, why (empty if confirmed).
+        (`_learned_lag`), reference and slow (their `_lag_trials` dicts; None where the
+        trainings were skipped, and NaN for what they measure), drop, local (the drop where
+        the lag acts, on the windows both hold in full), judged_in (those kinds), p_value,
+        explained_fraction (1 − the slow lag's squared error / the reference's, full windows
+        of both), confirmed, why (empty if confirmed).
     """
     d = ctx.cfg.discovery
     learned = _learned_lag(ctx, log)
+    tau, tau_all = learned["tau_median_s"], learned["tau_s"]
+    why = ("" if tau >= d.lag_slow_s else
+           f"the learned τ {tau:.2f} s (folds × seeds {tau_all.min():.2f}-{tau_all.max():.2f} s) is below "
+           f"lag_slow_s {d.lag_slow_s:g} s")
+    if why and not d.lag_trials_always:
+        log(f"lag test: {why}: not confirmed (no trainings through lags)")
+        return dict(table=_lag_table(learned, [], None, None, d.lag_fast_s), learned=learned, reference=None,
+                    slow=None, drop=np.nan, local=np.nan, judged_in="", p_value=np.nan, explained_fraction=np.nan,
+                    confirmed=False, why=why)
     trials = _lag_trials(ctx, delta, d.lag_test_taus, _LAG_REFERENCE_OFFSETS, log)
     ref = min((t for t in trials if t["tau_s"] <= d.lag_fast_s), key=lambda t: t["ensemble_rms_g"])
     slow = min((t for t in trials if t["tau_s"] > d.lag_fast_s), key=lambda t: t["ensemble_rms_g"])
@@ -132,18 +160,7 @@ def _lag_test(ctx: _Ctx, delta: float, log) -> dict:
     both = _paired_errors(ref, slow)
     there = both[both.maneuver.isin(kinds)]
     local = float(1.0 - np.sqrt(there.e2_b.sum() / there.e2_a.sum()))
-    tau, tau_all = learned["tau_median_s"], learned["tau_s"]
-    why = ("" if tau >= d.lag_slow_s else
-           f"the learned τ {tau:.2f} s (folds × seeds {tau_all.min():.2f}-{tau_all.max():.2f} s) is below "
-           f"lag_slow_s {d.lag_slow_s:g} s")
-    table = pd.DataFrame([_table_row(tau, learned["offset_s"], learned["offset_s"], learned["metrics"])]
-                         + [_table_row(t["tau_s"], t["train_offset_s"], t["model"].offset_s, t["metrics"])
-                            for t in trials])
-    table = table.assign(role=["learned"] + ["reference" if t["tau_s"] <= d.lag_fast_s else "slow" for t in trials],
-                         drop=1.0 - table.ensemble_rms_g / ref["ensemble_rms_g"],
-                         chosen=[False] + [t is ref or t is slow for t in trials],
-                         tau_min_s=[tau_all.min()] + [np.nan] * len(trials),
-                         tau_max_s=[tau_all.max()] + [np.nan] * len(trials))
+    table = _lag_table(learned, trials, ref, slow, d.lag_fast_s)
     log(f"lag test: learned τ {tau:.2f} s against lag_slow_s {d.lag_slow_s:g} s; the slow lag τ {slow['tau_s']:g} s "
         f"against the reference (τ {ref['tau_s']:g} s): ensemble RMS {ref['ensemble_rms_g']:.4f} -> "
         f"{slow['ensemble_rms_g']:.4f} g ({-drop:+.1%}; {-local:+.1%} in {', '.join(kinds)}), p = {p:.3f}: "
@@ -154,15 +171,18 @@ def _lag_test(ctx: _Ctx, delta: float, log) -> dict:
 
 def _lag_round(ctx: _Ctx, lag: dict, inputs) -> tuple[dict, dict | None]:
     """The lag test (`_lag_test`) as round 0 of the rounds table and, if confirmed, the first
-    effect (its region on the slow lag's windows, the reference re-predicted there)."""
+    effect (its region on the slow lag's windows, the reference re-predicted there). Without
+    trainings through lags (skipped: no lag confirmed) the row holds the learned τ alone."""
     slow, ref = lag["slow"], lag["reference"]
-    c = Candidate("lag", (), {"tau_s": slow["tau_s"]})
+    learned = f"learned τ {lag['learned']['tau_median_s']:.2f} s"
+    c = Candidate("lag", (), {"tau_s": slow["tau_s"] if slow else round(float(lag["learned"]["tau_median_s"]), 2)})
+    m = lambda t, k: t["metrics"][k] if t else np.nan  # noqa: E731
     row = dict(round=0, where="all", candidate=c.key, name=c.name, operator="lag", channels="",
-               augment="trained through", p_value=lag["p_value"], cv_gain=np.nan,
-               runners_up=f"learned τ {lag['learned']['tau_median_s']:.2f} s; reference: τ {ref['tau_s']:g} s",
+               augment="trained through" if slow else "learned", p_value=lag["p_value"], cv_gain=np.nan,
+               runners_up=f"{learned}; reference: τ {ref['tau_s']:g} s" if ref else learned,
                explained_fraction=lag["explained_fraction"],
-               rms_before_g=ref["metrics"]["rms_g"], rms_after_g=slow["metrics"]["rms_g"],
-               ensemble_rms_before_g=ref["ensemble_rms_g"], ensemble_rms_after_g=slow["ensemble_rms_g"],
+               rms_before_g=m(ref, "rms_g"), rms_after_g=m(slow, "rms_g"),
+               ensemble_rms_before_g=m(ref, "ensemble_rms_g"), ensemble_rms_after_g=m(slow, "ensemble_rms_g"),
                shrink=lag["drop"], judged_in=lag["judged_in"], region_shrink=lag["local"],
                confirmed=lag["confirmed"], why_not=lag["why"], p_best_better=np.nan, chosen=lag["confirmed"])
     if not lag["confirmed"]:

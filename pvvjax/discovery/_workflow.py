@@ -87,7 +87,8 @@ class Discovery:
             phase_error_s, role (reference or slow; a first row "baseline": the peak nets the test
             started from, a second "learned": the lag learned inside one training, with its
             tau_s the median and tau_min_s, tau_max_s the range over folds × seeds), drop
-            (against the reference), chosen.
+            (against the reference), chosen. The trainings through lags (reference, slow)
+            only where a lag was confirmed or with `lag_trials_always`.
     """
 
     campaign: str
@@ -237,7 +238,8 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
     if d.lag_test and d.max_effects > 0:
         t1 = time.perf_counter()
         lag = _lag_test(ctx, model.offset_s, log)
-        lag["table"] = _with_baseline_row(lag["table"], model.offset_s, before, lag["reference"]["ensemble_rms_g"])
+        lag["table"] = _with_baseline_row(lag["table"], model.offset_s, before,
+                                          lag["reference"]["ensemble_rms_g"] if lag["reference"] else np.nan)
         sec["lag_test"] = time.perf_counter() - t1
         if lag["confirmed"]:  # the baseline is then the test's reference: before/after measures the lag
             model = lag["reference"]["model"]
