@@ -221,6 +221,26 @@ def test_floor_features_are_what_the_inputs_determine():
 
     assert {"thrust_coefficient", "blade_loading"} <= set(floor_features(DB_INPUTS["db1"]))
     assert "thrust_coefficient" not in floor_features(DB_INPUTS["db3"])  # db3 has no weight
+    assert "thrust_coefficient" not in floor_features(DB_INPUTS["db2"])  # db2 has no load factor
+
+
+def test_each_derived_feature_is_computed_from_the_inputs_it_is_listed_with():
+    # A derived feature is the map's own (a floor feature) where the model has every input it
+    # is computed from: the list against derive_features itself, channel by channel (a moved
+    # channel moves exactly the features computed from it, through the MLF and μ as well).
+    from pvvjax.discovery._model import _DERIVED_FROM
+    from pvvjax.features import derive_features
+
+    through = {"advance_ratio": {"airspeed_kt", "rotor_rpm"},
+               "mlf": {"roll_angle_deg", "pitch_rate_dps", "airspeed_kt"}}
+    state = dict(airspeed_kt=120.0, rotor_rpm=258.0, roll_angle_deg=20.0, pitch_rate_dps=5.0, gross_weight_lb=16000.0,
+                 density_ratio=0.9)
+    f0 = derive_features(state)
+    moved = {ch: derive_features({**state, ch: 1.05 * v + 0.5}) for ch, v in state.items()}
+    for feature, inputs in _DERIVED_FROM.items():
+        want = set().union(*(through.get(k, {k}) for k in inputs))
+        got = {ch for ch, f in moved.items() if not np.isclose(float(f[feature]), float(f0[feature]), rtol=1e-5)}
+        assert got == want, feature
 
 
 def test_airspeed_is_determined_by_advance_ratio_and_rotor_speed():

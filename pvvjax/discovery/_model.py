@@ -27,7 +27,7 @@ TRANSIENT = ("pullup", "pushover", "roll", "autorotation", "flare")
 # belongs to a model's own inputs when they include all of these.
 _DERIVED_FROM = {
     "advance_ratio": ("advance_ratio",), "mlf": ("mlf",),
-    "thrust_coefficient": ("gross_weight_lb", "density_ratio", "rotor_rpm"),
+    "thrust_coefficient": ("gross_weight_lb", "density_ratio", "rotor_rpm", "mlf"),  # with the MLF as load factor
     "blade_loading": ("gross_weight_lb", "density_ratio", "rotor_rpm", "mlf"),
 }
 
