@@ -224,23 +224,41 @@ def test_floor_features_are_what_the_inputs_determine():
     assert "thrust_coefficient" not in floor_features(DB_INPUTS["db2"])  # db2 has no load factor
 
 
-def test_each_derived_feature_is_computed_from_the_inputs_it_is_listed_with():
+def test_each_derived_feature_is_computed_from_the_channels_it_is_listed_with():
     # A derived feature is the map's own (a floor feature) where the model has every input it
-    # is computed from: the list against derive_features itself, channel by channel (a moved
+    # is computed from, and a floor refinement of it meets every effect of those channels (the
+    # floor control): the lists against derive_features itself, channel by channel (a moved
     # channel moves exactly the features computed from it, through the MLF and μ as well).
-    from pvvjax.discovery._model import _DERIVED_FROM
+    from pvvjax.discovery._model import _DERIVED_FROM, source_channels
     from pvvjax.features import derive_features
 
-    through = {"advance_ratio": {"airspeed_kt", "rotor_rpm"},
-               "mlf": {"roll_angle_deg", "pitch_rate_dps", "airspeed_kt"}}
     state = dict(airspeed_kt=120.0, rotor_rpm=258.0, roll_angle_deg=20.0, pitch_rate_dps=5.0, gross_weight_lb=16000.0,
                  density_ratio=0.9)
     f0 = derive_features(state)
     moved = {ch: derive_features({**state, ch: 1.05 * v + 0.5}) for ch, v in state.items()}
-    for feature, inputs in _DERIVED_FROM.items():
-        want = set().union(*(through.get(k, {k}) for k in inputs))
+    for feature in [*_DERIVED_FROM, "advance_ratio", "mlf"]:
         got = {ch for ch, f in moved.items() if not np.isclose(float(f[feature]), float(f0[feature]), rtol=1e-5)}
-        assert got == want, feature
+        assert source_channels([feature]) == got, feature
+    assert source_channels(["climb_rate_fpm", "advance_ratio"]) == {"climb_rate_fpm", "airspeed_kt", "rotor_rpm"}
+
+
+def test_a_tries_floor_control_leaves_out_the_refinements_built_from_its_channels():
+    # An effect acting through the model's own inputs is partly a knee of them (the pitch rate
+    # inside the load factor, a mode of rotor speed): its control holds the other refinements.
+    from pvvjax.candidates import Candidate
+    from pvvjax.discovery._confirm import _control_refinements
+
+    knee = lambda ch: Candidate("threshold", (ch,), {"knee": 1.0, "above": True})  # noqa: E731
+    bl, climb, rpm = knee("blade_loading"), knee("climb_rate_fpm"), knee("rotor_rpm")
+    mu_climb = Candidate("product", ("advance_ratio", "climb_rate_fpm"))
+    floor = (bl, climb, rpm, mu_climb)
+    control = lambda c: [r.channels for r in _control_refinements(floor, c)]  # noqa: E731
+    assert control(Candidate("input", ("pitch_rate_dps",))) == [r.channels for r in (climb, rpm, mu_climb)]
+    assert control(Candidate("abs_rate", ("pitch_rate_dps",))) == control(Candidate("input", ("pitch_rate_dps",)))
+    assert control(Candidate("resonance", ("rotor_rpm",), {"center": 270.0, "width": 3.0})) == [climb.channels]
+    for measured in ("shaft_power_hp", "nz_g", "collective_pct", "sideslip_deg", "roll_rate_dps"):  # all four
+        assert control(knee(measured)) == [r.channels for r in floor], measured
+    assert _control_refinements((), knee("nz_g")) == ()
 
 
 def test_airspeed_is_determined_by_advance_ratio_and_rotor_speed():
@@ -663,14 +681,17 @@ def test_a_try_must_confirm_again_on_top_of_the_floor_control(monkeypatch, tmp_p
     from pvvjax.campaign import load_campaign
     from pvvjax.config import DiscoveryConfig, ExperimentConfig, TrainConfig
     from pvvjax.discovery import _workflow, discover
+    from pvvjax.discovery._model import source_channels
     from pvvjax.discovery_report import write_discovery
     from pvvjax.selection import Selected
 
     picked = {}
 
     def propose(win, yhat, resid, M, rows, own, floor, d, seed, complexity, keys, is_floor):
-        j = next(i for i, k in enumerate(keys) if k.startswith("input:") and not is_floor[i])
         f = int(np.flatnonzero(is_floor)[0])
+        built_from = source_channels(keys[f].split(":")[1].split("*"))  # operator:channels[:parameters]
+        j = next(i for i, k in enumerate(keys) if k.startswith("input:") and not is_floor[i]
+                 and not source_channels([k.split(":")[1]]) & built_from)
         picked.update(j=j, f=f)
         return ([("all", j, Selected(j, 0.1, 0.1, 0.001))], [("all", f, 0.05)],
                 {"all": (rows, np.column_stack([floor, M[rows, f]]))})
@@ -694,6 +715,7 @@ def test_a_try_must_confirm_again_on_top_of_the_floor_control(monkeypatch, tmp_p
     assert on_control.extra == control.extra + trial.extra  # the same try, added to the control
     row = res.rounds.iloc[0]
     assert row.control_shrink == out["shrink"] and row.control_region_shrink == out["local"]
+    assert row.control_terms == control.extra[0].name
     assert not row.confirmed and row.why_not.startswith("not confirmed on top of the floor control: too small")
     assert res.effects == [] and res.after == res.before  # confirmed on the current model only: not named
     report = write_discovery(res, tmp_path / "out", cfg).read_text()

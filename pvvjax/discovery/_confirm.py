@@ -23,6 +23,7 @@ from ._model import (
     fit_ensemble,
     metrics,
     predictions,
+    source_channels,
 )
 
 
@@ -130,6 +131,16 @@ def _confirm(ctx: _Ctx, current: Model, trial: Model, c: Candidate, where: str, 
         why = f"time constant at the grid's largest, {max(d.lag_taus):g} s: a smoother, not a lag"
     return not why, dict(pred=tpred, win=twin, metrics=metrics(tpred, twin), shrink=shrink, local=local,
                          region=region, judged_in=", ".join(kinds), ensemble=ens, why=why)
+
+
+def _control_refinements(refinements, c: Candidate) -> tuple:
+    """The floor refinements a try of `c` is controlled by: those not built from any channel
+    `c` is built from (`source_channels`). An effect that acts through the model's own inputs
+    (a mode of rotor speed; the pitch rate, which the load factor carries) is partly a knee
+    of them: a control holding that knee would test the effect against a piece of itself
+    (measured: the right first name lost on two benchmark worlds, docs/discovery.md)."""
+    mine = source_channels(c.channels)
+    return tuple(r for r in refinements if not source_channels(r.channels) & mine)
 
 
 def _floor_control(ctx: _Ctx, current: Model, refinements) -> Model | None:

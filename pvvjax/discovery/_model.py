@@ -32,6 +32,22 @@ _DERIVED_FROM = {
 }
 
 
+# The campaign channels the two derived inputs are computed from (`features`).
+_CHANNELS_OF = {"advance_ratio": ("airspeed_kt", "rotor_rpm"),
+                "mlf": ("roll_angle_deg", "pitch_rate_dps", "airspeed_kt")}
+
+
+def source_channels(names) -> frozenset[str]:
+    """The campaign channels that features or channels are computed from (a channel is its
+    own): blade loading from the weight, density, rotor speed and, through the MLF, the roll
+    angle, pitch rate and airspeed."""
+    out = set()
+    for n in names:
+        for k in _DERIVED_FROM.get(n, (n,)):
+            out.update(_CHANNELS_OF.get(k, (k,)))
+    return frozenset(out)
+
+
 # Campaign channels that the model's inputs determine exactly (airspeed = μ·ΩR).
 _DETERMINED_BY = {"airspeed_kt": ("advance_ratio", "rotor_rpm")}
 

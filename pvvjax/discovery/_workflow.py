@@ -24,6 +24,7 @@ from ._confirm import (
     _augment,
     _choose,
     _confirm,
+    _control_refinements,
     _floor_control,
     _paired_sign_flip,
     _train_model,
@@ -301,15 +302,18 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
                          for where, j, s in proposals) or "none")
             + "".join(f"; {len(s.equivalents)} equivalent to the best in {where}: "
                       + ", ".join(lib[a].name for a, _ in s.equivalents[:10]) for where, _, s in proposals[:1]))
-        control = None
-        if d.floor_control and proposals:
-            t0 = time.perf_counter()
-            control = _floor_control(ctx, current, [lib[j] for where, j, _ in absorbed if where == "all"])
-            if control is not None:
-                log(f"round {rnd + 1}: floor control (its refinements as inputs): ensemble's RMS "
+        refinements = [lib[j] for where, j, _ in absorbed if where == "all"] if d.floor_control else []
+        controls = {}  # the floor controls of this round, by the keys of the refinements they hold
+
+        def control_for(c):
+            kept = _control_refinements(refinements, c)
+            key = tuple(r.key for r in kept)
+            if kept and key not in controls:
+                controls[key] = _floor_control(ctx, current, kept)
+                log(f"round {rnd + 1}: floor control ({'; '.join(r.name for r in kept)} as inputs): ensemble's RMS "
                     f"{cur_metrics['ensemble_rms_g']:.4f} -> "
-                    f"{metrics(predictions(ctx, control, win), win)['ensemble_rms_g']:.4f} g")
-            t_confirm += time.perf_counter() - t0
+                    f"{metrics(predictions(ctx, controls[key], win), win)['ensemble_rms_g']:.4f} g")
+            return controls.get(key), kept
         confirmed = []
         tried = set()
         for where, j, s in proposals:
@@ -349,8 +353,10 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
                                                           d.probe_alpha)
                     if ok and why:
                         ok, conf["why"] = False, why
-                on_control = dict(shrink=np.nan, local=np.nan)
-                if ok and control is not None and mode != "lag":  # the same try on top of the floor control
+                on_control, control, kept = dict(shrink=np.nan, local=np.nan), None, ()
+                if ok and refinements and mode != "lag":
+                    control, kept = control_for(added)
+                if control is not None:  # the same try on top of the floor control
                     ok, on_control = _confirm(ctx, control, _augment(ctx, control, added, mode), added, where, d)
                     if not ok:
                         conf["why"] = (f"not confirmed on top of the floor control: {on_control['why']} (shrink "
@@ -366,6 +372,7 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
                                    floor_terms=floor_terms, shrink=conf["shrink"], judged_in=conf["judged_in"],
                                    region_shrink=conf["local"], control_shrink=on_control["shrink"],
                                    control_region_shrink=on_control["local"],
+                                   control_terms="; ".join(r.name for r in kept) if control is not None else "",
                                    confirmed=ok, why_not=conf["why"],
                                    p_best_better=np.nan, chosen=False))
                 log(f"  {c.name} ({mode}): held-out RMS {cur_metrics['rms_g']:.4f} -> {conf['metrics']['rms_g']:.4f} "
