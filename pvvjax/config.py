@@ -349,12 +349,13 @@ class DiscoveryConfig:
             gains `min_gain` (`discovery._propose._propose`): the map's floor where ~200 peaks did not
             teach the nets a knee of their own inputs, which a channel that follows them (a
             stick, the shaft power) would otherwise be named for. 0: the fixed floor only.
-        floor_control: each round also retrains the model with the refinements its selection
-            took over all windows as extra network inputs (the floor's own model, in which
-            the nets may combine them, e.g. a climb-rate knee with the speed), and a try
-            that confirms against the current model must confirm again, added the same way,
-            against that control (`discovery._confirm._floor_control`; one more retraining
-            per round and per confirmed try). Off: the current model alone.
+        floor_control: a try that confirms against the current model must confirm again,
+            added the same way, against a control: the current model retrained with the
+            refinements its round's selection took over all windows as extra network inputs
+            (the floor's own model, in which the nets may combine them, e.g. a climb-rate
+            knee with the speed), less those built from the channels the try is built from
+            (`discovery._confirm._floor_control`, `_control_refinements`; one more retraining
+            per confirmed try, and one per distinct control). Off: the current model alone.
         augment: how a candidate joins the model: "additive" (a term b·candidate fitted on the
             windows, cross-fitted by fold, the nets retrained on the peaks minus it),
             "input" (an extra network input: the nets learn its shape and its interactions),
