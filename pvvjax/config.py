@@ -398,8 +398,8 @@ class DiscoveryConfig:
         lag_trials_always: run the lag test's trainings through lags even where the learned
             τ confirms no lag: they decide nothing then (their gains are reported in
             `lag_test.csv`, as `lag_study` reports them for any world), and they are about
-            two thirds of a discovery's time with `lag_test` (the benchmark runs them on the
-            null worlds whose window nets measure its lag worlds' gap).
+            half of a discovery's time with `lag_test` (the benchmark runs them on the null
+            worlds whose window nets measure its lag worlds' gap).
         candidate_offsets_s: further alignments (input-to-vibration offsets, s, >= 0) of the
             candidates without a fitted parameter (a channel, its rate, its spread), beside
             the model's own offset: the static map's offset matches the slow, quasi-static
