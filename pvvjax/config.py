@@ -392,8 +392,8 @@ class DiscoveryConfig:
             discovery.
         lag_slow_s: the learned τ (median over folds × seeds) from which the lag test
             confirms a slow lag, s. The learned τ takes the delay and the fast dynamics as
-            well: 0.9-1.7 s on the benchmark's worlds without a slow lag, 2.6-3.2 s with a
-            2 s lag.
+            well: 0.9-1.9 s on the benchmark's worlds without a slow lag (the largest, 1.85 s,
+            on a pitch-acceleration world), 2.6-3.2 s with a 2 s lag.
         lag_learn_steps: Adam steps of the learned lag's training.
         lag_trials_always: run the lag test's trainings through lags even where the learned
             τ confirms no lag: they decide nothing then (their gains are reported in

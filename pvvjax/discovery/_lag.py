@@ -113,7 +113,7 @@ def _lag_test(ctx: _Ctx, delta: float, log) -> dict:
     learned inside one training (`_learned_lag`): confirmed if its τ, the median over folds
     × seeds, is at least `lag_slow_s`. At the lowest offset the learned τ takes the delay
     and the fast dynamics too (rotor inflow and wake settle within about a second): on the
-    benchmark's worlds without a slow lag it is 0.9-1.7 s, with a 2 s lag 2.6-3.2 s, and it
+    benchmark's worlds without a slow lag it is 0.9-1.9 s, with a 2 s lag 2.6-3.2 s, and it
     moves by tenths of a second over folds and seeds (docs/discovery.md).
 
     The lag is then added as window nets trained through it (`_lag_trials` at
