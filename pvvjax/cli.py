@@ -20,6 +20,7 @@ from .experiment import (
     prepare_sweep,
     resolve_campaign,
     run_main_job,
+    use_deterministic_gpu,
     write_databases,
 )
 
@@ -507,6 +508,7 @@ def main(argv=None) -> int:
     from .campaign import CampaignError
 
     args = build_parser().parse_args(argv)
+    use_deterministic_gpu()  # before any command starts JAX
     try:
         return args.fn(args)
     except (CampaignError, ConfigError) as e:

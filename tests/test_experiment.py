@@ -9,7 +9,13 @@ import pandas as pd
 from conftest import write_tiny
 
 from pvvjax.config import ExperimentConfig, load_config
-from pvvjax.experiment import database_summary, resolve_campaign, use_cpu_cores, write_databases
+from pvvjax.experiment import (
+    database_summary,
+    resolve_campaign,
+    use_cpu_cores,
+    use_deterministic_gpu,
+    write_databases,
+)
 
 
 def test_a_campaign_folder_is_loaded_and_named(tmp_path):
@@ -37,6 +43,8 @@ def test_databases_are_written_beside_their_config_and_summarised(tmp_path, defa
 
 def test_cpu_devices_are_set_before_jax_starts_only(monkeypatch):
     # Here JAX is running: nothing changes. In a fresh process, the flag gives XLA 3 host devices.
+    import jax  # noqa: F401 (JAX running, also when this test runs alone)
+
     monkeypatch.delenv("XLA_FLAGS", raising=False)
     use_cpu_cores(3)
     assert "XLA_FLAGS" not in os.environ
@@ -45,3 +53,19 @@ def test_cpu_devices_are_set_before_jax_starts_only(monkeypatch):
     env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"} | {"JAX_PLATFORMS": "cpu"}
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
     assert out.stdout.strip() == "3"
+
+
+def test_deterministic_gpu_flag_is_set_before_jax_starts_and_a_users_setting_wins(monkeypatch):
+    import jax  # noqa: F401
+
+    monkeypatch.delenv("XLA_FLAGS", raising=False)
+    use_deterministic_gpu()  # JAX is running here: a no-op
+    assert "XLA_FLAGS" not in os.environ
+    code = ("import os; from pvvjax.experiment import use_deterministic_gpu; use_deterministic_gpu(); "
+            "import jax; jax.numpy.ones(2).block_until_ready(); print(os.environ['XLA_FLAGS'])")
+    env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"} | {"JAX_PLATFORMS": "cpu"}
+    for given, expected in [("", "--xla_gpu_deterministic_ops=true"),
+                            ("--xla_gpu_deterministic_ops=false", "--xla_gpu_deterministic_ops=false")]:
+        out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                             env=env | {"XLA_FLAGS": given}, check=True)  # XLA on CPU accepts the flag
+        assert out.stdout.strip() == expected
