@@ -13,6 +13,7 @@ effect: the scenario's `reference_world`).
         [--set KEY=VALUE ...]  # [discovery] settings over the config's (a sensitivity run)
         [--reuse]              # read OUT's results instead of running (--docs after parallel runs)
         [--update]             # run the --only scenarios into OUT's results, the other rows kept
+        [--resume]             # go on with an interrupted run: its finished scenarios read back
 
 Writes runs/discovery-benchmark/ (results table, each scenario's discovery.json and
 report; seed offset N in runs/discovery-benchmark/seed+N/); with --docs also
@@ -22,8 +23,10 @@ docs/discovery-benchmark.md.
 from __future__ import annotations
 
 import argparse
+import json
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pandas as pd
@@ -80,12 +83,17 @@ def matches(effect: dict, accept) -> bool:
     return False
 
 
+def scenario_config(sc: dict, overrides: dict) -> ExperimentConfig:
+    """The config a scenario's discovery runs with (stored beside its results)."""
+    dcfg = from_dict(DiscoveryConfig, {**overrides, **sc.get("discovery", {}), "database": sc["database"]})
+    return ExperimentConfig(name=sc["name"], discovery=dcfg)
+
+
 def run_scenario(sc: dict, overrides: dict, out: Path, log=print):
     t0 = time.perf_counter()
     campaign = _campaign(sc["synth"])
     t_gen = time.perf_counter() - t0
-    dcfg = from_dict(DiscoveryConfig, {**overrides, **sc.get("discovery", {}), "database": sc["database"]})
-    cfg = ExperimentConfig(name=sc["name"], discovery=dcfg)
+    cfg = scenario_config(sc, overrides)
     res = discover(campaign, cfg, name=sc["synth"].name, log=lambda m: log(f"  [{sc['name']}] {m}"))
     seconds = time.perf_counter() - t0
     js = summary(res)
@@ -125,6 +133,7 @@ def run_scenario(sc: dict, overrides: dict, out: Path, log=print):
     ref = None
     if sc["reference_world"] is not None:
         ref = reference_baseline(sc, overrides, log)
+        _save_reference(ref, folder / "reference")
         row["reference"] = sc["reference_label"]
     return row, res, ref
 
@@ -148,6 +157,68 @@ def reference_baseline(sc: dict, overrides: dict, log=print):
     tag = f"{sc['name']}, {sc['reference_label']}"
     return discover(campaign, ExperimentConfig(name=tag, discovery=dcfg), name=sc["reference_world"].name,
                     log=lambda m: log(f"  [{tag}] {m}"))
+
+
+def _save_reference(ref, folder: Path) -> None:
+    """A reference baseline's report and what scoring needs of it (`_load_reference`)."""
+    write_discovery(ref, folder)
+    (folder / "before.json").write_text(json.dumps(dict(before=ref.before, through_lag=ref.baseline.through_lag)))
+
+
+def _scored(before: dict, through_lag: bool, folder: Path) -> SimpleNamespace:
+    """What the scoring (`attributable`, `identifiability`) reads of a finished discovery,
+    from its folder: its baseline's metrics and kind, its lag test's table and its windows."""
+    lag = folder / "lag_test.csv"
+    return SimpleNamespace(before=before, baseline=SimpleNamespace(through_lag=bool(through_lag)),
+                           lag_test=pd.read_csv(lag) if lag.exists() else None,
+                           windows=read_table(folder / "windows.parquet")[0])
+
+
+def _load_reference(folder: Path):
+    """A reference baseline saved by `_save_reference`, or None."""
+    if not (folder / "before.json").exists():
+        return None
+    saved = json.loads((folder / "before.json").read_text())
+    return _scored(saved["before"], saved["through_lag"], folder)
+
+
+# partial.csv's text columns (empty cells are read back as NaN).
+_TEXT = ("named", "operator", "channels", "region", "reference", "parameter")
+
+
+def resumed(scenarios, overrides: dict, out: Path, log=print) -> dict:
+    """The scenarios an interrupted run in `out` finished (its `partial.csv`), by name: their
+    row, what the scoring reads of their result (`_scored`) and their reference baseline
+    (re-run if it was not saved). An error where a scenario's folder was run with other
+    settings than these (rows of two settings would be compared as one)."""
+    path = out / "partial.csv"
+    if not path.exists():
+        return {}
+    df = pd.read_csv(path)
+    for c in _TEXT:
+        if c in df:
+            df[c] = df[c].astype(object).where(df[c].notna(), "").astype(str)
+    by = {(s["name"], s["seed"]): s for s in scenarios}
+    done = {}
+    for row in df.to_dict("records"):
+        sc = by.get((row["scenario"], row["seed"]))
+        if sc is None:
+            continue
+        folder = out / sc["name"]
+        _, stored = read_table(folder / "windows.parquet")
+        if config_hash(stored) != config_hash(scenario_config(sc, overrides)):
+            raise SystemExit(f"--resume: {folder} was run with other settings: {(stored or {}).get('discovery')} "
+                             f"against {to_dict(scenario_config(sc, overrides).discovery)}")
+        before = dict(rms_g=row["rms_before_g"], ensemble_rms_g=row["ensemble_before_g"],
+                      peak_error_g=row["peak_before_g"], phase_error_s=row["phase_before_s"])
+        ref = None
+        if sc["reference_world"] is not None:
+            ref = _load_reference(folder / "reference")
+            if ref is None:  # a run before references were saved
+                ref = reference_baseline(sc, overrides, log)
+                _save_reference(ref, folder / "reference")
+        done[sc["name"]] = (row, _scored(before, row["lag_baseline"], folder), ref)
+    return done
 
 
 def _rms_in(res, kinds, column: str = "predicted_before_g") -> float:
@@ -234,24 +305,32 @@ def attributable(df: pd.DataFrame, nulls: dict, references: dict | None = None) 
     return df
 
 
-def run_all(scenarios, overrides, out: Path, update: bool = False) -> pd.DataFrame:
+def run_all(scenarios, overrides, out: Path, update: bool = False, resume: bool = False) -> pd.DataFrame:
     """Every scenario (the null ones first: they are the references of the hidden ones with
     the same seed, unless a scenario brings its own `reference_world`), scored; writes
-    `out/results.*` and each scenario's folder. With `update`, the rows of these scenarios
-    replace theirs in the results already in `out` (same discovery settings), the others kept."""
+    `out/results.*` and each scenario's folder, and `out/partial.csv` after each scenario.
+    With `update`, the rows of these scenarios replace theirs in the results already in `out`
+    (same discovery settings), the others kept. With `resume`, the scenarios that an
+    interrupted run in `out` finished (`resumed`) are read back instead of run again."""
     cfg = ExperimentConfig(discovery=from_dict(DiscoveryConfig, overrides))
     old = _previous(out / "results.parquet", cfg) if update else None
+    done = resumed(scenarios, overrides, out) if resume else {}
     out.mkdir(parents=True, exist_ok=True)
     rows, nulls, refs = [], {}, {}
     for sc in sorted(scenarios, key=lambda s: s["truth"] is not None):
-        print(f"scenario {sc['name']} (seed {sc['seed']}, {sc['database']})", flush=True)
-        r, res, ref = run_scenario(sc, overrides, out)
+        if sc["name"] in done:
+            print(f"scenario {sc['name']} (seed {sc['seed']}, {sc['database']}): resumed from {out / 'partial.csv'}",
+                  flush=True)
+            r, res, ref = done[sc["name"]]
+        else:
+            print(f"scenario {sc['name']} (seed {sc['seed']}, {sc['database']})", flush=True)
+            r, res, ref = run_scenario(sc, overrides, out)
+            if sc["truth"] is not None and (ref is not None or sc["seed"] in nulls):
+                r.update(identifiability(res, ref if ref is not None else nulls[sc["seed"]]))
         if ref is not None:
             refs[sc["name"]] = ref
         if sc["truth"] is None:
             nulls[sc["seed"]] = res
-        elif ref is not None or sc["seed"] in nulls:
-            r.update(identifiability(res, ref if ref is not None else nulls[sc["seed"]]))
         rows.append(r)
         print(f"  named: {r['named']}; correct: {r['correct_first']}; RMS {r['rms_before_g']:.4f} -> "
               f"{r['rms_after_g']:.4f} g; {r['seconds']:.0f} s", flush=True)
@@ -314,12 +393,17 @@ def main():
     ap.add_argument("--reuse", action="store_true",
                     help="read each offset's results from OUT instead of running it (e.g. --docs after one process "
                          "per seed offset, side by side)")
+    ap.add_argument("--resume", action="store_true",
+                    help="go on with an interrupted run in OUT (same settings): the scenarios in its partial.csv "
+                         "are read back, the others run")
     ap.add_argument("--update", action="store_true",
                     help="run the --only scenarios and put their rows into OUT's results (same settings), the other "
                          "rows kept: re-run one scenario without the whole table")
     args = ap.parse_args()
     if args.update and (args.reuse or not args.only):
         raise SystemExit("--update runs the --only scenarios into OUT's results (not with --reuse)")
+    if args.resume and (args.update or args.reuse):
+        raise SystemExit("--resume goes on with an interrupted run (not with --update or --reuse)")
     offsets = [int(v) for v in args.seed_offsets.split(",")]
     tables = {}
     for off in offsets:
@@ -337,7 +421,7 @@ def main():
             tables[off] = read_table(out / "results.parquet")[0]
             tables[off] = tables[off][tables[off].scenario.isin([s["name"] for s in scenarios])]
         else:
-            tables[off] = run_all(scenarios, overrides, out, update=args.update)
+            tables[off] = run_all(scenarios, overrides, out, update=args.update, resume=args.resume)
     if args.docs:
         write_docs(tables, args.config, args.seed_offsets)
 

@@ -133,3 +133,42 @@ def test_an_update_replaces_its_scenarios_rows_and_keeps_the_others(bench, tmp_p
     bench._check_update([by["null-41"], by["roll-rate"]])
     with pytest.raises(SystemExit, match=r"roll-rate \(seed 41\) need the null"):
         bench._check_update([by["roll-rate"], by["null-31"]])
+
+
+def test_a_resumed_run_reads_back_the_finished_scenarios_and_scores_as_an_uninterrupted_one(bench, tmp_path,
+                                                                                             monkeypatch):
+    from pvvjax.io import write_table
+
+    overrides = dict(lag_test=False)
+    scenarios = [dict(name=n, seed=1, database="db1", truth=t, reference_world=None, discovery={})
+                 for n, t in [("null-1", None), ("a", dict(effect="x")), ("b", dict(effect="y"))]]
+    values = {"null-1": (0.040, 0.040), "a": (0.050, 0.042), "b": (0.060, 0.045)}
+    ran = []
+
+    def fake_run(sc, overrides, out, fail_on=None):
+        ran.append(sc["name"])
+        if sc["name"] == fail_on:
+            raise KeyboardInterrupt
+        folder = out / sc["name"]
+        windows = pd.DataFrame(dict(counter=["c"], window=[0], measured_g=[0.1], predicted_before_g=[0.09]))
+        write_table(windows, folder / "windows", bench.scenario_config(sc, overrides))
+        row = _row(sc["name"], *values[sc["name"]]) | dict(hidden=sc["truth"]["effect"] if sc["truth"] else "none",
+                                                           named="", operator="", seconds=1.0, generate_s=0.5,
+                                                           correct_first=True)
+        return row, bench._scored(_baseline(values[sc["name"]][0]).before, False, folder), None
+
+    monkeypatch.setattr(bench, "identifiability", lambda res, null: dict(truth_gain=res.before["rms_g"]))
+    monkeypatch.setattr(bench, "run_scenario", fake_run)
+    whole = bench.run_all(scenarios, overrides, tmp_path / "whole")
+    monkeypatch.setattr(bench, "run_scenario", lambda *a: fake_run(*a, fail_on="b"))
+    with pytest.raises(KeyboardInterrupt):
+        bench.run_all(scenarios, overrides, tmp_path / "cut")
+    ran.clear()
+    monkeypatch.setattr(bench, "run_scenario", fake_run)
+    again = bench.run_all(scenarios, overrides, tmp_path / "cut", resume=True)
+    assert ran == ["b"]  # null-1 and a read back from partial.csv and their folders
+    pd.testing.assert_frame_equal(again, whole, check_dtype=False)
+    assert again.set_index("scenario").loc["a", "attributable_shrink"] == pytest.approx(0.8)  # against null-1
+    # only a run of the same settings goes on
+    with pytest.raises(SystemExit, match="other settings"):
+        bench.run_all(scenarios, dict(lag_test=True), tmp_path / "cut", resume=True)
