@@ -355,7 +355,9 @@ class DiscoveryConfig:
             (the floor's own model, in which the nets may combine them, e.g. a climb-rate
             knee with the speed), less those built from the channels the try is built from
             (`discovery._confirm._floor_control`, `_control_refinements`; one more retraining
-            per confirmed try, and one per distinct control). Off: the current model alone.
+            per confirmed try, and one per distinct control). A try that fails there is still
+            confirmed if its own model beats the control as a confirmation would (a floor
+            proxy does not beat the floor it stands for). Off: the current model alone.
         augment: how a candidate joins the model: "additive" (a term b·candidate fitted on the
             windows, cross-fitted by fold, the nets retrained on the peaks minus it),
             "input" (an extra network input: the nets learn its shape and its interactions),

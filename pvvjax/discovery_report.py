@@ -146,10 +146,12 @@ def write_discovery(res: Discovery, out, cfg=None, worst: int = 4) -> Path:
                   "why a try is not confirmed." + (
                       " `control_shrink`, `control_region_shrink`: the same try added to the floor control (the "
                       "model retrained with its selection's floor refinements as inputs), where it must confirm "
-                      "again (`floor_control`)." if controlled else ""), "",
+                      "again (`floor_control`); `over_control_shrink`, `over_control_region_shrink`: the try's "
+                      "own model against the control, which it may beat instead." if controlled else ""), "",
                   _md(res.rounds[["round", "name", "augment", "p_value", "cv_gain", "rms_before_g", "rms_after_g",
                                   "ensemble_rms_before_g", "ensemble_rms_after_g", "shrink", "judged_in",
-                                  "region_shrink", *(["control_shrink", "control_region_shrink"] if controlled else []),
+                                  "region_shrink", *(["control_shrink", "control_region_shrink", "over_control_shrink",
+                                                    "over_control_region_shrink"] if controlled else []),
                                   "confirmed", "why_not", "p_best_better", "chosen"]]), "",
                   "Runners-up of each proposal (held-out gain):", ""]
         lines += [f"- round {r.round}, {r.name} ({r.cv_gain:.3f}): {r.runners_up}"

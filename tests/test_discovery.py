@@ -672,12 +672,15 @@ def test_a_gains_column_is_its_band_in_units_of_its_gain_unit():
         from_dict(DiscoveryConfig, {"gain_unit": 0.0})
 
 
-def test_a_try_must_confirm_again_on_top_of_the_floor_control(monkeypatch, tmp_path, small_campaign_dir):
+@pytest.mark.parametrize("beats_it_alone", [False, True])
+def test_a_try_must_confirm_again_on_top_of_the_floor_control_or_beat_it_alone(monkeypatch, tmp_path,
+                                                                                small_campaign_dir, beats_it_alone):
     # floor_control: a round's floor refinements (the selection's, taken over all windows) are
     # added to the current model as inputs and it is retrained (the control); a try confirmed
     # against the current model is added to the control the same way and must confirm again
-    # there. The round's proposal and refinement are forced here (the selection is tested
-    # above); training, replay and the confirmations are the workflow's own.
+    # there, or its own model must beat the control as a confirmation would. The round's
+    # proposal and refinement are forced here (the selection is tested above); training,
+    # replay and the confirmations are the workflow's own.
     from pvvjax.campaign import load_campaign
     from pvvjax.config import DiscoveryConfig, ExperimentConfig, TrainConfig
     from pvvjax.discovery import _workflow, discover
@@ -698,25 +701,35 @@ def test_a_try_must_confirm_again_on_top_of_the_floor_control(monkeypatch, tmp_p
 
     asked, confirm = [], _workflow._confirm
 
-    def confirm_twice(ctx, current, trial, c, where, d):
+    def confirm_on_the_current_model_only(ctx, current, trial, c, where, d):
         ok, out = confirm(ctx, current, trial, c, where, d)
         asked.append((current, trial, ok, out))
-        return (False, {**out, "why": "too small a shrink"}) if len(asked) == 2 else (True, out)
+        if len(asked) == 1 or (len(asked) == 3 and beats_it_alone):
+            return True, out
+        return False, {**out, "why": "too small a shrink"}
 
     monkeypatch.setattr(_workflow, "_propose", propose)
-    monkeypatch.setattr(_workflow, "_confirm", confirm_twice)
+    monkeypatch.setattr(_workflow, "_confirm", confirm_on_the_current_model_only)
     d = DiscoveryConfig(seeds=1, folds=3, max_effects=1, floor_control=True, augment="input", offset_step_s=0.5)
     cfg = ExperimentConfig(train=TrainConfig(max_steps=100), discovery=d)
     res = discover(load_campaign(small_campaign_dir), cfg, log=lambda m: None)
 
-    (cur, trial, _, _), (control, on_control, _, out) = asked  # the try on the current model, then on the control
+    # the try on the current model, then on top of the control, then alone against the control
+    (cur, trial, _, _), (control, on_control, _, out), (control_again, trial_again, _, over) = asked
     assert cur.extra == () and [c.key for c in trial.extra] == [res.rounds.candidate[0]]
     assert len(control.extra) == 1 and control.extra[0].channels and control.params is not cur.params
     assert on_control.extra == control.extra + trial.extra  # the same try, added to the control
+    assert control_again is control and trial_again is trial
     row = res.rounds.iloc[0]
     assert row.control_shrink == out["shrink"] and row.control_region_shrink == out["local"]
+    assert row.over_control_shrink == over["shrink"] and row.over_control_region_shrink == over["local"]
     assert row.control_terms == control.extra[0].name
-    assert not row.confirmed and row.why_not.startswith("not confirmed on top of the floor control: too small")
-    assert res.effects == [] and res.after == res.before  # confirmed on the current model only: not named
+    if beats_it_alone:  # confirmed and named: the current model with the try
+        assert row.confirmed and row.chosen and [e["key"] for e in res.effects] == [row.candidate]
+        assert res.after != res.before
+    else:
+        assert not row.confirmed and row.why_not.startswith("not confirmed on top of the floor control: too small")
+        assert "nor better than it alone" in row.why_not
+        assert res.effects == [] and res.after == res.before  # confirmed on the current model only: not named
     report = write_discovery(res, tmp_path / "out", cfg).read_text()
-    assert "control_region_shrink" in report and "(`floor_control`)" in report
+    assert "over_control_region_shrink" in report and "(`floor_control`)" in report

@@ -152,7 +152,13 @@ def _floor_control(ctx: _Ctx, current: Model, refinements) -> Model | None:
     that the refinements describe, and a channel that follows those inputs (the shaft power,
     a stick, below a knee in descents and flares), both lower the current model's RMS. A try
     is also confirmed on top of this control (`_confirm` of the control with the try added
-    the same way), where only an effect still lowers it."""
+    the same way), where only an effect still lowers it; or, failing that, against the
+    control with the try alone (`_confirm` of the try's model against the control's). A floor
+    proxy predicts no better than the refinements it stands for, but the control's extra
+    inputs can cost an effect more than they explain: on a rotor-resonance world two
+    climb-rate knees, uncorrelated with the band (r = -0.01), left it +4.8 % on top of them,
+    where alone it beat them by 13.3 % (docs/discovery.md). On the benchmark's worlds
+    measured, no try rejected on top of a control beat it alone except the truth's."""
     if not refinements:
         return None
     control = current._replace(extra=current.extra + tuple(refinements))

@@ -353,15 +353,24 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
                                                           d.probe_alpha)
                     if ok and why:
                         ok, conf["why"] = False, why
-                on_control, control, kept = dict(shrink=np.nan, local=np.nan), None, ()
+                unset = dict(shrink=np.nan, local=np.nan)
+                on_control, over_control, control, kept = unset, unset, None, ()
                 if ok and refinements and mode != "lag":
                     control, kept = control_for(added)
                 if control is not None:  # the same try on top of the floor control
                     ok, on_control = _confirm(ctx, control, _augment(ctx, control, added, mode), added, where, d)
+                    if not ok:  # or the try alone beats the control (`_floor_control`)
+                        ok, over_control = _confirm(ctx, control, trial, added, where, d)
                     if not ok:
                         conf["why"] = (f"not confirmed on top of the floor control: {on_control['why']} (shrink "
                                        f"{on_control['shrink']:+.1%} (all), {on_control['local']:+.1%} "
-                                       f"({on_control['judged_in']}))")
+                                       f"({on_control['judged_in']})), nor better than it alone "
+                                       f"({over_control['shrink']:+.1%}, {over_control['local']:+.1%})")
+                    elif over_control is not unset:
+                        log(f"  {c.name} ({mode}): not confirmed on top of the floor control (shrink "
+                            f"{on_control['shrink']:+.1%} (all), {on_control['local']:+.1%}), but better than it "
+                            f"alone ({over_control['shrink']:+.1%} (all), {over_control['local']:+.1%} "
+                            f"({over_control['judged_in']}))")
                 t_confirm += time.perf_counter() - t0
                 t0 = time.perf_counter()
                 rounds.append(dict(round=rnd + 1, where=where, candidate=c.key, name=c.name, operator=c.operator,
@@ -372,6 +381,8 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
                                    floor_terms=floor_terms, shrink=conf["shrink"], judged_in=conf["judged_in"],
                                    region_shrink=conf["local"], control_shrink=on_control["shrink"],
                                    control_region_shrink=on_control["local"],
+                                   over_control_shrink=over_control["shrink"],
+                                   over_control_region_shrink=over_control["local"],
                                    control_terms="; ".join(r.name for r in kept) if control is not None else "",
                                    confirmed=ok, why_not=conf["why"],
                                    p_best_better=np.nan, chosen=False))
