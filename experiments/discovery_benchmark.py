@@ -162,7 +162,12 @@ def reference_baseline(sc: dict, overrides: dict, log=print):
 def _save_reference(ref, folder: Path) -> None:
     """A reference baseline's report and what scoring needs of it (`_load_reference`)."""
     write_discovery(ref, folder)
-    (folder / "before.json").write_text(json.dumps(dict(before=ref.before, through_lag=ref.baseline.through_lag)))
+    before = {k: float(ref.before[k]) for k in _SCORED}
+    (folder / "before.json").write_text(json.dumps(dict(before=before, through_lag=bool(ref.baseline.through_lag))))
+
+
+# The baseline's metrics the scoring reads (`attributable`: the gap metrics).
+_SCORED = ("rms_g", "ensemble_rms_g", "peak_error_g", "phase_error_s")
 
 
 def _scored(before: dict, through_lag: bool, folder: Path) -> SimpleNamespace:

@@ -172,3 +172,27 @@ def test_a_resumed_run_reads_back_the_finished_scenarios_and_scores_as_an_uninte
     # only a run of the same settings goes on
     with pytest.raises(SystemExit, match="other settings"):
         bench.run_all(scenarios, dict(lag_test=True), tmp_path / "cut", resume=True)
+
+
+def test_a_saved_reference_baseline_reads_back_as_the_scoring_needs_it(bench, tmp_path, monkeypatch):
+    from pvvjax.io import write_table
+
+    windows = pd.DataFrame(dict(counter=["c"], window=[0], measured_g=[0.1], predicted_before_g=[0.09]))
+    lag = pd.DataFrame(dict(role=["baseline"], chosen=[False], rms_g=[0.05]))
+    before = dict(rms_g=np.float64(0.05), peak_error_g=0.03, phase_error_s=4.0, ensemble_rms_g=0.045,
+                  rms_by_seed=np.array([0.05, 0.051]))  # as discover's metrics hold it
+    ref = SimpleNamespace(before=before, baseline=SimpleNamespace(through_lag=np.bool_(False)), lag_test=lag,
+                          windows=windows)
+
+    def write(res, folder):  # the files write_discovery writes that the scoring reads
+        write_table(res.windows, folder / "windows")
+        res.lag_test.to_csv(folder / "lag_test.csv", index=False)
+
+    monkeypatch.setattr(bench, "write_discovery", write)
+    bench._save_reference(ref, tmp_path / "reference")
+    got = bench._load_reference(tmp_path / "reference")
+    assert got.before == dict(rms_g=0.05, ensemble_rms_g=0.045, peak_error_g=0.03, phase_error_s=4.0)
+    assert got.baseline.through_lag is False
+    pd.testing.assert_frame_equal(got.windows, windows)
+    pd.testing.assert_frame_equal(got.lag_test, lag)
+    assert bench._load_reference(tmp_path / "none") is None
