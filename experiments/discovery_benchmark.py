@@ -162,12 +162,8 @@ def reference_baseline(sc: dict, overrides: dict, log=print):
 def _save_reference(ref, folder: Path) -> None:
     """A reference baseline's report and what scoring needs of it (`_load_reference`)."""
     write_discovery(ref, folder)
-    before = {k: float(ref.before[k]) for k in _SCORED}
+    before = {k: float(ref.before[k]) for k in _GAP_COLUMNS}
     (folder / "before.json").write_text(json.dumps(dict(before=before, through_lag=bool(ref.baseline.through_lag))))
-
-
-# The baseline's metrics the scoring reads (`attributable`: the gap metrics).
-_SCORED = ("rms_g", "ensemble_rms_g", "peak_error_g", "phase_error_s")
 
 
 def _scored(before: dict, through_lag: bool, folder: Path) -> SimpleNamespace:
@@ -214,8 +210,7 @@ def resumed(scenarios, overrides: dict, out: Path, log=print) -> dict:
         if config_hash(stored) != config_hash(scenario_config(sc, overrides)):
             raise SystemExit(f"--resume: {folder} was run with other settings: {(stored or {}).get('discovery')} "
                              f"against {to_dict(scenario_config(sc, overrides).discovery)}")
-        before = dict(rms_g=row["rms_before_g"], ensemble_rms_g=row["ensemble_before_g"],
-                      peak_error_g=row["peak_before_g"], phase_error_s=row["phase_before_s"])
+        before = {k: row[cols[0]] for k, cols in _GAP_COLUMNS.items()}  # the gap metrics the scoring reads
         ref = None
         if sc["reference_world"] is not None:
             ref = _load_reference(folder / "reference")
