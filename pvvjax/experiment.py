@@ -79,12 +79,17 @@ def enable_compilation_cache():
 def use_cpu_cores(n: int = 0) -> None:
     """Expose `n` host devices (0: one per core) to XLA on CPU, so that sharded work runs
     on every core. Only possible before JAX starts; otherwise a no-op."""
-    if "jax" in sys.modules or n == 1:
-        return
     n = n or (os.cpu_count() or 1)
+    if n > 1:
+        _add_xla_flag("xla_force_host_platform_device_count", n)
+
+
+def _add_xla_flag(name: str, value) -> None:
+    """Add `--name=value` to `XLA_FLAGS` unless JAX has started (XLA reads them once) or
+    the flag is set there already (a user's setting wins)."""
     flags = os.environ.get("XLA_FLAGS", "")
-    if n > 1 and "xla_force_host_platform_device_count" not in flags:
-        os.environ["XLA_FLAGS"] = f"{flags} --xla_force_host_platform_device_count={n}".strip()
+    if "jax" not in sys.modules and name not in flags:
+        os.environ["XLA_FLAGS"] = f"{flags} --{name}={value}".strip()
 
 
 def use_deterministic_gpu() -> None:
@@ -93,11 +98,7 @@ def use_deterministic_gpu() -> None:
     Levenberg-Marquardt steps in three runs of the same program; with it, 11 every time).
     No effect on CPU. Only possible before JAX starts (otherwise a no-op); a setting of
     the flag already in `XLA_FLAGS` wins."""
-    if "jax" in sys.modules:
-        return
-    flags = os.environ.get("XLA_FLAGS", "")
-    if "xla_gpu_deterministic_ops" not in flags:
-        os.environ["XLA_FLAGS"] = f"{flags} --xla_gpu_deterministic_ops=true".strip()
+    _add_xla_flag("xla_gpu_deterministic_ops", "true")
 
 
 def write_databases(dbs, out: Path, cfg) -> None:
