@@ -357,7 +357,8 @@ class DiscoveryConfig:
             (`discovery._confirm._floor_control`, `_control_refinements`; one more retraining
             per confirmed try, and one per distinct control). A try that fails there is still
             confirmed if its own model beats the control as a confirmation would (a floor
-            proxy does not beat the floor it stands for). Off: the current model alone.
+            proxy does not beat the floor it stands for). On by default (the benchmark's 77
+            worlds, docs/discovery.md); off: the current model alone.
         augment: how a candidate joins the model: "additive" (a term b·candidate fitted on the
             windows, cross-fitted by fold, the nets retrained on the peaks minus it),
             "input" (an extra network input: the nets learn its shape and its interactions),
@@ -448,7 +449,7 @@ class DiscoveryConfig:
     min_shrink: float = 0.05
     shrink_noise: float = 0.02
     floor_refinements: int = 4
-    floor_control: bool = False
+    floor_control: bool = True
     augment: Literal["additive", "input", "auto"] = "auto"
     selection_stride: int = 4
     local_selection: bool = False
