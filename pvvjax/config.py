@@ -339,7 +339,8 @@ class DiscoveryConfig:
             (fewest operators and fitted parameters) whose held-out error is within this many
             standard errors of the best's (0: always the best).
         min_shrink: smallest relative drop of the held-out RMS of the ensemble's prediction
-            (median over seeds), where the effect acts, that confirms it after retraining.
+            (median over seeds), where the effect acts, that confirms it after retraining; or
+            twice this over all windows, wherever the drop lies (`discovery._confirm._confirm`).
         shrink_noise: confirmed tries of a round whose shrinks (over all windows) are within
             this of the best are tied with it, as are those it does not beat at p < `alpha`
             (a sign-flip test by condition); of tied tries, the one the selection credits with

@@ -551,6 +551,49 @@ def test_nets_trained_on_the_windows_see_every_strided_window(monkeypatch, small
     assert res.before["rms_g"] != D.metrics(_model.predictions(ctx, peak_nets, win), win)["rms_g"]
 
 
+@pytest.mark.parametrize("level_gain, pullup_gain, confirmed", [
+    (0.0, 0.30, True),    # where the candidate is active: min_shrink there, and overall > 0
+    (0.8, 0.0, True),     # elsewhere only (level flight), but >= 2 min_shrink over all windows
+    (0.4, 0.0, False),    # elsewhere only, more than min_shrink but below twice it over all windows
+    (0.0, 0.03, False),   # too little anywhere
+])
+def test_a_try_confirms_where_its_candidate_is_active_or_twice_min_shrink_over_all_windows(
+        monkeypatch, level_gain, pullup_gain, confirmed):
+    # The regional test keeps an effect of a few maneuver kinds from being diluted among all
+    # windows; the active kinds are a guess at where it acts (|q| is small but steady in
+    # turns and level flight), so twice `min_shrink` over all windows also confirms.
+    from dataclasses import replace as dc_replace
+
+    from pvvjax.candidates import Candidate
+    from pvvjax.config import DiscoveryConfig
+    from pvvjax.discovery import _confirm as C
+
+    win = _windows(n_counters=4, W=40, seed=3)
+    pull = (win.table.maneuver == "pullup").to_numpy()
+    x = np.where(pull, np.sin(win.table.k.to_numpy()), 0.0)  # active in the pull-ups only
+    win = dc_replace(win, _cands=pd.DataFrame({"x:x": x}))
+    rng = np.random.default_rng(4)
+    meas = win.table.measured_g.to_numpy()
+    err = 0.05 * rng.standard_normal(len(meas))
+    prev = (meas + err)[None]
+    trial = (meas + err * np.where(pull, 1 - pullup_gain, 1 - level_gain))[None]
+    models = {"current": prev, "trial": trial}
+    monkeypatch.setattr(C, "_replay", lambda ctx, offset: win)
+    monkeypatch.setattr(C, "predictions", lambda ctx, m, w: models[m.name])
+    current, tried = (type("M", (), {"name": n, "offset_s": 0.0})() for n in ("current", "trial"))
+    d = DiscoveryConfig()
+    ok, out = C._confirm(None, current, tried, Candidate("input", ("x",), {}), "all", d)
+    assert out["judged_in"] == "pullup"
+    rms = lambda p, rows: np.sqrt(np.mean((p[0, rows] - meas[rows]) ** 2))  # noqa: E731
+    all_rows = np.ones(len(meas), bool)
+    assert out["shrink"] == pytest.approx(1 - rms(trial, all_rows) / rms(prev, all_rows))
+    assert out["local"] == pytest.approx(1 - rms(trial, pull) / rms(prev, pull))
+    assert ok is confirmed and (out["why"] == "") is confirmed
+    if level_gain:
+        assert out["local"] == pytest.approx(0.0, abs=1e-12) and d.min_shrink < out["shrink"]
+    assert ok == ((out["local"] >= d.min_shrink and out["shrink"] > 0) or out["shrink"] >= 2 * d.min_shrink)
+
+
 def test_parameter_free_candidates_are_also_tried_at_the_candidate_offsets():
     # A transient effect reaches the vibration through the rotor's fast response, not at the
     # static map's offset: channels, rates and spreads are also offered at each of
