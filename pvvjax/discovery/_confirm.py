@@ -92,10 +92,10 @@ def _confirm(ctx: _Ctx, current: Model, trial: Model, c: Candidate, where: str, 
     """Whether a trial model confirms its effect: the held-out RMS of the ensemble's
     prediction (the median over seeds, whose residual the selection explained) drops by
     `min_shrink` where the effect acts and does not rise over all windows, or by twice
-    `min_shrink` over all windows. Where it acts: the
-    maneuver kind it was found in; for an effect found over all windows, the kinds where the
-    candidate is active (`_active_kinds`; for a lag, the kinds that hold most of the change
-    it makes), so that an effect of a few maneuver kinds is not diluted among all windows.
+    `min_shrink` over all windows. Where it acts: the maneuver kind it was found in; for an
+    effect found over all windows, the kinds where the candidate is active (`_active_kinds`;
+    for a lag, the kinds that hold most of the change it makes), so that an effect of a few
+    maneuver kinds is not diluted among all windows.
 
     The ensemble, not each seed: one net retrained on ~200 peaks moves its held-out RMS by
     ±8 % by itself (a seed's RMS is 0.045–0.052 g on the same world), so a median of per-seed
