@@ -344,7 +344,8 @@ class DiscoveryConfig:
         shrink_noise: confirmed tries of a round whose shrinks (over all windows) are within
             this of the best are tied with it, as are those it does not beat at p < `alpha`
             (a sign-flip test by condition); of tied tries, the one the selection credits with
-            the largest gain is named (`discovery._confirm._choose`).
+            the largest gain is named, those that lower the RMS by `min_shrink` over all
+            windows on top of their floor control first (`discovery._confirm._choose`).
         floor_refinements: knees and products of the model's own inputs that join each
             selection's floor covariates before any candidate is asked, the best first while it
             gains `min_gain` (`discovery._propose._propose`): the map's floor where ~200 peaks did not

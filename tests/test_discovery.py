@@ -414,10 +414,16 @@ def test_candidates_the_selection_cannot_tell_apart_are_retrained_simplest_then_
     assert _try_order([(7, 0.1)]) == [(7, 0.1)]
 
 
-def test_confirmed_tries_the_retraining_cannot_tell_apart_are_told_apart_by_the_selection():
+def _choose(tries, noise, alpha, min_shrink=0.05):
+    """`_confirm._choose` of (shrink, gain, p) tries, each its own candidate without a control."""
     from pvvjax.discovery._confirm import _choose
 
-    # (shrink over all windows, selection gain, p that the largest shrink's try beats it) per try.
+    return _choose([(*t, i, float("nan")) for i, t in enumerate(tries)], noise, alpha, min_shrink)
+
+
+def test_confirmed_tries_the_retraining_cannot_tell_apart_are_told_apart_by_the_selection():
+    # (shrink over all windows, selection gain, p that the largest shrink's try beats it) per try,
+    # each its own candidate, without a floor control.
     tries = [(0.026, 0.050, 1.0), (0.021, 0.053, 0.001), (0.004, 0.090, 0.001)]
     assert _choose(tries, 0.02, 0.01) == 1  # the first two tie in shrink; the third is retrained out of it
     assert _choose(tries, 0.0, 0.01) == 0  # no noise, significant: the largest shrink
@@ -430,8 +436,6 @@ def test_confirmed_tries_the_retraining_cannot_tell_apart_are_told_apart_by_the_
 
 
 def test_a_tie_with_a_try_the_selection_did_not_rank_is_decided_by_the_retraining():
-    from pvvjax.discovery._confirm import _choose
-
     nan = float("nan")
     # The seeds + 4 resonance world's round 1: a collective knee (4.3 %, gain 0.071, p 0.0107),
     # the stick (4.5 %, 0.030, p 0.0146) and the probe's band (16.5 %, no selection gain): all
@@ -444,6 +448,29 @@ def test_a_tie_with_a_try_the_selection_did_not_rank_is_decided_by_the_retrainin
     assert _choose([(0.026, nan, 0.3), (0.08, 0.05, 1.0)], 0.02, 0.01) == 1
     assert _choose([(0.10, nan, 1.0)], 0.02, 0.01) == 0  # a band alone
     assert _choose([(0.10, nan, 1.0), (0.09, nan, 0.5)], 0.02, 0.01) == 0  # two bands: the larger shrink
+
+
+def test_of_tied_candidates_those_that_gain_beyond_their_floor_control_are_named():
+    from pvvjax.discovery._confirm import _choose
+
+    nan = float("nan")
+    # Pitch rate 51, round 1: (shrink, gain, p, candidate, shrink on top of its floor control).
+    # The yaw rate and its knee tie with |q| and have the larger gains, but keep 2-3 % over all
+    # windows on their controls; |q| as an input keeps 9.4 %.
+    tries = [(0.078, 0.0722, 1.0, "yaw", 0.020), (0.054, 0.0725, 0.17, "yaw knee", 0.028),
+             (0.061, 0.0634, 0.33, "|q|", 0.094)]
+    assert _choose(tries, 0.02, 0.01, 0.05) == 2
+    assert _choose(tries, 0.02, 0.01, 0.0) == 1  # without the rule: the selection's gain (the knee)
+    assert _choose(tries, 0.02, 0.01, 0.10) == 1  # none beyond the floor: all stay tied
+    # One candidate's two ways of being added count together: |q| as a term keeps 1.9 % on its
+    # control, as an input 7.1 %; the term (the larger shrink) stays named (pitch rate 56).
+    both = [(0.098, 0.158, 1.0, "|q|", 0.019), (0.0075, 0.158, 0.019, "|q|", 0.071),
+            (0.040, 0.170, 0.02, "other", 0.01)]
+    assert _choose(both, 0.02, 0.01, 0.05) == 0
+    assert _choose(both, 0.02, 0.01, 0.0) == 2
+    # A try without a control (NaN) is not left out: nothing says it is floor.
+    assert _choose([(0.10, 0.05, 1.0, "a", 0.01), (0.09, 0.06, 0.5, "b", nan)], 0.02, 0.01, 0.05) == 1
+    assert _choose([(0.10, 0.05, 1.0, "a", 0.06), (0.09, 0.06, 0.5, "b", 0.01)], 0.02, 0.01, 0.05) == 0
 
 
 # --------------------------------------------------------------------------- end to end

@@ -222,11 +222,13 @@ def _region(win: _Windows, full, before, after) -> dict:
     return {"where": ", ".join(kinds), "before_rms_g": rms(before), "after_rms_g": rms(after)}
 
 
-def _choose(tries, noise: float, alpha: float) -> int:
-    """Which confirmed try of a round is named. tries: (shrink, selection gain, p) of each, p
-    the one-sided p-value that the try of the largest shrink predicts better than this one
-    (`_paired_sign_flip` by condition; 1 for that try itself), the gain NaN for a try the
-    selection did not rank (the resonance probe's band).
+def _choose(tries, noise: float, alpha: float, min_shrink: float = 0.0) -> int:
+    """Which confirmed try of a round is named. tries: (shrink, selection gain, p, candidate,
+    control shrink) of each: p the one-sided p-value that the try of the largest shrink
+    predicts better than this one (`_paired_sign_flip` by condition; 1 for that try itself),
+    the gain NaN for a try the selection did not rank (the resonance probe's band), candidate
+    any label shared by the tries of one proposal (its ways of being added), and the control
+    shrink the try's over all windows on top of its floor control (NaN without one).
 
     The retraining decides first: the try that lowers the ensemble's RMS over all windows most
     (the same windows for every try). Tries it does not beat significantly (p ≥ `alpha`), or
@@ -237,6 +239,14 @@ def _choose(tries, noise: float, alpha: float) -> int:
     collective stall knee, retrained, lower the RMS 22.0 % (shaft power) and 17.1 % (the
     collective), p = 0.03 by condition: a tie the selection decides (the collective, 0.250 against 0.239).
 
+    Beyond the floor first: if some tied candidate lowers the RMS over all windows by
+    `min_shrink` on top of its floor control (in one of its tied tries, or has no control),
+    the tied candidates that do not are left out. Those confirmed on their control only where
+    they act: most of their gain over all windows is what the floor's refinements explain. On
+    pitch rate 51 the yaw rate (a proxy of |q| in turns) and its knee tied with |q| (7.8 %,
+    5.4 % and 6.1 %, p ≥ 0.17) and had the larger gains (0.072 against 0.063); on top of their
+    controls they kept 2.0 % and 2.8 % over all windows (14–17 % in turns), |q| 9.4 %.
+
     A tied try without a selection gain competes with the selection's pick on the shrink
     alone: a probe's band is a column the selection cannot credit (a mode the nets learned as
     a mean per rotor-speed level leaves no prediction × band residual), so its gain, ~0, says
@@ -244,8 +254,10 @@ def _choose(tries, noise: float, alpha: float) -> int:
     a collective knee 4.3 %, p = 0.011 by condition; by the gains (−0.026 against 0.071) the
     knee was named.
     """
-    best = max(sh for sh, _, _ in tries)
-    tied = [i for i, (sh, _, p) in enumerate(tries) if sh >= best - noise or p >= alpha]
+    best = max(t[0] for t in tries)
+    tied = [i for i, t in enumerate(tries) if t[0] >= best - noise or t[2] >= alpha]
+    beyond = {tries[i][3] for i in tied if not tries[i][4] < min_shrink}  # NaN: no control, kept
+    tied = [i for i in tied if tries[i][3] in beyond] or tied
     ranked = [i for i in tied if np.isfinite(tries[i][1])]
     pick = [max(ranked, key=lambda i: (tries[i][1], tries[i][0]))] if ranked else []
     return max(pick + [i for i in tied if not np.isfinite(tries[i][1])], key=lambda i: tries[i][0])

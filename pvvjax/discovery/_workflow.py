@@ -393,16 +393,17 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
                     f"{'confirmed' if ok else 'not confirmed (' + conf['why'] + ')'}")
                 if ok:  # "auto" tries both ways and keeps the better
                     confirmed.append((conf["shrink"], len(rounds) - 1, where,
-                                      s._replace(p_value=p_value, explained_fraction=explained), c, trial, conf))
+                                      s._replace(p_value=p_value, explained_fraction=explained), c, trial, conf,
+                                      refined.key, on_control["shrink"]))
         if not confirmed:
             break
-        top = max(confirmed, key=lambda t: t[0])[-1]
-        ps = [1.0 if t[-1] is top else _paired_sign_flip(t[-1], top, _SIGN_FLIPS, cfg.seed + rnd)[0] for t in confirmed]
+        top = max(confirmed, key=lambda t: t[0])[6]
+        ps = [1.0 if t[6] is top else _paired_sign_flip(t[6], top, _SIGN_FLIPS, cfg.seed + rnd)[0] for t in confirmed]
         for t, p in zip(confirmed, ps):
             rounds[t[1]]["p_best_better"] = p
-        k = _choose([(t[0], np.nan if t[3].source == "probe" else t[3].gain, p) for t, p in zip(confirmed, ps)],
-                    d.shrink_noise, d.alpha)
-        _, row, where, s, c, trial, conf = confirmed[k]
+        k = _choose([(t[0], np.nan if t[3].source == "probe" else t[3].gain, p, t[7], t[8])
+                     for t, p in zip(confirmed, ps)], d.shrink_noise, d.alpha, d.min_shrink)
+        _, row, where, s, c, trial, conf, *_ = confirmed[k]
         effects.append(dict(rank=len(effects) + 1, round=rnd + 1, name=c.name, operator=c.operator,
                             channels=list(c.channels) or list(current.inputs), parameters=_public_parameters(c),
                             explained_fraction=s.explained_fraction, p_value=s.p_value, region=conf["region"],
