@@ -222,7 +222,7 @@ def _region(win: _Windows, full, before, after) -> dict:
     return {"where": ", ".join(kinds), "before_rms_g": rms(before), "after_rms_g": rms(after)}
 
 
-def _choose(tries, noise: float, alpha: float, min_shrink: float = 0.0) -> int:
+def _choose(tries, noise: float, alpha: float, min_shrink: float) -> int:
     """Which confirmed try of a round is named. tries: (shrink, selection gain, p, candidate,
     control shrink) of each: p the one-sided p-value that the try of the largest shrink
     predicts better than this one (`_paired_sign_flip` by condition; 1 for that try itself),
