@@ -414,7 +414,7 @@ def test_candidates_the_selection_cannot_tell_apart_are_retrained_simplest_then_
     assert _try_order([(7, 0.1)]) == [(7, 0.1)]
 
 
-def _choose(tries, noise, alpha, min_shrink=0.05):
+def _choose_plain(tries, noise, alpha, min_shrink=0.05):
     """`_confirm._choose` of (shrink, gain, p) tries, each its own candidate without a control."""
     from pvvjax.discovery._confirm import _choose
 
@@ -425,14 +425,14 @@ def test_confirmed_tries_the_retraining_cannot_tell_apart_are_told_apart_by_the_
     # (shrink over all windows, selection gain, p that the largest shrink's try beats it) per try,
     # each its own candidate, without a floor control.
     tries = [(0.026, 0.050, 1.0), (0.021, 0.053, 0.001), (0.004, 0.090, 0.001)]
-    assert _choose(tries, 0.02, 0.01) == 1  # the first two tie in shrink; the third is retrained out of it
-    assert _choose(tries, 0.0, 0.01) == 0  # no noise, significant: the largest shrink
-    assert _choose(tries, 0.5, 0.01) == 2  # everything ties: the selection's best
+    assert _choose_plain(tries, 0.02, 0.01) == 1  # the first two tie in shrink; the third is retrained out of it
+    assert _choose_plain(tries, 0.0, 0.01) == 0  # no noise, significant: the largest shrink
+    assert _choose_plain(tries, 0.5, 0.01) == 2  # everything ties: the selection's best
     # Far apart in shrink, but the best does not beat the others significantly: tied.
-    assert _choose([(0.22, 0.239, 1.0), (0.17, 0.250, 0.11), (0.19, 0.233, 0.05)], 0.02, 0.01) == 1
-    assert _choose([(0.22, 0.239, 1.0), (0.17, 0.250, 0.005), (0.19, 0.233, 0.05)], 0.02, 0.01) == 0
-    assert _choose([(0.15, 0.1, 1.0), (0.10, 0.1, 0.5)], 0.1, 0.01) == 0  # the same gain: the larger shrink
-    assert _choose([(0.05, 0.2, 1.0)], 0.02, 0.01) == 0
+    assert _choose_plain([(0.22, 0.239, 1.0), (0.17, 0.250, 0.11), (0.19, 0.233, 0.05)], 0.02, 0.01) == 1
+    assert _choose_plain([(0.22, 0.239, 1.0), (0.17, 0.250, 0.005), (0.19, 0.233, 0.05)], 0.02, 0.01) == 0
+    assert _choose_plain([(0.15, 0.1, 1.0), (0.10, 0.1, 0.5)], 0.1, 0.01) == 0  # the same gain: the larger shrink
+    assert _choose_plain([(0.05, 0.2, 1.0)], 0.02, 0.01) == 0
 
 
 def test_a_tie_with_a_try_the_selection_did_not_rank_is_decided_by_the_retraining():
@@ -441,13 +441,13 @@ def test_a_tie_with_a_try_the_selection_did_not_rank_is_decided_by_the_retrainin
     # the stick (4.5 %, 0.030, p 0.0146) and the probe's band (16.5 %, no selection gain): all
     # tied at alpha 0.01; the selection's pick (the knee) against the band on the shrink.
     tries = [(0.043, 0.071, 0.0107), (0.045, 0.030, 0.0146), (0.165, nan, 1.0)]
-    assert _choose(tries, 0.02, 0.01) == 2
-    assert _choose(tries, 0.02, 0.02) == 2  # the band beats both at 0.02: no tie
+    assert _choose_plain(tries, 0.02, 0.01) == 2
+    assert _choose_plain(tries, 0.02, 0.02) == 2  # the band beats both at 0.02: no tie
     # A band tied with a better-credited try of a larger shrink: that try.
-    assert _choose([(0.026, nan, 0.3), (0.08, 0.05, 1.0), (0.07, 0.06, 0.2)], 0.02, 0.01) == 2
-    assert _choose([(0.026, nan, 0.3), (0.08, 0.05, 1.0)], 0.02, 0.01) == 1
-    assert _choose([(0.10, nan, 1.0)], 0.02, 0.01) == 0  # a band alone
-    assert _choose([(0.10, nan, 1.0), (0.09, nan, 0.5)], 0.02, 0.01) == 0  # two bands: the larger shrink
+    assert _choose_plain([(0.026, nan, 0.3), (0.08, 0.05, 1.0), (0.07, 0.06, 0.2)], 0.02, 0.01) == 2
+    assert _choose_plain([(0.026, nan, 0.3), (0.08, 0.05, 1.0)], 0.02, 0.01) == 1
+    assert _choose_plain([(0.10, nan, 1.0)], 0.02, 0.01) == 0  # a band alone
+    assert _choose_plain([(0.10, nan, 1.0), (0.09, nan, 0.5)], 0.02, 0.01) == 0  # two bands: the larger shrink
 
 
 def test_of_tied_candidates_those_that_gain_beyond_their_floor_control_are_named():

@@ -228,7 +228,7 @@ def _choose(tries, noise: float, alpha: float, min_shrink: float) -> int:
     predicts better than this one (`_paired_sign_flip` by condition; 1 for that try itself),
     the gain NaN for a try the selection did not rank (the resonance probe's band), candidate
     any label shared by the tries of one proposal (its ways of being added), and the control
-    shrink the try's over all windows on top of its floor control (NaN without one).
+    shrink the try's shrink over all windows on top of its floor control (NaN without one).
 
     The retraining decides first: the try that lowers the ensemble's RMS over all windows most
     (the same windows for every try). Tries it does not beat significantly (p ≥ `alpha`), or

@@ -18,6 +18,7 @@ from ..config import DiscoveryConfig, ExperimentConfig
 from ..databases import DB_INPUTS, STATE_CHANNELS, build_databases
 from ..replay import make_settings, prepare
 from ..residuals import localize
+from ..selection import Selected
 from ..selection import gain as _selection_gain
 from ._confirm import (
     _SIGN_FLIPS,
@@ -64,6 +65,20 @@ class Residual(NamedTuple):
     groups: np.ndarray
     folds: int
     seed: int
+
+
+class _Confirmed(NamedTuple):
+    """A try of a round that confirmed: what `_choose` compares and what naming it takes."""
+
+    shrink: float  # of the ensemble's RMS over all windows
+    row: int  # in the rounds table
+    where: str
+    selected: Selected  # the selection's (p-value and explained fraction as confirmed)
+    candidate: Candidate  # as tried (fitted parameters added)
+    trial: Model
+    conf: dict  # `_confirm`'s
+    proposal: str  # the key of the proposal it tries (its term and input share it)
+    control_shrink: float  # on top of its floor control, over all windows; NaN without one
 
 
 @dataclass
@@ -392,18 +407,19 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
                     f"({conf['judged_in']}): "
                     f"{'confirmed' if ok else 'not confirmed (' + conf['why'] + ')'}")
                 if ok:  # "auto" tries both ways and keeps the better
-                    confirmed.append((conf["shrink"], len(rounds) - 1, where,
-                                      s._replace(p_value=p_value, explained_fraction=explained), c, trial, conf,
-                                      refined.key, on_control["shrink"]))
+                    confirmed.append(_Confirmed(conf["shrink"], len(rounds) - 1, where,
+                                                s._replace(p_value=p_value, explained_fraction=explained), c,
+                                                trial, conf, refined.key, on_control["shrink"]))
         if not confirmed:
             break
-        top = max(confirmed, key=lambda t: t[0])[6]
-        ps = [1.0 if t[6] is top else _paired_sign_flip(t[6], top, _SIGN_FLIPS, cfg.seed + rnd)[0] for t in confirmed]
+        top = max(confirmed, key=lambda t: t.shrink).conf
+        ps = [1.0 if t.conf is top else _paired_sign_flip(t.conf, top, _SIGN_FLIPS, cfg.seed + rnd)[0]
+              for t in confirmed]
         for t, p in zip(confirmed, ps):
-            rounds[t[1]]["p_best_better"] = p
-        k = _choose([(t[0], np.nan if t[3].source == "probe" else t[3].gain, p, t[7], t[8])
-                     for t, p in zip(confirmed, ps)], d.shrink_noise, d.alpha, d.min_shrink)
-        _, row, where, s, c, trial, conf, *_ = confirmed[k]
+            rounds[t.row]["p_best_better"] = p
+        k = _choose([(t.shrink, np.nan if t.selected.source == "probe" else t.selected.gain, p, t.proposal,
+                      t.control_shrink) for t, p in zip(confirmed, ps)], d.shrink_noise, d.alpha, d.min_shrink)
+        _, row, where, s, c, trial, conf, _, _ = confirmed[k]
         effects.append(dict(rank=len(effects) + 1, round=rnd + 1, name=c.name, operator=c.operator,
                             channels=list(c.channels) or list(current.inputs), parameters=_public_parameters(c),
                             explained_fraction=s.explained_fraction, p_value=s.p_value, region=conf["region"],
