@@ -473,6 +473,53 @@ def test_of_tied_candidates_those_that_gain_beyond_their_floor_control_are_named
     assert _choose([(0.10, 0.05, 1.0, "a", 0.06), (0.09, 0.06, 0.5, "b", 0.01)], 0.02, 0.01, 0.05) == 0
 
 
+def test_rechoose_replays_a_rounds_choice_from_rounds_csv_and_flags_a_change():
+    # experiments/discovery_rechoose.py: pitch rate 51's round 1 as rounds.csv logged it under
+    # the old rule (the yaw-rate knee named), written before the proposal/source columns.
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).parents[1] / "experiments" / "discovery_rechoose.py"
+    spec = importlib.util.spec_from_file_location("discovery_rechoose", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    nan = float("nan")
+    rows = [  # candidate, name, operator, augment, shrink, gain, p, control, confirmed, chosen
+        ("input:yaw_rate_dps:coefficient=0.002,offset_s=0.6,transform=abs", "yaw rate magnitude", "input", "additive",
+         0.078, 0.0722, 1.0, 0.020, True, False),
+        ("input:yaw_rate_dps:offset_s=0.6,transform=abs", "yaw rate magnitude", "input", "input",
+         0.071, 0.0722, nan, nan, False, False),
+        ("threshold:yaw_rate_dps:above=True,coefficient=0.01,knee=0.0257,offset_s=0.6", "yaw rate knee", "threshold",
+         "additive", 0.054, 0.0725, 0.17, 0.028, True, True),
+        ("input:pitch_rate_dps:offset_s=0.6,transform=abs", "pitch rate magnitude", "input", "input",
+         0.061, 0.0634, 0.33, 0.094, True, False),
+        ("resonance:rotor_rpm:center=244.9,gain=0.3,offset_s=0.6,width=3.2", "rotor speed resonance", "resonance",
+         "gain", -0.058, -0.058, nan, nan, False, False),
+    ]
+    cols = ["candidate", "name", "operator", "augment", "shrink", "cv_gain", "p_best_better", "control_shrink",
+            "confirmed", "chosen"]
+    rounds = pd.DataFrame(rows, columns=cols).assign(round=1)
+    rounds = pd.concat([pd.DataFrame([dict(round=0, name="input-to-vibration lag", confirmed=False,
+                                           chosen=False)]), rounds], ignore_index=True)
+    now = mod.rechoose(rounds, 0.02, 0.01, 0.05)
+    assert now.to_dict("records") == [dict(round=1, logged="yaw rate knee (additive)",
+                                           recomputed="pitch rate magnitude (input)", changed=True)]
+    assert not mod.rechoose(rounds, 0.02, 0.01, -np.inf).changed.any()  # the rule it was logged under
+    # A term and an input of one proposal share it (the term's coefficient is not part of it);
+    # a band without a gain_unit is the probe's, which the selection did not rank.
+    t = mod.tries(rounds[rounds.confirmed.astype(bool)])
+    assert [x[3] for x in t] == ["input:yaw_rate_dps:offset_s=0.6,transform=abs",
+                                 "threshold:yaw_rate_dps:above=True,knee=0.0257,offset_s=0.6",
+                                 "input:pitch_rate_dps:offset_s=0.6,transform=abs"]
+    band = rounds.iloc[[5]].assign(confirmed=True)
+    assert np.isnan(mod.tries(band)[0][1])
+    assert mod.tries(band.assign(candidate=band.candidate + ",gain_unit=10"))[0][1] == -0.058
+    # With the columns a discovery now writes, those are used as they are.
+    new = rounds.assign(proposal="p", source="selection")
+    assert {x[3] for x in mod.tries(new[new.confirmed.astype(bool)])} == {"p"}
+    assert not mod.rechoose(new, 0.02, 0.01, 0.05).changed.any()  # one proposal: all beyond or none
+
+
 # --------------------------------------------------------------------------- end to end
 # The hidden-effect case runs in notebooks/discovery.py (a hidden sideslip effect named
 # first, attributable shrink >= 0.5, asserted there); the null case here, through the CLI.
