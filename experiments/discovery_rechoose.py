@@ -28,11 +28,10 @@ from pvvjax.discovery._confirm import _choose
 _FITTED = r"(?:coefficient|gain|gain_unit)=[^,]*,?"
 
 
-def tries(confirmed: pd.DataFrame) -> list[tuple]:
+def tries(rows: pd.DataFrame) -> list[tuple]:
     """`_choose`'s tries from the confirmed rows of one round of `rounds.csv`. Files written
     before the `proposal` and `source` columns: the proposal is the candidate without the
     parameters its try fitted, and a probe's band the one without a `gain_unit`."""
-    rows = confirmed
     if "proposal" in rows:
         proposal = rows["proposal"]
     else:
