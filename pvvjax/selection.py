@@ -38,9 +38,11 @@ class Selected(NamedTuple):
         equivalents: ((column, gain), ...) of the candidates the selection cannot tell from
             the best (`equivalent`, within `parsimony` standard errors; `index` first), simplest
             first, then by gain.
-        source: "selection" (this module), or "probe": a rotor-speed band that discovery's
+        source: "selection" (this module); "probe": a rotor-speed band that discovery's
             resonance probe proposed, with no p-value or explained fraction of the selection's
-            (NaN; its retraining gives them).
+            (NaN; its retraining gives them); or "rival": a runner-up that discovery retrains
+            beside a weak name (`discovery._confirm._rival`), with the gain of its column and
+            the p-value of the step it ran up in.
     """
 
     index: int

@@ -473,6 +473,35 @@ def test_of_tied_candidates_those_that_gain_beyond_their_floor_control_are_named
     assert _choose([(0.10, 0.05, 1.0, "a", 0.06), (0.09, 0.06, 0.5, "b", 0.01)], 0.02, 0.01, 0.05) == 0
 
 
+def test_a_weak_name_brings_its_runner_up_on_other_channels_which_beyond_its_floor_is_then_named():
+    from pvvjax.discovery._confirm import _choose, _rival
+
+    nan = float("nan")
+    # Pitch acceleration 31, round 1: the stick rate (a term) is the round's one confirmed try;
+    # on top of its floor control it keeps 3.8 % over all windows, below min_shrink 0.05.
+    tries = [(0.092, 0.093, 1.0, "stick rate", 0.038)]
+    channels = {0: ("longitudinal_pct",), 1: ("pitch_rate_dps",), 2: ("pitch_rate_dps",), 3: ("mlf",),
+                4: ("yaw_rate_dps",), 5: ("roll_rate_dps",)}
+    taken = {"nz_g", "longitudinal_pct", "shaft_power_hp", "rotor_rpm"}  # the round's proposals
+    # Its runners-up: the stick at another alignment (a channel proposed), |q̇|, the spread of q.
+    alternatives = ((0, 0.093), (1, 0.082), (2, 0.078))
+    assert _rival(0, tries, alternatives, channels, taken, 0.05, 0.02) == (1, 0.082)
+    # Retrained, |q̇| ties with the stick and keeps 8.0 % on its control: it is named.
+    both = tries + [(0.094, 0.082, 0.4, "|q̇|", 0.080)]
+    assert _choose(both, 0.02, 0.01, 0.05) == 1
+    # The MLF is computed from the pitch rate: no rival once |q̇| was proposed; nor below min_gain.
+    assert _rival(0, tries, ((3, 0.08), (4, 0.01)), channels, taken | {"pitch_rate_dps"}, 0.05, 0.02) is None
+    assert _rival(0, tries, ((3, 0.08), (5, 0.03)), channels, taken | {"pitch_rate_dps"}, 0.05, 0.02) == (5, 0.03)
+    # Not weak: one of the proposal's tries keeps min_shrink on its control, or it has no control.
+    strong = [(0.092, 0.093, 1.0, "stick rate", 0.038), (0.085, 0.093, 0.3, "stick rate", 0.06)]
+    assert _rival(0, strong, alternatives, channels, taken, 0.05, 0.02) is None
+    assert _rival(0, [(0.092, 0.093, 1.0, "stick rate", nan)], alternatives, channels, taken, 0.05, 0.02) is None
+    # Another proposal's weak control does not make this one weak.
+    other = [(0.092, 0.093, 1.0, "stick rate", 0.06), (0.05, 0.05, 0.3, "knee", 0.01)]
+    assert _rival(0, other, alternatives, channels, taken, 0.05, 0.02) is None
+    assert _rival(1, other, alternatives, channels, taken, 0.05, 0.02) == (1, 0.082)
+
+
 def test_rechoose_replays_a_rounds_choice_from_rounds_csv_and_flags_a_change():
     # experiments/discovery_rechoose.py: pitch rate 51's round 1 as rounds.csv logged it under
     # the old rule (the yaw-rate knee named), written before the proposal/source columns.

@@ -261,3 +261,37 @@ def _choose(tries, noise: float, alpha: float, min_shrink: float) -> int:
     ranked = [i for i in tied if np.isfinite(tries[i][1])]
     pick = [max(ranked, key=lambda i: (tries[i][1], tries[i][0]))] if ranked else []
     return max(pick + [i for i in tied if not np.isfinite(tries[i][1])], key=lambda i: tries[i][0])
+
+
+def _rival(named: int, tries, alternatives, channels, taken, min_shrink: float, min_gain: float):
+    """A second opinion on a weak name: the column of the selection's runner-up to retrain
+    beside the named try, or None.
+
+    A name is weak when none of its proposal's confirmed tries lowers the RMS over all
+    windows by `min_shrink` on top of its floor control: it predicts little beyond the
+    refinements of the model's own inputs. Then a proxy may have outscored the effect it
+    stands for (a pilot input ahead of the aircraft's response: on pitch acceleration 31 the
+    rate of the longitudinal stick, gain 0.093, ahead of |q̇|, 0.082, which the paired
+    one-standard-error rule sets apart; retrained, both lower the RMS ~9 %, on top of their
+    controls 3.8 % and 8.0 %). The rival is the best of the named selection's runners-up that
+    gains `min_gain` and is built from none of the campaign channels the round's proposals
+    were (a spread of the same channel is the same source, not a rival); `_choose` then
+    decides among all the confirmed tries, its "beyond the floor first" included.
+
+    Args:
+        named: index in `tries` of the named try. tries: `_choose`'s (shrink, gain, p,
+            proposal, control shrink) of the round's confirmed tries.
+        alternatives: ((column, gain), ...) of the named try's selection (`Selected`), best
+            first. channels: the candidate's channels of each column. taken: the campaign
+            channels the round's proposals are built from (`source_channels`).
+
+    Returns:
+        (column, gain) or None (a strong name, or no runner-up on other channels).
+    """
+    controls = [t[4] for t in tries if t[3] == tries[named][3]]
+    if not all(c < min_shrink for c in controls):  # NaN (no control): not weak
+        return None
+    for col, g in alternatives:
+        if g >= min_gain and not source_channels(channels[col]) & set(taken):
+            return col, g
+    return None

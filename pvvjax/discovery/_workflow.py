@@ -28,6 +28,7 @@ from ._confirm import (
     _control_refinements,
     _floor_control,
     _paired_sign_flip,
+    _rival,
     _train_model,
 )
 from ._fits import _fit_offset, _keep_better, _refine
@@ -42,6 +43,7 @@ from ._model import (
     floor_features,
     metrics,
     predictions,
+    source_channels,
 )
 from ._propose import (
     _candidate_matrix,
@@ -329,9 +331,12 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
                     f"{cur_metrics['ensemble_rms_g']:.4f} -> "
                     f"{metrics(predictions(ctx, controls[key], win), win)['ensemble_rms_g']:.4f} g")
             return controls.get(key), kept
-        confirmed = []
-        tried = set()
-        for where, j, s in proposals:
+        confirmed, tried = [], set()
+
+        def try_proposal(where, j, s):
+            """Retrain the proposal (column `j` of `lib`, found in `where`, `s` its `Selected`) in
+            each way it can be added; its rows go to `rounds`, its confirmed tries to `confirmed`."""
+            nonlocal t_confirm
             t0 = time.perf_counter()
             rows, fl = designs[where]
             refined = _keep_better(lib[j], _refine(lib[j], resid[rows], win.at(
@@ -340,7 +345,7 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
             used.add(_unaligned_key(lib[j]))
             if refined.key in tried:  # two grid knees refined to the same one: retrained already
                 log(f"  {lib[j].name}: refined to {refined.name}, tried already")
-                continue
+                return
             tried.add(refined.key)
             modes = {"lag": ("lag",), "resonance": ("gain",)}.get(
                 refined.operator, ("additive", "input") if d.augment == "auto" else (d.augment,))
@@ -411,15 +416,34 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
                     confirmed.append(_Confirmed(conf["shrink"], len(rounds) - 1, where,
                                                 s._replace(p_value=p_value, explained_fraction=explained), c,
                                                 trial, conf, refined.key, on_control["shrink"]))
+
+        def choose():
+            """The confirmed tries as `_choose` compares them, and the index of the one named."""
+            top = max(confirmed, key=lambda t: t.shrink).conf
+            ps = [1.0 if t.conf is top else _paired_sign_flip(t.conf, top, _SIGN_FLIPS, cfg.seed + rnd)[0]
+                  for t in confirmed]
+            for t, p in zip(confirmed, ps):
+                rounds[t.row]["p_best_better"] = p
+            tries = [(t.shrink, np.nan if t.selected.source == "probe" else t.selected.gain, p, t.proposal,
+                      t.control_shrink) for t, p in zip(confirmed, ps)]
+            return tries, _choose(tries, d.shrink_noise, d.alpha, d.min_shrink)
+
+        for where, j, s in proposals:
+            try_proposal(where, j, s)
         if not confirmed:
             break
-        top = max(confirmed, key=lambda t: t.shrink).conf
-        ps = [1.0 if t.conf is top else _paired_sign_flip(t.conf, top, _SIGN_FLIPS, cfg.seed + rnd)[0]
-              for t in confirmed]
-        for t, p in zip(confirmed, ps):
-            rounds[t.row]["p_best_better"] = p
-        k = _choose([(t.shrink, np.nan if t.selected.source == "probe" else t.selected.gain, p, t.proposal,
-                      t.control_shrink) for t, p in zip(confirmed, ps)], d.shrink_noise, d.alpha, d.min_shrink)
+        tries, k = choose()
+        taken = set().union(*(source_channels(lib[j].channels) for _, j, _ in proposals))
+        named = confirmed[k]
+        rival = _rival(k, tries, named.selected.alternatives, [c.channels for c in lib], taken,
+                       d.min_shrink, d.min_gain)
+        if rival is not None:  # a weak name: its runner-up on other channels retrained beside it
+            a, g = rival
+            log(f"round {rnd + 1}: {named.candidate.name} gains less than min_shrink on top of its floor control; "
+                f"its runner-up on other channels, {lib[a].name} (gain {g:.3f}), is tried as well")
+            try_proposal(named.where, a, named.selected._replace(index=a, gain=g, explained_fraction=g,
+                                                                 alternatives=(), equivalents=(), source="rival"))
+            tries, k = choose()
         _, row, where, s, c, trial, conf, _, _ = confirmed[k]
         effects.append(dict(rank=len(effects) + 1, round=rnd + 1, name=c.name, operator=c.operator,
                             channels=list(c.channels) or list(current.inputs), parameters=_public_parameters(c),
