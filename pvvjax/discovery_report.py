@@ -139,7 +139,10 @@ def write_discovery(res: Discovery, out, cfg=None, worst: int = 4) -> Path:
                   "confirmed tries the round names (`chosen`) the one that shrinks the held-out RMS most, unless "
                   "others tie with it: within `shrink_noise` of its shrink, or not beaten by it at p < `alpha` "
                   "(`p_best_better`: a sign-flip test by condition of the two ensembles' squared errors); of tied "
-                  "tries, the one with the largest `cv_gain`.", "",
+                  "tries, those that lower the RMS by `min_shrink` on top of their floor control come first, then "
+                  "the one with the largest `cv_gain`. A weak name (none of its proposal's confirmed tries does so) "
+                  "gets a second opinion: the selection's best runner-up built from other channels than the round's "
+                  "proposals is retrained too (`source` rival) and the round chooses again.", "",
                   "`rms_*`: held-out RMS, median over seeds (as the metrics above); `ensemble_rms_*`: the RMS of "
                   "the ensemble's prediction (the median over seeds), whose change `shrink` (all windows) and "
                   "`region_shrink` (where the effect acts, `judged_in`) decide the confirmation; `why_not`: "
@@ -148,14 +151,16 @@ def write_discovery(res: Discovery, out, cfg=None, worst: int = 4) -> Path:
                       "model retrained with its selection's floor refinements as inputs), where it must confirm "
                       "again (`floor_control`); `over_control_shrink`, `over_control_region_shrink`: the try's "
                       "own model against the control, which it may beat instead." if controlled else ""), "",
-                  _md(res.rounds[["round", "name", "augment", "p_value", "cv_gain", "rms_before_g", "rms_after_g",
+                  _md(res.rounds[["round", "name", *(["source"] if "source" in res.rounds else []), "augment",
+                                  "p_value", "cv_gain", "rms_before_g", "rms_after_g",
                                   "ensemble_rms_before_g", "ensemble_rms_after_g", "shrink", "judged_in",
                                   "region_shrink", *(["control_shrink", "control_region_shrink", "over_control_shrink",
                                                     "over_control_region_shrink"] if controlled else []),
                                   "confirmed", "why_not", "p_best_better", "chosen"]]), "",
                   "Runners-up of each proposal (held-out gain):", ""]
         lines += [f"- round {r.round}, {r.name} ({r.cv_gain:.3f}): {r.runners_up}"
-                  for r in res.rounds.drop_duplicates(["round", "name"]).itertuples()]
+                  for r in res.rounds.drop_duplicates(["round", "name"]).itertuples()
+                  if isinstance(r.runners_up, str) and r.runners_up]
         lines += [""]
         first = res.rounds.drop_duplicates("round")
         floor = [(r, t) for r, t in zip(first["round"], first.get("floor_terms", [""] * len(first)))

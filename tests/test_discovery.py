@@ -879,3 +879,54 @@ def test_a_try_must_confirm_again_on_top_of_the_floor_control_or_beat_it_alone(m
         assert res.effects == [] and res.after == res.before  # confirmed on the current model only: not named
     report = write_discovery(res, tmp_path / "out", cfg).read_text()
     assert "over_control_region_shrink" in report and "(`floor_control`)" in report
+
+
+@pytest.mark.parametrize("weak", [True, False])
+def test_a_weak_name_brings_its_runner_up_on_other_channels_which_is_retrained_and_can_be_named(
+        monkeypatch, small_campaign_dir, weak):
+    # The round's one proposal confirms on the current model; on top of its floor control it
+    # keeps 1 % (weak) or 6 % (not). Weak, the selection's best runner-up built from other
+    # channels is retrained too; tied with the proposal and keeping 8 % on its own control, it
+    # is named. Proposal, runners-up and shrinks are forced; training, replay, the controls and
+    # the choice are the workflow's own.
+    from pvvjax.config import DiscoveryConfig, ExperimentConfig, TrainConfig
+    from pvvjax.discovery import _workflow, discover
+    from pvvjax.discovery._model import source_channels
+    from pvvjax.discovery._propose import _unaligned_key
+    from pvvjax.selection import Selected
+
+    who = {}
+
+    def propose(win, yhat, resid, M, rows, own, floor, d, seed, complexity, keys, is_floor):
+        src = lambda i: source_channels(keys[i].split(":")[1].split("*"))  # noqa: E731  operator:channels[:...]
+        f = int(np.flatnonzero(is_floor)[0])
+        inputs = [i for i, k in enumerate(keys) if k.startswith("input:") and not is_floor[i]]
+        j = next(i for i in inputs if not src(i) & src(f))
+        near = next(i for i in range(len(keys)) if i != j and not is_floor[i] and src(i) & src(j))
+        r = next(i for i in inputs if not src(i) & (src(j) | src(f)))
+        who.update({keys[j]: "proposal", keys[r]: "rival"})
+        # Runners-up: a column built from the proposal's channels (not a rival), then the rival.
+        return ([("all", j, Selected(j, 0.1, 0.1, 0.001, ((near, 0.09), (r, 0.08))))], [("all", f, 0.05)],
+                {"all": (rows, np.column_stack([floor, M[rows, f]]))})
+
+    confirm = _workflow._confirm
+    shrink = {"proposal": (0.10, 0.01 if weak else 0.06), "rival": (0.095, 0.08)}  # (current model, control)
+
+    def confirm_forced(ctx, current, trial, c, where, d):
+        _, out = confirm(ctx, current, trial, c, where, d)
+        return True, {**out, "shrink": shrink[who[_unaligned_key(c)]][1 if current.extra else 0], "why": ""}
+
+    monkeypatch.setattr(_workflow, "_propose", propose)
+    monkeypatch.setattr(_workflow, "_confirm", confirm_forced)
+    d = DiscoveryConfig(seeds=1, folds=3, max_effects=1, floor_control=True, augment="input", offset_step_s=0.5)
+    res = discover(small_campaign_dir, ExperimentConfig(train=TrainConfig(max_steps=100), discovery=d),
+                   log=lambda m: None)
+
+    tries = res.rounds[res.rounds["round"] == 1]
+    assert list(tries.source) == (["selection", "rival"] if weak else ["selection"])
+    assert tries.confirmed.all() and tries.chosen.sum() == 1
+    named = tries[tries.chosen].iloc[0]
+    assert named.source == ("rival" if weak else "selection")
+    assert [e["key"] for e in res.effects] == [named.candidate]
+    if weak:
+        assert tries.cv_gain.tolist() == [0.1, 0.08] and tries.control_shrink.tolist() == [0.01, 0.08]
