@@ -378,9 +378,10 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
                 if ok and refinements and mode != "lag":
                     control, kept = control_for(added)
                 if control is not None:  # the same try on top of the floor control
-                    ok, on_control = _confirm(ctx, control, _augment(ctx, control, added, mode), added, where, d)
+                    ok, on_control = _confirm(ctx, control, _augment(ctx, control, added, mode), added, where, d,
+                                              slack=d.shrink_noise)
                     if not ok:  # or the try alone beats the control (`_floor_control`)
-                        ok, over_control = _confirm(ctx, control, trial, added, where, d)
+                        ok, over_control = _confirm(ctx, control, trial, added, where, d, slack=d.shrink_noise)
                     if not ok:
                         conf["why"] = (f"not confirmed on top of the floor control: {on_control['why']} (shrink "
                                        f"{on_control['shrink']:+.1%} (all), {on_control['local']:+.1%} "
