@@ -345,7 +345,9 @@ class DiscoveryConfig:
             this of the best are tied with it, as are those it does not beat at p < `alpha`
             (a sign-flip test by condition); of tied tries, the one the selection credits with
             the largest gain is named, those that lower the RMS by `min_shrink` over all
-            windows on top of their floor control first (`discovery._confirm._choose`).
+            windows on top of their floor control first (`discovery._confirm._choose`). Also the
+            rise of the RMS over all windows a try may cause on its floor control where it
+            gains twice `min_shrink` where it acts (`discovery._confirm._floor_control`).
         floor_refinements: knees and products of the model's own inputs that join each
             selection's floor covariates before any candidate is asked, the best first while it
             gains `min_gain` (`discovery._propose._propose`): the map's floor where ~200 peaks did not
