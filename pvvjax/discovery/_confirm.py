@@ -232,6 +232,12 @@ def _region(win: _Windows, full, before, after) -> dict:
     return {"where": ", ".join(kinds), "before_rms_g": rms(before), "after_rms_g": rms(after)}
 
 
+def _beyond_floor(control_shrink: float, min_shrink: float) -> bool:
+    """Whether a try lowers the RMS over all windows by `min_shrink` on top of its floor
+    control; a try without a control (NaN) counts as beyond: nothing says it is floor."""
+    return not control_shrink < min_shrink
+
+
 def _choose(tries, noise: float, alpha: float, min_shrink: float) -> int:
     """Which confirmed try of a round is named. tries: (shrink, selection gain, p, candidate,
     control shrink) of each: p the one-sided p-value that the try of the largest shrink
@@ -266,7 +272,7 @@ def _choose(tries, noise: float, alpha: float, min_shrink: float) -> int:
     """
     best = max(t[0] for t in tries)
     tied = [i for i, t in enumerate(tries) if t[0] >= best - noise or t[2] >= alpha]
-    beyond = {tries[i][3] for i in tied if not tries[i][4] < min_shrink}  # NaN: no control, kept
+    beyond = {tries[i][3] for i in tied if _beyond_floor(tries[i][4], min_shrink)}
     tied = [i for i in tied if tries[i][3] in beyond] or tied
     ranked = [i for i in tied if np.isfinite(tries[i][1])]
     pick = [max(ranked, key=lambda i: (tries[i][1], tries[i][0]))] if ranked else []
@@ -298,8 +304,7 @@ def _rival(named: int, tries, alternatives, channels, taken, min_shrink: float, 
     Returns:
         (column, gain) or None (a strong name, or no runner-up on other channels).
     """
-    controls = [t[4] for t in tries if t[3] == tries[named][3]]
-    if not all(c < min_shrink for c in controls):  # NaN (no control): not weak
+    if any(_beyond_floor(t[4], min_shrink) for t in tries if t[3] == tries[named][3]):
         return None
     for col, g in alternatives:
         if g >= min_gain and not source_channels(channels[col]) & set(taken):
