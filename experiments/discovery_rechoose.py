@@ -8,6 +8,7 @@ from the one logged: the worlds to re-run, and nothing else.
 
     python experiments/discovery_rechoose.py runs/discovery-benchmark [more folders]
         [--shrink-noise 0.02] [--alpha 0.01] [--min-shrink 0.05]   # over each folder's config
+        [--tie-share 0.5]
         [--csv OUT.csv]                                             # every round, recomputed
 
 `--min-shrink=-inf` turns off "beyond the floor first" (every tied candidate kept).
@@ -45,7 +46,8 @@ def tries(rows: pd.DataFrame) -> list[tuple]:
     return list(zip(rows.shrink, gain, rows.p_best_better, proposal, control))
 
 
-def rechoose(rounds: pd.DataFrame, noise: float, alpha: float, min_shrink: float) -> pd.DataFrame:
+def rechoose(rounds: pd.DataFrame, noise: float, alpha: float, min_shrink: float,
+             share: float = 0.0) -> pd.DataFrame:
     """Every round with a confirmed try (round 0, the lag test's, has its own rule): the try
     logged as chosen and the one `_choose` picks with these settings.
 
@@ -57,7 +59,7 @@ def rechoose(rounds: pd.DataFrame, noise: float, alpha: float, min_shrink: float
         c = g[g.confirmed.astype(bool)].reset_index(drop=True)
         if not len(c):
             continue
-        k = _choose(tries(c), noise, alpha, min_shrink)
+        k = _choose(tries(c), noise, alpha, min_shrink, share)
         logged = np.flatnonzero(c.chosen.astype(bool))
         label = lambda i: f"{c.name[i]} ({c.augment[i]})"  # noqa: E731
         out.append(dict(round=int(rnd), logged=label(logged[0]) if len(logged) else "",
@@ -71,6 +73,7 @@ def main():
     ap.add_argument("--shrink-noise", type=float)
     ap.add_argument("--alpha", type=float)
     ap.add_argument("--min-shrink", type=float, help="=-inf: no 'beyond the floor first'")
+    ap.add_argument("--tie-share", type=float, help="a config without it: its default")
     ap.add_argument("--csv", help="write every round, recomputed, here")
     args = ap.parse_args()
     tables = []
@@ -84,7 +87,8 @@ def main():
             noise = d.shrink_noise if args.shrink_noise is None else args.shrink_noise
             alpha = d.alpha if args.alpha is None else args.alpha
             min_shrink = d.min_shrink if args.min_shrink is None else args.min_shrink
-            tables.append(rechoose(rounds, noise, alpha, min_shrink).assign(world=str(path.parent)))
+            share = d.tie_share if args.tie_share is None else args.tie_share
+            tables.append(rechoose(rounds, noise, alpha, min_shrink, share).assign(world=str(path.parent)))
     if not tables:
         raise SystemExit(f"no rounds.csv under {args.folders}")
     table = pd.concat(tables, ignore_index=True)

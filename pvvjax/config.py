@@ -348,6 +348,11 @@ class DiscoveryConfig:
             windows on top of their floor control first (`discovery._confirm._choose`). Also the
             rise of the RMS over all windows a try may cause on its floor control where it
             gains twice `min_shrink` where it acts (`discovery._confirm._floor_control`).
+        tie_share: a try not beaten at p < `alpha` is tied only if its shrink is at least
+            this share of the best's (within `shrink_noise` it is tied regardless): the
+            sign-flip test by condition measures how consistently the best wins, not by
+            how much, and an effect of a few conditions cannot win consistently over many
+            (`discovery._confirm._choose`).
         floor_refinements: knees and products of the model's own inputs that join each
             selection's floor covariates before any candidate is asked, the best first while it
             gains `min_gain` (`discovery._propose._propose`): the map's floor where ~200 peaks did not
@@ -452,6 +457,7 @@ class DiscoveryConfig:
     parsimony: float = 1.0
     min_shrink: float = 0.05
     shrink_noise: float = 0.02
+    tie_share: float = 0.5
     floor_refinements: int = 4
     floor_control: bool = True
     augment: Literal["additive", "input", "auto"] = "auto"
@@ -511,6 +517,8 @@ class DiscoveryConfig:
         for name in ("min_gain", "min_shrink", "shrink_noise"):
             if not 0 <= getattr(self, name) < 1:
                 raise ValueError(f"discovery.{name} must lie in [0, 1), got {getattr(self, name)}")
+        if not 0 <= self.tie_share <= 1:
+            raise ValueError(f"discovery.tie_share must lie in [0, 1], got {self.tie_share}")
         if not self.lag_taus or min(self.lag_taus) <= 0:
             raise ValueError(f"discovery.lag_taus must be > 0, got {list(self.lag_taus)}")
         if any(not 0 < q < 1 for q in self.knee_quantiles):

@@ -53,6 +53,7 @@ def test_full_config_round_trip(tmp_path):
     ("[discovery]\nlag_slow_s = 0.0", "discovery.lag_slow_s must be > 0 s, got 0.0"),
     ("[discovery]\nlag_learn_steps = 0", "discovery.lag_learn_steps must be >= 1, got 0"),
     ("[discovery]\nshrink_noise = 1.5", "discovery.shrink_noise must lie in [0, 1), got 1.5"),
+    ("[discovery]\ntie_share = -0.1", "discovery.tie_share must lie in [0, 1], got -0.1"),
     ("[discovery]\nfloor_refinements = -1", "discovery.floor_refinements must be >= 0, got -1"),
     ("[discovery]\nalpha = 1.5", "discovery.alpha must lie in (0, 1), got 1.5"),
     ("[discovery]\nprobe_alpha = 0", "discovery.probe_alpha must lie in (0, 1), got 0"),

@@ -435,6 +435,23 @@ def test_confirmed_tries_the_retraining_cannot_tell_apart_are_told_apart_by_the_
     assert _choose_plain([(0.05, 0.2, 1.0)], 0.02, 0.01) == 0
 
 
+def test_a_try_far_below_the_best_shrink_is_not_tied_by_the_p_value_alone():
+    from pvvjax.discovery._confirm import _choose
+
+    nan = float("nan")
+    # Weight missing 52, round 1: blade loading (22.9 %) and a pitch-attitude knee (7.7 %,
+    # p = 0.012 that blade loading is better, the larger gain), each an input.
+    tries = [(0.229, 0.095, 1.0, "blade loading", 0.211), (0.077, 0.117, 0.012, "knee", 0.065)]
+    assert _choose(tries, 0.02, 0.01, 0.05) == 1  # without a share: tied, the knee's gain
+    assert _choose(tries, 0.02, 0.01, 0.05, 0.5) == 0  # a third of the best's shrink: not tied
+    assert _choose(tries, 0.02, 0.01, 0.05, 0.3) == 1
+    # Collective stall 51: 22.0 % against 17.1 % at p = 0.03 stays a tie the selection decides.
+    stall = [(0.220, 0.239, 1.0, "power", nan), (0.171, 0.250, 0.03, "collective", nan)]
+    assert _choose(stall, 0.02, 0.01, 0.05, 0.5) == 1
+    # Within shrink_noise a try is tied whatever the share.
+    assert _choose([(0.03, 0.05, 1.0, "a", nan), (0.012, 0.09, 0.001, "b", nan)], 0.02, 0.01, 0.05, 0.5) == 1
+
+
 def test_a_tie_with_a_try_the_selection_did_not_rank_is_decided_by_the_retraining():
     nan = float("nan")
     # The seeds + 4 resonance world's round 1: a collective knee (4.3 %, gain 0.071, p 0.0107),

@@ -427,7 +427,7 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
                 rounds[t.row]["p_best_better"] = p
             tries = [(t.shrink, np.nan if t.selected.source == "probe" else t.selected.gain, p, t.proposal,
                       t.control_shrink) for t, p in zip(confirmed, ps)]
-            return tries, _choose(tries, d.shrink_noise, d.alpha, d.min_shrink)
+            return tries, _choose(tries, d.shrink_noise, d.alpha, d.min_shrink, d.tie_share)
 
         for where, j, s in proposals:
             try_proposal(where, j, s)
