@@ -21,37 +21,15 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
-from discovery_benchmark import _campaign, scenario_config, scenario_configs  # noqa: E402
-from term_backfit_probe import candidate  # noqa: E402
+from term_backfit_probe import baseline, candidate, world  # noqa: E402
 
-from pvvjax.databases import DB_INPUTS  # noqa: E402
-from pvvjax.discovery import Model  # noqa: E402
 from pvvjax.discovery._confirm import _train_model  # noqa: E402
-from pvvjax.discovery._fits import _fit_offset  # noqa: E402
-from pvvjax.discovery._model import _replay, metrics, predictions  # noqa: E402
-from pvvjax.discovery._workflow import _context  # noqa: E402
-
-CONFIG = Path(__file__).parent / "configs" / "discovery" / "benchmark.toml"
-
-
-def world(job: str, nets: int):
-    """The campaign and config of SEED_OFFSET:SCENARIO, with `nets` nets per fold."""
-    offset, name = job.split(":")
-    scs, overrides = scenario_configs(CONFIG, int(offset))
-    sc = next((s for s in scs if s["name"] == name), None)
-    if sc is None:
-        raise SystemExit(f"unknown scenario {name!r}; one of {', '.join(s['name'] for s in scs)}")
-    cfg = scenario_config(sc, overrides)
-    return _campaign(sc["synth"]), dataclasses.replace(cfg, discovery=dataclasses.replace(cfg.discovery, seeds=nets))
+from pvvjax.discovery._model import metrics, predictions  # noqa: E402
 
 
 def ensemble_rms(campaign, cfg, term=None) -> tuple[float, float]:
     """The baseline's ensemble RMS, and the model's with `term` (candidate, coefficient) added."""
-    ctx = _context(campaign, cfg, lambda m: None)
-    inputs = tuple(DB_INPUTS[cfg.discovery.database])
-    ctx.replay_params = _train_model(ctx, Model({}, inputs), rows="peaks")
-    base = _fit_offset(ctx, Model(ctx.replay_params, inputs), with_lag=False)
-    win = _replay(ctx, base.offset_s)
+    ctx, base, win = baseline(campaign, cfg)
     before = metrics(predictions(ctx, base, win), win)["ensemble_rms_g"]
     if term is None:
         return before, np.nan

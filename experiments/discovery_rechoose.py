@@ -73,7 +73,8 @@ def main():
     ap.add_argument("--shrink-noise", type=float)
     ap.add_argument("--alpha", type=float)
     ap.add_argument("--min-shrink", type=float, help="=-inf: no 'beyond the floor first'")
-    ap.add_argument("--tie-share", type=float, help="a config without it: its default")
+    ap.add_argument("--tie-share", type=float,
+                    help="default: each folder's config (0.5 where it predates tie_share; 0 replays the old rule)")
     ap.add_argument("--csv", help="write every round, recomputed, here")
     args = ap.parse_args()
     tables = []

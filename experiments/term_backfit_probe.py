@@ -14,6 +14,7 @@ docs/discovery.md ("Backfitting a named term"):
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 import time
 from pathlib import Path
@@ -41,23 +42,38 @@ def candidate(key: str) -> Candidate:
     return Candidate(op, (ch,), {k: v if k == "transform" else float(v) for k, v in pars.items()})
 
 
+def world(job: str, nets: int | None = None):
+    """The campaign and config of SEED_OFFSET:SCENARIO of the benchmark config (with `nets`
+    nets per fold: the discovery's `seeds`)."""
+    offset, name = job.split(":")
+    scs, overrides = scenario_configs(CONFIG, int(offset))
+    sc = next((s for s in scs if s["name"] == name), None)
+    if sc is None:
+        raise SystemExit(f"unknown scenario {name!r}; one of {', '.join(s['name'] for s in scs)}")
+    cfg = scenario_config(sc, overrides)
+    if nets is not None:
+        cfg = dataclasses.replace(cfg, discovery=dataclasses.replace(cfg.discovery, seeds=nets))
+    return _campaign(sc["synth"]), cfg
+
+
+def baseline(campaign, cfg):
+    """The workflow's baseline: peak nets that calibrate the replay, the offset fitted, and
+    the held-out windows at it. Returns (context, model, windows)."""
+    ctx = _context(campaign, cfg, lambda m: None)
+    inputs = tuple(DB_INPUTS[cfg.discovery.database])
+    ctx.replay_params = _train_model(ctx, Model({}, inputs), rows="peaks")
+    base = _fit_offset(ctx, Model(ctx.replay_params, inputs), with_lag=False)
+    return ctx, base, _replay(ctx, base.offset_s)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("world", help="SEED_OFFSET:SCENARIO of the benchmark config")
     ap.add_argument("candidate", help="the term's candidate key, e.g. abs_rate:pitch_rate_dps:offset_s=0.5")
     ap.add_argument("--refits", type=int, default=4, help="refits after the workflow's one pass")
     args = ap.parse_args()
-    offset, name = args.world.split(":")
-    scs, overrides = scenario_configs(CONFIG, int(offset))
-    sc = next((s for s in scs if s["name"] == name), None)
-    if sc is None:
-        raise SystemExit(f"unknown scenario {name!r}; one of {', '.join(s['name'] for s in scs)}")
-    cfg, c, t0 = scenario_config(sc, overrides), candidate(args.candidate), time.perf_counter()
-    ctx = _context(_campaign(sc["synth"]), cfg, lambda m: None)
-    inputs = tuple(DB_INPUTS[cfg.discovery.database])
-    ctx.replay_params = _train_model(ctx, Model({}, inputs), rows="peaks")
-    base = _fit_offset(ctx, Model(ctx.replay_params, inputs), with_lag=False)  # as the workflow's baseline
-    win = _replay(ctx, base.offset_s)
+    (campaign, cfg), c, t0 = world(args.world), candidate(args.candidate), time.perf_counter()
+    ctx, base, win = baseline(campaign, cfg)
 
     def show(label, m):
         got = metrics(predictions(ctx, m, win), win)
