@@ -28,6 +28,7 @@ import numpy as np
 import pandas as pd
 
 from .campaign import Campaign
+from .effects import band
 from .features import derive_features
 
 __all__ = [
@@ -298,12 +299,12 @@ def values(c: Candidate, table: pd.DataFrame) -> np.ndarray:
     if c.operator == "product":
         return x(c.channels[0]) * x(c.channels[1])
     if c.operator == "resonance":
-        return np.exp(-0.5 * ((x(c.channels[0]) - p["center"]) / p["width"]) ** 2)
+        return band((x(c.channels[0]) - p["center"]) / p["width"], p.get("shape", "gaussian"), np)
     raise ValueError(f"operator {c.operator!r} is not evaluated from window means")
 
 
 def library(table: pd.DataFrame, *, model_inputs=(), knee_quantiles=(0.05, 0.1, 0.25, 0.5, 0.75, 0.9, 0.95),
-            resonance_channels=("rotor_rpm",), resonance_centers: int = 9,
+            resonance_channels=("rotor_rpm",), resonance_centers: int = 9, resonance_shape: str = "gaussian",
             product_channels=("advance_ratio", "blade_loading", "climb_rate_fpm", "mlf", "rotor_rpm",
                               "collective_pct")) -> list[Candidate]:
     """Every candidate of a window table.
@@ -316,6 +317,8 @@ def library(table: pd.DataFrame, *, model_inputs=(), knee_quantiles=(0.05, 0.1, 
     Args:
         table: `window_table` of the windows the candidates are fitted on.
         model_inputs: the model's inputs.
+        resonance_shape: the bands' shape (`effects.band`); a Lorentzian band carries it as
+            its parameter `shape`.
 
     Returns:
         list of `Candidate`.
@@ -343,7 +346,8 @@ def library(table: pd.DataFrame, *, model_inputs=(), knee_quantiles=(0.05, 0.1, 
             lo, hi = np.percentile(table[f"x:{k}"], [5, 95])
             centers = np.linspace(lo, hi, resonance_centers)
             width = float(centers[1] - centers[0]) if resonance_centers > 1 else float(hi - lo) or 1.0
-            out += [Candidate("resonance", (k,), {"center": float(c), "width": width}) for c in centers]
+            shape = {} if resonance_shape == "gaussian" else {"shape": resonance_shape}
+            out += [Candidate("resonance", (k,), {"center": float(c), "width": width, **shape}) for c in centers]
     prods = [k for k in product_channels if k in varying]
     for i, a in enumerate(prods):
         for b in prods[i + 1:]:

@@ -425,6 +425,10 @@ class DiscoveryConfig:
             the peaks: window nets (after a confirmed lag, or `train_rows = "windows"`)
             under-learn the lowest rotor speed, and a band there confirmed on two of three
             long-lag worlds. Off by default.
+        band_shape: the resonance bands' shape (`effects.band`): "gaussian", or "lorentzian",
+            the line shape of a lightly damped mode. Rotor speed is flown at a few settings
+            ~2.5 % apart, wider than a mode's band, so the band's tails decide what it predicts
+            at the settings next to the mode: a Gaussian's vanish there, a mode's do not.
         gain_unit: the unit, 1 / gain_unit, in which the nets train the gain of a resonance
             band that the selection proposed (its permutation test found the magnification
             in the residual): Adam moves every parameter by about one step, and in unit steps
@@ -477,6 +481,7 @@ class DiscoveryConfig:
     lag_trials_always: bool = False
     candidate_offsets_s: tuple[float, ...] = (0.5,)
     resonance_probe: bool = False
+    band_shape: Literal["gaussian", "lorentzian"] = "gaussian"
     gain_unit: float = 10.0
     probe_alpha: float = 0.05
 

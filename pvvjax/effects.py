@@ -12,7 +12,8 @@ its parameters so that a time constant or a knee can be fitted by gradient:
   sample-by-sample loop);
 - `threshold`: a hinge above (or below) a knee, softened over `softness`;
 - `product`: of two channels;
-- `resonance`: a Gaussian band of a channel (rotor speed) around a centre;
+- `resonance`: a band of a channel (rotor speed) around a centre, Gaussian or Lorentzian
+  (`band`);
 - `window`: an analysis-window artefact: the spread of a channel inside each window
   (computed from window means of x and x², see `window_spread`).
 
@@ -28,6 +29,7 @@ import jax.numpy as jnp
 __all__ = [
     "OPERATORS",
     "abs_rate",
+    "band",
     "lag",
     "product",
     "rate",
@@ -37,6 +39,7 @@ __all__ = [
 ]
 
 OPERATORS = ("input", "rate", "abs_rate", "lag", "threshold", "product", "resonance", "window")
+BAND_SHAPES = ("gaussian", "lorentzian")
 
 
 def rate(x, time):
@@ -97,9 +100,28 @@ def product(x1, x2):
     return x1 * x2
 
 
-def resonance(x, center, width):
-    """A Gaussian band exp(−½((x − center)/width)²), e.g. of rotor speed near a resonance."""
-    return jnp.exp(-0.5 * ((x - center) / width) ** 2)
+def band(u, shape: str = "gaussian", xp=jnp):
+    """A resonance band of the normalised distance u = (x − centre)/width: "gaussian"
+    exp(−½u²), or "lorentzian" 1/(1 + u²), the line shape of a lightly damped mode, whose
+    tails reach settings several widths away (rotor speeds a few percent apart).
+
+    Args:
+        u: array. shape: one of `BAND_SHAPES`. xp: the array module (`jnp`, or `np` for
+            float64 tables).
+
+    Returns:
+        array like u, 1 at the centre.
+    """
+    if shape == "gaussian":
+        return xp.exp(-0.5 * u * u)
+    if shape == "lorentzian":
+        return 1.0 / (1.0 + u * u)
+    raise ValueError(f"band shape must be one of {BAND_SHAPES}, got {shape!r}")
+
+
+def resonance(x, center, width, shape: str = "gaussian"):
+    """A band of a channel around a centre (`band`), e.g. of rotor speed near a resonance."""
+    return band((x - center) / width, shape)
 
 
 def window_spread(mean_x, mean_x2):

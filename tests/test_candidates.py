@@ -87,6 +87,15 @@ def test_library_leaves_out_the_model_inputs_as_plain_inputs(tiny):
     assert "input:pitch_rate_dps:transform=abs" in keys  # a signed channel's magnitude
     assert {x.operator for x in lib} >= {"input", "rate", "abs_rate", "window", "threshold"}
     assert all(x.operator != "resonance" or x.channels == ("rotor_rpm",) for x in lib)
+    # Lorentzian bands carry their shape (the Gaussian's keys stay as they were).
+    bands = [x for x in lib if x.operator == "resonance"]
+    assert bands and all("shape" not in x.parameters for x in bands)
+    lor = [x for x in library(tab, model_inputs=("advance_ratio",), resonance_shape="lorentzian")
+           if x.operator == "resonance"]
+    assert [x.parameters["shape"] for x in lor] == ["lorentzian"] * len(bands)
+    assert [x.parameters["center"] for x in lor] == [x.parameters["center"] for x in bands]
+    u = (tab["x:rotor_rpm"].to_numpy() - lor[0].parameters["center"]) / lor[0].parameters["width"]
+    np.testing.assert_allclose(values(lor[0], tab), 1.0 / (1.0 + u * u))
 
 
 def test_rate_over_a_revolution_follows_the_maneuver_not_the_sensor_noise():

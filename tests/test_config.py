@@ -46,6 +46,7 @@ def test_full_config_round_trip(tmp_path):
     ("[campaign.columns.V]\nto = 'airspeed_kt'\nunit = 'furlong/fortnight'", "unknown unit"),
     ("seed = true", "seed: expected an integer"),
     ("[discovery]\ntrain_rows = 'window'", "discovery.train_rows: 'window' is not one of 'peaks', 'windows'"),
+    ("[discovery]\nband_shape = 'cauchy'", "discovery.band_shape: 'cauchy' is not one of 'gaussian', 'lorentzian'"),
     ("[discovery]\ntrain_stride = 0", "discovery.train_stride must be >= 1"),
     ("[discovery]\nlag_test_taus = [0.5, 1.0]", "discovery.lag_test_taus must be > 0 with at least one above "
                                                "discovery.lag_fast_s (1.0), got [0.5, 1.0]"),

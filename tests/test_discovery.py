@@ -136,6 +136,12 @@ def test_refine_recovers_a_knee_and_a_band_and_keeps_a_band_in_its_grid_cell(mon
     # A band ten rpm away is another candidate: the refinement stays in the grid's cell.
     p = _refine(grid, 0.5 * band(258.0, 3.2) + noise, cands, yhat).parameters
     assert 270.7 - 3.2 <= p["center"] <= 270.7 + 3.2 and 1.6 <= p["width"] <= 6.4
+    # A Lorentzian band is refined as one (its shape kept), and recovers a Lorentzian mode.
+    lor = lambda c, w: yhat * 1.0 / (1.0 + ((rpm - c) / w) ** 2)  # noqa: E731
+    lgrid = replace(grid, parameters={**grid.parameters, "shape": "lorentzian"})
+    p = _refine(lgrid, 0.5 * lor(272.5, 2.5) + noise, cands, yhat).parameters
+    assert p["shape"] == "lorentzian"
+    assert p["center"] == pytest.approx(272.5, abs=0.05) and p["width"] == pytest.approx(2.5, rel=0.02)
 
 
 def test_a_refined_candidate_is_kept_only_if_the_selections_design_credits_it_with_more_gain():

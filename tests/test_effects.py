@@ -77,3 +77,16 @@ def test_resonance_product_and_window_spread():
     spread = float(E.window_spread(jnp.mean(x), jnp.mean(x * x)))
     assert spread == pytest.approx(np.std(x), rel=1e-5)
     assert set(E.OPERATORS) == {"input", "rate", "abs_rate", "lag", "threshold", "product", "resonance", "window"}
+
+
+def test_a_lorentzian_band_keeps_the_tails_a_gaussian_loses():
+    # A mode of half-width w: at 2 w the Lorentzian is 1/5, the Gaussian e^-2; at 5 w, 1/26
+    # and ~4e-6 (rotor-speed settings several widths from a mode still feel it).
+    rpm = jnp.array([258.0, 262.0, 268.0])
+    np.testing.assert_allclose(np.asarray(E.resonance(rpm, 258.0, 2.0, "lorentzian")), [1.0, 0.2, 1 / 26], rtol=1e-6)
+    np.testing.assert_allclose(np.asarray(E.resonance(rpm, 258.0, 2.0)), np.exp(-0.5 * np.array([0.0, 4.0, 25.0])),
+                               rtol=1e-6)
+    u = np.linspace(-3.0, 3.0, 7)
+    np.testing.assert_allclose(E.band(u, "lorentzian", np), np.asarray(E.band(jnp.asarray(u), "lorentzian")), rtol=1e-6)
+    with pytest.raises(ValueError, match="'cauchy'"):
+        E.band(u, "cauchy", np)

@@ -12,6 +12,7 @@ import optimistix as optx
 import pandas as pd
 
 from ..candidates import Candidate
+from ..effects import band
 from ..selection import _standardise, gains
 from ._model import Model, _Ctx, _grid, _lag_grid, _lag_windows, _replay, _selection_column, _Windows, predictions
 
@@ -30,13 +31,13 @@ def _band(theta, center, width):
 
 
 def _refine_residuals(theta, args):
-    x, r, yhat, B, softness, center, width, operator, above = args  # operator, above: static
+    x, r, yhat, B, softness, center, width, operator, above, shape = args  # operator, above, shape: static
     if operator == "threshold":
         u = (x - theta[0]) if above else (theta[0] - x)
         column = softness * jax.nn.softplus(u / softness)
     else:
         c, w = _band(theta, center, width)
-        column = yhat * jnp.exp(-0.5 * ((x - c) / w) ** 2)
+        column = yhat * band((x - c) / w, shape)
     A = jnp.column_stack([B, column])
     coef = jnp.linalg.lstsq(A, r)[0]
     return r - A @ coef
@@ -113,7 +114,8 @@ def _refine(c: Candidate, residual, cands: pd.DataFrame, prediction, base=None) 
     B = jnp.asarray(np.column_stack([np.ones(len(x)), *([] if base is None else [_standardise(np.asarray(base))])]))
     f32 = lambda v: jnp.asarray(v, jnp.float32)  # noqa: E731
     args = (x, jnp.asarray(residual), jnp.asarray(prediction), B, f32(p.get("softness", 1.0)),
-            f32(p.get("center", 0.0)), f32(p.get("width", 1.0)), c.operator, bool(p.get("above", True)))
+            f32(p.get("center", 0.0)), f32(p.get("width", 1.0)), c.operator, bool(p.get("above", True)),
+            p.get("shape", "gaussian"))
     th0 = jnp.array([p["knee"]]) if c.operator == "threshold" else jnp.zeros(2)
     sol = optx.least_squares(_refine_residuals, optx.LevenbergMarquardt(rtol=1e-6, atol=1e-10), th0, args,
                              max_steps=100, throw=False)

@@ -90,7 +90,8 @@ def _candidate_matrix(ctx: _Ctx, model: Model, win: _Windows, yhat, used_keys,
     win.prefetch([model.offset_s, *extra])
     for off in [model.offset_s, *extra]:
         table = win.at(off)  # `win.cands` at the model's own offset (`win` is its replay)
-        for c in library(table, model_inputs=taken, knee_quantiles=d.knee_quantiles):
+        for c in library(table, model_inputs=taken, knee_quantiles=d.knee_quantiles,
+                          resonance_shape=d.band_shape):
             if off != model.offset_s and c.operator not in _ALIGNED:
                 continue
             c = replace(c, parameters={**c.parameters, "offset_s": off})
