@@ -452,6 +452,24 @@ def _summary(df: pd.DataFrame) -> dict:
                 seconds=f"{df.seconds.min():.0f}-{df.seconds.max():.0f}")
 
 
+def by_scenario(tables: dict) -> pd.DataFrame:
+    """Each scenario over the seed offsets run: worlds, right first (nothing named, for a
+    null), attributable ≥ 0.5, a gap measured, the median attributable shrink and the median
+    seconds. tables: {offset: results}. Returns one row per scenario, in the config's order."""
+    df = pd.concat(list(tables.values()), ignore_index=True)
+    rows = []
+    for name, g in df.groupby("scenario", sort=False):
+        null = bool((g.hidden == "none").all())
+        a = pd.to_numeric(g.attributable_shrink, errors="coerce")
+        rows.append(dict(scenario=name, worlds=len(g),
+                         right_first=f"{int(g.correct_first.eq(True).sum())} / {len(g)}",
+                         attributable_at_least_half="" if null else f"{int((a >= 0.5).sum())} / {len(g)}",
+                         gap_measured="" if null else f"{int(a.notna().sum())} / {len(g)}",
+                         median_attributable=np.nan if null or a.isna().all() else float(np.nanmedian(a)),
+                         median_seconds=int(round(float(np.median(pd.to_numeric(g.seconds)))))))
+    return pd.DataFrame(rows)
+
+
 def _on_seeds_rms(hidden: pd.DataFrame) -> pd.Series:
     """The attributable shrink with the seeds' median RMS in place of the ensemble's."""
     return hidden.attributable_shrink.where(hidden.gap_metric != "ensemble_rms_g", hidden.attributable_rms)
@@ -502,6 +520,10 @@ def write_docs(tables: dict, config: str, offsets: str):
     s = summaries[min(tables)]
     summary = pd.DataFrame([dict(seeds=f"config + {off}", **v) for off, v in summaries.items()])
     reps = {off: t for off, t in tables.items() if off != min(tables)}
+    per_scenario = by_scenario(tables).rename(columns={
+        "right_first": "right first (nulls: clean)", "attributable_at_least_half": "attributable ≥ 0.5",
+        "gap_measured": "gap measured", "median_attributable": "median attributable",
+        "median_seconds": "median seconds"})
     rep_cols = ["scenario", "seed", "named", "correct_first", "truth_confirmed", "attributable_shrink",
                 "attributable_rms", "truth_gain",
                 "named_gain", "seconds"]
@@ -560,6 +582,13 @@ On the config's seeds:
 
 {markdown_table(df[cols], "{:.3g}", nan="")}
 """ + (f"""
+## By scenario, over the seed offsets {offsets}
+
+Where the misses lie: each scenario's worlds over every seed offset of the command (for a
+null scenario, "right first" counts the worlds where nothing was named).
+
+{markdown_table(per_scenario, "{:.3g}", nan="")}
+""" if reps else "") + (f"""
 ## Replication on other seeds
 
 The same scenarios, every seed shifted (other conditions, pilot inputs and scatter; the

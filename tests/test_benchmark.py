@@ -196,3 +196,22 @@ def test_a_saved_reference_baseline_reads_back_as_the_scoring_needs_it(bench, tm
     pd.testing.assert_frame_equal(got.windows, windows)
     pd.testing.assert_frame_equal(got.lag_test, lag)
     assert bench._load_reference(tmp_path / "none") is None
+
+
+def test_by_scenario_counts_each_scenarios_worlds_over_the_seed_offsets(bench):
+    def t(named_ok, attr, secs):
+        return pd.DataFrame(dict(scenario=["null-1", "lag", "mode"], hidden=["none", "dynamic_lag", "rotor_resonance"],
+                                 correct_first=named_ok, attributable_shrink=attr, seconds=secs))
+
+    tables = {0: bench._blank(t([True, True, False], [np.nan, 0.8, 0.0], [100.0, 200.0, 300.0])),
+              1: bench._blank(t([False, True, True], [np.nan, np.nan, 0.4], [110.0, 220.0, 330.0])),
+              2: bench._blank(t([True, True, True], [np.nan, 0.6, 0.7], [120.0, 240.0, 360.0]))}
+    got = bench.by_scenario(tables).set_index("scenario")
+    assert list(got.index) == ["null-1", "lag", "mode"]  # the config's order
+    assert got.loc["null-1", "right_first"] == "2 / 3" and got.loc["null-1", "attributable_at_least_half"] == ""
+    assert got.loc["lag", "right_first"] == "3 / 3" and got.loc["lag", "attributable_at_least_half"] == "2 / 3"
+    assert got.loc["lag", "gap_measured"] == "2 / 3"  # a world without a gap counts below 0.5
+    assert got.loc["lag", "median_attributable"] == pytest.approx(0.7)
+    assert got.loc["mode", "right_first"] == "2 / 3" and got.loc["mode", "attributable_at_least_half"] == "1 / 3"
+    assert got.loc["mode", "median_attributable"] == pytest.approx(0.4)
+    assert got.loc["mode", "median_seconds"] == 330 and np.isnan(got.loc["null-1", "median_attributable"])
