@@ -83,6 +83,16 @@ def matches(effect: dict, accept) -> bool:
     return False
 
 
+def find_scenario(path, seed_offset: int, name: str) -> tuple[dict, dict]:
+    """The scenario `name` of the config at `path`, its seed shifted by `seed_offset`, and the
+    config's [discovery] overrides (`scenario_configs`); an unknown name exits naming them."""
+    scs, overrides = scenario_configs(path, seed_offset)
+    sc = next((s for s in scs if s["name"] == name), None)
+    if sc is None:
+        raise SystemExit(f"unknown scenario {name!r}; one of {', '.join(s['name'] for s in scs)}")
+    return sc, overrides
+
+
 def scenario_config(sc: dict, overrides: dict) -> ExperimentConfig:
     """The config a scenario's discovery runs with (stored beside its results)."""
     dcfg = from_dict(DiscoveryConfig, {**overrides, **sc.get("discovery", {}), "database": sc["database"]})

@@ -20,7 +20,7 @@ import numpy as np
 import pandas as pd
 
 sys.path.insert(0, str(Path(__file__).parent))
-from discovery_benchmark import _campaign, scenario_configs  # noqa: E402
+from discovery_benchmark import _campaign, find_scenario  # noqa: E402
 
 from pvvjax._strict import from_dict  # noqa: E402
 from pvvjax.config import DiscoveryConfig, ExperimentConfig  # noqa: E402
@@ -36,10 +36,7 @@ CONFIG = Path(__file__).parent / "configs" / "discovery" / "benchmark.toml"
 
 def learned(offset: int, name: str) -> dict:
     """The learned lag of one benchmark world (its replay calibrated by its own peak nets)."""
-    scs, overrides = scenario_configs(CONFIG, offset)
-    sc = next((s for s in scs if s["name"] == name), None)
-    if sc is None:
-        raise SystemExit(f"unknown scenario {name!r}; one of {', '.join(s['name'] for s in scs)}")
+    sc, overrides = find_scenario(CONFIG, offset, name)
     cfg = ExperimentConfig(discovery=from_dict(DiscoveryConfig, {**overrides, "database": sc["database"]}))
     t0 = time.perf_counter()
     ctx = _context(_campaign(sc["synth"]), cfg, lambda m: None)

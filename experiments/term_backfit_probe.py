@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
-from discovery_benchmark import _campaign, scenario_config, scenario_configs  # noqa: E402
+from discovery_benchmark import _campaign, find_scenario, scenario_config  # noqa: E402
 
 from pvvjax.candidates import Candidate  # noqa: E402
 from pvvjax.databases import DB_INPUTS  # noqa: E402
@@ -46,10 +46,7 @@ def world(job: str, nets: int | None = None):
     """The campaign and config of SEED_OFFSET:SCENARIO of the benchmark config (with `nets`
     nets per fold: the discovery's `seeds`)."""
     offset, name = job.split(":")
-    scs, overrides = scenario_configs(CONFIG, int(offset))
-    sc = next((s for s in scs if s["name"] == name), None)
-    if sc is None:
-        raise SystemExit(f"unknown scenario {name!r}; one of {', '.join(s['name'] for s in scs)}")
+    sc, overrides = find_scenario(CONFIG, int(offset), name)
     cfg = scenario_config(sc, overrides)
     if nets is not None:
         cfg = dataclasses.replace(cfg, discovery=dataclasses.replace(cfg.discovery, seeds=nets))

@@ -215,3 +215,12 @@ def test_by_scenario_counts_each_scenarios_worlds_over_the_seed_offsets(bench):
     assert got.loc["mode", "right_first"] == "2 / 3" and got.loc["mode", "attributable_at_least_half"] == "1 / 3"
     assert got.loc["mode", "median_attributable"] == pytest.approx(0.4)
     assert got.loc["mode", "median_seconds"] == 330 and np.isnan(got.loc["null-1", "median_attributable"])
+
+
+def test_find_scenario_shifts_the_seed_and_names_the_scenarios_of_an_unknown_one(bench):
+    config = ROOT / "experiments" / "configs" / "discovery" / "benchmark.toml"
+    base, _ = bench.find_scenario(config, 0, "long-lag")
+    shifted, overrides = bench.find_scenario(config, 3, "long-lag")
+    assert shifted["seed"] == base["seed"] + 3 and overrides == bench.scenario_configs(config, 3)[1]
+    with pytest.raises(SystemExit, match="unknown scenario 'nope'; one of null-31, .*long-lag"):
+        bench.find_scenario(config, 0, "nope")
