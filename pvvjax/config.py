@@ -429,6 +429,10 @@ class DiscoveryConfig:
             the line shape of a lightly damped mode. Rotor speed is flown at a few settings
             ~2.5 % apart, wider than a mode's band, so the band's tails decide what it predicts
             at the settings next to the mode: a Gaussian's vanish there, a mode's do not.
+        resonance_input: also try a resonance band as an extra network input, beside its
+            gain on the nets' output (the better confirmed try is kept, as for `augment =
+            "auto"`). Where the nets already learned most of a mode through rotor speed, what
+            is left is not proportional to their prediction, and a gain cannot undo it.
         gain_unit: the unit, 1 / gain_unit, in which the nets train the gain of a resonance
             band that the selection proposed (its permutation test found the magnification
             in the residual): Adam moves every parameter by about one step, and in unit steps
@@ -482,6 +486,7 @@ class DiscoveryConfig:
     candidate_offsets_s: tuple[float, ...] = (0.5,)
     resonance_probe: bool = False
     band_shape: Literal["gaussian", "lorentzian"] = "gaussian"
+    resonance_input: bool = False
     gain_unit: float = 10.0
     probe_alpha: float = 0.05
 

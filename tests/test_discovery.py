@@ -959,3 +959,15 @@ def test_a_weak_name_brings_its_runner_up_on_other_channels_which_is_retrained_a
     assert [e["key"] for e in res.effects] == [named.candidate]
     if weak:
         assert tries.cv_gain.tolist() == [0.1, 0.08] and tries.control_shrink.tolist() == [0.01, 0.08]
+
+
+def test_each_operator_is_added_in_the_ways_the_config_allows():
+    from pvvjax.config import DiscoveryConfig
+    from pvvjax.discovery._workflow import _modes
+
+    d = DiscoveryConfig()
+    assert _modes("lag", d) == ("lag",) and _modes("resonance", d) == ("gain",)
+    assert _modes("threshold", d) == ("additive", "input")
+    assert _modes("resonance", DiscoveryConfig(resonance_input=True)) == ("gain", "input")
+    assert _modes("abs_rate", DiscoveryConfig(augment="input")) == ("input",)
+    assert _modes("lag", DiscoveryConfig(augment="additive", resonance_input=True)) == ("lag",)

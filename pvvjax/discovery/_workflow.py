@@ -196,6 +196,18 @@ def _context(campaign: Campaign, cfg: ExperimentConfig, log) -> _Ctx:
                 window_table(campaign, train_iv, d.exclude_channels), replay_params={})
 
 
+def _modes(operator: str, d) -> tuple[str, ...]:
+    """The ways a proposal of `operator` is added and retrained (`_confirm._augment`): a lag
+    refitted in the replay, a band as a gain on the nets' output (and, with
+    `resonance_input`, as an extra input too), any other candidate as `augment` says
+    ("auto": an additive term and an extra input)."""
+    if operator == "lag":
+        return ("lag",)
+    if operator == "resonance":
+        return ("gain", "input") if d.resonance_input else ("gain",)
+    return ("additive", "input") if d.augment == "auto" else (d.augment,)
+
+
 def _public_parameters(c: Candidate) -> dict:
     p = dict(c.parameters)
     p.pop("softness", None)
@@ -347,8 +359,7 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
                 log(f"  {lib[j].name}: refined to {refined.name}, tried already")
                 return
             tried.add(refined.key)
-            modes = {"lag": ("lag",), "resonance": ("gain",)}.get(
-                refined.operator, ("additive", "input") if d.augment == "auto" else (d.augment,))
+            modes = _modes(refined.operator, d)
             alts = "; ".join(f"{lib[a].name} ({g:.3f})" for a, g in s.alternatives)
             for mode in modes:
                 c = refined
