@@ -100,20 +100,20 @@ def product(x1, x2):
     return x1 * x2
 
 
-def band(u, shape: str = "gaussian", xp=jnp):
+def band(u, shape: str = "gaussian", xp=None):
     """A resonance band of the normalised distance u = (x − centre)/width: "gaussian"
     exp(−½u²), or "lorentzian" 1/(1 + u²), the line shape of a lightly damped mode, whose
     tails reach settings several widths away (rotor speeds a few percent apart).
 
     Args:
-        u: array. shape: one of `BAND_SHAPES`. xp: the array module (`jnp`, or `np` for
-            float64 tables).
+        u: array. shape: one of `BAND_SHAPES`. xp: the array module (default `jnp`; `np`
+            for float64 tables).
 
     Returns:
         array like u, 1 at the centre.
     """
     if shape == "gaussian":
-        return xp.exp(-0.5 * u * u)
+        return (jnp if xp is None else xp).exp(-0.5 * u * u)
     if shape == "lorentzian":
         return 1.0 / (1.0 + u * u)
     raise ValueError(f"band shape must be one of {BAND_SHAPES}, got {shape!r}")
