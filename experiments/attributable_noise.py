@@ -21,8 +21,9 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
-from term_backfit_probe import baseline, candidate, world  # noqa: E402
+from term_backfit_probe import baseline, world  # noqa: E402
 
+from pvvjax.candidates import from_key  # noqa: E402
 from pvvjax.discovery._confirm import _train_model  # noqa: E402
 from pvvjax.discovery._model import metrics, predictions  # noqa: E402
 
@@ -49,7 +50,7 @@ def main():
     ap.add_argument("--nets", type=int, default=4, help="nets per fold (the config's `seeds`)")
     args = ap.parse_args()
     (hc, hcfg), (nc, ncfg) = world(args.hidden, args.nets), world(args.null, args.nets)
-    term = (candidate(args.candidate), args.coefficient)
+    term = (from_key(args.candidate), args.coefficient)
     for r in range(args.runs):
         before, after = ensemble_rms(hc, dataclasses.replace(hcfg, seed=hcfg.seed + 1000 * r), term)
         null, _ = ensemble_rms(nc, dataclasses.replace(ncfg, seed=ncfg.seed + 1000 * r))

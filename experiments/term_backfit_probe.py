@@ -24,7 +24,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).parent))
 from discovery_benchmark import _campaign, find_scenario, scenario_config  # noqa: E402
 
-from pvvjax.candidates import Candidate  # noqa: E402
+from pvvjax.candidates import from_key  # noqa: E402
 from pvvjax.databases import DB_INPUTS  # noqa: E402
 from pvvjax.discovery import Model  # noqa: E402
 from pvvjax.discovery._confirm import _augment, _fit_term, _train_model  # noqa: E402
@@ -33,13 +33,6 @@ from pvvjax.discovery._model import _replay, metrics, predictions  # noqa: E402
 from pvvjax.discovery._workflow import _context  # noqa: E402
 
 CONFIG = Path(__file__).parent / "configs" / "discovery" / "benchmark.toml"
-
-
-def candidate(key: str) -> Candidate:
-    """operator:channel[:name=value,...] (a `Candidate.key` of one channel)."""
-    op, ch, *rest = key.split(":")
-    pars = dict(kv.split("=") for kv in rest[0].split(",")) if rest else {}
-    return Candidate(op, (ch,), {k: v if k == "transform" else float(v) for k, v in pars.items()})
 
 
 def world(job: str, nets: int | None = None):
@@ -69,7 +62,7 @@ def main():
     ap.add_argument("candidate", help="the term's candidate key, e.g. abs_rate:pitch_rate_dps:offset_s=0.5")
     ap.add_argument("--refits", type=int, default=4, help="refits after the workflow's one pass")
     args = ap.parse_args()
-    (campaign, cfg), c, t0 = world(args.world), candidate(args.candidate), time.perf_counter()
+    (campaign, cfg), c, t0 = world(args.world), from_key(args.candidate), time.perf_counter()
     ctx, base, win = baseline(campaign, cfg)
 
     def show(label, m):

@@ -35,6 +35,7 @@ __all__ = [
     "Candidate",
     "EXCLUDED_CHANNELS",
     "describe",
+    "from_key",
     "interval_means",
     "library",
     "sample_series",
@@ -94,6 +95,35 @@ class Candidate:
 
 def _fmt(v):
     return f"{v:.4g}" if isinstance(v, float) else str(v)
+
+
+def from_key(key: str) -> Candidate:
+    """The candidate of a `Candidate.key` (as the rounds table and discovery.json keep it):
+    operator:channel[*channel]:name=value,... Values are read back as written, floats to
+    four significant digits.
+
+    Raises:
+        ValueError: naming the key, if it is not operator:channels[:parameters].
+    """
+    parts = key.split(":")
+    if len(parts) not in (2, 3) or not parts[0]:
+        raise ValueError(f"candidate key {key!r}: expected operator:channels[:name=value,...]")
+    pars = {}
+    for item in parts[2].split(",") if len(parts) == 3 and parts[2] else ():
+        name, eq, text = item.partition("=")
+        if not eq or not name:
+            raise ValueError(f"candidate key {key!r}: parameter {item!r} is not name=value")
+        pars[name] = _read(text)
+    return Candidate(parts[0], tuple(ch for ch in parts[1].split("*") if ch), pars)
+
+
+def _read(text: str):
+    if text in ("True", "False"):
+        return text == "True"
+    try:
+        return float(text)
+    except ValueError:
+        return text
 
 
 def describe(c: Candidate) -> str:

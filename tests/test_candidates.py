@@ -5,7 +5,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pvvjax.candidates import Candidate, describe, interval_means, library, values, window_table
+from pvvjax.candidates import Candidate, describe, from_key, interval_means, library, values, window_table
 
 
 def test_interval_means_integrate_the_linear_interpolant():
@@ -74,6 +74,29 @@ def test_operators_and_names():
     assert describe(Candidate("abs_rate", ("pitch_rate_dps",))) == "pitch acceleration magnitude"
     assert describe(th) == "collective knee (above 62)"
     assert th.key == "threshold:collective_pct:above=True,knee=62,softness=1e-06"
+
+
+def test_from_key_reads_back_every_operators_key(tiny):
+    lib = library(window_table(_campaign(tiny), pd.DataFrame({"counter": [_campaign(tiny).names[0]] * 3,
+                                                               "t0": [0.5, 1.5, 2.5], "t1": [2.5, 3.5, 4.5]})))
+    more = [Candidate("lag", (), {"tau_s": 2.0}), Candidate("product", ("collective_pct", "advance_ratio")),
+            Candidate("threshold", ("shaft_power_hp",), {"knee": 1339.2, "above": False, "softness": 35.11}),
+            Candidate("resonance", ("rotor_rpm",), {"center": 270.7, "width": 3.222, "gain_unit": 10.0,
+                                                    "shape": "lorentzian"})]
+    for c in [*lib, *more]:
+        back = from_key(c.key)
+        assert (back.operator, back.channels, back.key) == (c.operator, c.channels, c.key)
+        for k, v in c.parameters.items():  # floats to the key's four digits, flags and words as they were
+            assert type(back.parameters[k]) is (float if isinstance(v, (int, float)) and not isinstance(v, bool)
+                                                else type(v))
+            if isinstance(v, float):
+                assert back.parameters[k] == pytest.approx(v, rel=5e-4)
+            else:
+                assert back.parameters[k] == v
+    assert from_key("lag::tau_s=3").channels == ()
+    for bad in ("threshold", "threshold:x:knee", ":x", "a:b:c:d"):
+        with pytest.raises(ValueError, match="candidate key"):
+            from_key(bad)
 
 
 def test_library_leaves_out_the_model_inputs_as_plain_inputs(tiny):

@@ -1,0 +1,53 @@
+"""Re-measuring a finished discovery with another ensemble (experiments/attributable_ensemble.py):
+its models rebuilt from the folder `write_discovery` leaves reproduce the discovery's own
+before and after, so that more nets per fold change only the training noise."""
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).parents[1]
+
+
+@pytest.fixture(scope="module")
+def ae():
+    sys.path.insert(0, str(ROOT / "experiments"))
+    path = ROOT / "experiments" / "attributable_ensemble.py"
+    spec = importlib.util.spec_from_file_location("attributable_ensemble", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+@pytest.mark.parametrize("augment", ["additive", "input"])
+def test_a_rebuilt_discovery_reproduces_its_before_and_after(ae, monkeypatch, tmp_path, small_campaign_dir, augment):
+    from pvvjax.campaign import load_campaign
+    from pvvjax.config import DiscoveryConfig, ExperimentConfig, TrainConfig
+    from pvvjax.discovery import _workflow, discover
+    from pvvjax.discovery_report import write_discovery
+    from pvvjax.selection import Selected
+
+    def propose(win, yhat, resid, M, rows, own, floor, d, seed, complexity, keys, is_floor):
+        j = next(i for i, k in enumerate(keys) if k.startswith("abs_rate:pitch_rate_dps") and not is_floor[i])
+        return [("all", j, Selected(j, 0.1, 0.1, 0.001))], [], {"all": (rows, floor)}
+
+    monkeypatch.setattr(_workflow, "_propose", propose)  # one effect named, the rest the workflow's own
+    confirm = _workflow._confirm
+    monkeypatch.setattr(_workflow, "_confirm", lambda *a, **k: (True, confirm(*a, **k)[1]))
+    campaign = load_campaign(small_campaign_dir)
+    d = DiscoveryConfig(seeds=2, folds=3, max_effects=1, augment=augment, offset_step_s=0.5)
+    cfg = ExperimentConfig(train=TrainConfig(max_steps=100), discovery=d)
+    res = discover(campaign, cfg, log=lambda m: None)
+    assert [e["operator"] for e in res.effects] == ["abs_rate"] and res.after != res.before
+    write_discovery(res, tmp_path, cfg)
+
+    ctx, base, after, _ = ae.rebuild(campaign, cfg, tmp_path, log=lambda m: None)
+    assert after.extra if augment == "input" else after.terms
+    for model, want in ((base, res.before), (after, res.after)):
+        got = ae.measure(ctx, model)
+        for k in ("ensemble_rms_g", "rms_g", "peak_error_g"):
+            assert got[k] == pytest.approx(want[k], rel=1e-9), k
+    assert np.isnan(ae.measure(ctx, base)["region_g"])  # no kinds given
