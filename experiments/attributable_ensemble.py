@@ -197,8 +197,17 @@ def evaluate_offset(out: Path, offset: int, nets: int, only=(), log=print) -> pd
         log(f"  {row.scenario}: {metric} before {new['before']:.4f}, after {new['after']:.4f}, null {new['null']:.4f}: "
             f"attributable {new['attributable']:.2f} (table {new['table_attributable']:.2f}); "
             f"{new['seconds']:.0f} s")
-        pd.DataFrame(rows).to_csv(folder / f"attributable_nets{nets}.csv", index=False)
+        _save(pd.DataFrame(rows), folder / f"attributable_nets{nets}.csv")
     return pd.DataFrame(rows)
+
+
+def _save(df: pd.DataFrame, path: Path) -> None:
+    """`df` into the table at `path`: its scenarios' rows replaced, the others kept (the
+    scenarios of one offset can be re-measured by several runs, one after another)."""
+    if path.exists():
+        old = pd.read_csv(path)
+        df = pd.concat([old[~old.scenario.isin(df.scenario)], df], ignore_index=True)
+    df.to_csv(path, index=False)
 
 
 def main():

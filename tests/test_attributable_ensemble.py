@@ -51,3 +51,13 @@ def test_a_rebuilt_discovery_reproduces_its_before_and_after(ae, monkeypatch, tm
         for k in ("ensemble_rms_g", "rms_g", "peak_error_g"):
             assert got[k] == pytest.approx(want[k], rel=1e-9), k
     assert np.isnan(ae.measure(ctx, base)["region_g"])  # no kinds given
+
+
+def test_a_second_run_replaces_its_scenarios_rows_and_keeps_the_others(ae, tmp_path):
+    import pandas as pd
+
+    path = tmp_path / "attributable_nets16.csv"
+    ae._save(pd.DataFrame(dict(scenario=["roll-rate", "sideslip"], attributable=[0.8, 0.9])), path)
+    ae._save(pd.DataFrame(dict(scenario=["long-lag", "sideslip"], attributable=[1.1, 0.7])), path)
+    got = pd.read_csv(path).set_index("scenario").attributable.to_dict()
+    assert got == {"roll-rate": 0.8, "long-lag": 1.1, "sideslip": 0.7}
