@@ -224,3 +224,23 @@ def test_find_scenario_shifts_the_seed_and_names_the_scenarios_of_an_unknown_one
     assert shifted["seed"] == base["seed"] + 3 and overrides == bench.scenario_configs(config, 3)[1]
     with pytest.raises(SystemExit, match="unknown scenario 'nope'; one of null-31, .*long-lag"):
         bench.find_scenario(config, 0, "nope")
+
+
+def test_remeasured_worlds_are_counted_beside_the_tables_own(bench, tmp_path):
+    def rows(new, old):
+        return pd.DataFrame(dict(scenario=["lag", "mode"], attributable=new, table_attributable=old))
+
+    (tmp_path / "seed+2").mkdir()
+    rows([0.9, 0.6], [np.nan, 0.4]).to_csv(tmp_path / "attributable_nets16.csv", index=False)
+    rows([np.nan, 0.0], [0.8, 0.0]).to_csv(tmp_path / "seed+2" / "attributable_nets16.csv", index=False)
+    found = bench.remeasured(tmp_path, [0, 1, 2])
+    assert list(found) == [16] and list(found[16]) == [0, 2]  # no file for offset 1
+    got = bench.remeasured_by_scenario(found[16]).set_index("scenario")
+    assert list(got.index) == ["lag", "mode", "all"]
+    assert got.loc["lag", "at_least_half"] == "1 / 1" and got.loc["lag", "gap_measured"] == "1 / 1"
+    assert got.loc["mode", "at_least_half"] == "0 / 1" and got.loc["mode", "median"] == "0.20 / 0.30"
+    assert got.loc["all", "worlds"] == 4 and got.loc["all", "at_least_half"] == "1 / 2"
+    text = bench._remeasured_section({16: {off: f.assign(seed=1, named="x", gap_metric="g", before=0.05, after=0.04,
+                                                         null=0.03, seconds=100.0) for off, f in found[16].items()}})
+    assert "## The attributable shrink with 16 nets per fold" in text
+    assert "Worlds on the other side of 0.5 (3)" in text  # lag: no gap -> 0.9 and 0.8 -> no gap; mode 0.4 -> 0.6
