@@ -70,8 +70,10 @@ def chosen_rounds(folder: Path) -> pd.DataFrame:
     return r[r.chosen.fillna(False).astype(bool)].sort_values("round")
 
 
-def rebuild(campaign, cfg, folder: Path, log=print) -> tuple:
-    """A finished discovery's models retrained with `cfg` (its nets per fold).
+def rebuild(campaign, cfg, folder: Path, log=print, each=None) -> tuple:
+    """A finished discovery's models retrained with `cfg` (its nets per fold). `each(round,
+    model)`, if given, sees the model each round started from (and the final one, as the
+    round after the last named).
 
     Returns:
         (context, baseline, after, lag reference): the workflow's baseline (the lag test's
@@ -86,8 +88,11 @@ def rebuild(campaign, cfg, folder: Path, log=print) -> tuple:
     base = _fit_offset(ctx, Model(ctx.replay_params, inputs), with_lag=False)
     if d.train_rows == "windows":
         base = base._replace(params=_train_model(ctx, base))
-    current = base
+    current, last = base, 0
     for r in chosen_rounds(folder).itertuples():
+        if each is not None:
+            each(r.round, current)
+        last = r.round
         log(f"    round {r.round}: {r.candidate} ({r.augment})")
         if r.round == 0:  # the lag test's: before its reference, after its slow lag
             ref, slow = _lag_row(folder, "reference"), _lag_row(folder, "slow")
@@ -97,6 +102,8 @@ def rebuild(campaign, cfg, folder: Path, log=print) -> tuple:
             current = _fit_offset(ctx, current, with_lag=True)
         else:
             current = _augment(ctx, current, from_key(r.candidate), r.augment)
+    if each is not None:
+        each(last + 1, current)
 
     def lag_reference():
         ref = _lag_row(folder, "reference")

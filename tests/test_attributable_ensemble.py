@@ -44,8 +44,11 @@ def test_a_rebuilt_discovery_reproduces_its_before_and_after(ae, monkeypatch, tm
     assert [e["operator"] for e in res.effects] == ["abs_rate"] and res.after != res.before
     write_discovery(res, tmp_path, cfg)
 
-    ctx, base, after, _ = ae.rebuild(campaign, cfg, tmp_path, log=lambda m: None)
+    starts = {}
+    ctx, base, after, _ = ae.rebuild(campaign, cfg, tmp_path, log=lambda m: None,
+                                     each=lambda rnd, model: starts.setdefault(rnd, model))
     assert after.extra if augment == "input" else after.terms
+    assert list(starts) == [1, 2] and starts[1] is base and starts[2] is after  # each round's start
     for model, want in ((base, res.before), (after, res.after)):
         got = ae.measure(ctx, model)
         for k in ("ensemble_rms_g", "rms_g", "peak_error_g"):

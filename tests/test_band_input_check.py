@@ -1,0 +1,36 @@
+"""The check of whether `resonance_input` would change a finished benchmark world
+(experiments/band_input_check.py): which tries of a world's rounds it retrains."""
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import pandas as pd
+
+ROOT = Path(__file__).parents[1]
+
+
+def _module():
+    sys.path.insert(0, str(ROOT / "experiments"))
+    path = ROOT / "experiments" / "band_input_check.py"
+    spec = importlib.util.spec_from_file_location("band_input_check", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_each_band_of_each_round_is_checked_once(tmp_path):
+    bic = _module()
+    band, other = "resonance:rotor_rpm:center=270.7,width=3.222", "resonance:rotor_rpm:center=244.9,width=3.222"
+    pd.DataFrame(dict(round=[1, 1, 1, 2, 2], operator=["resonance", "resonance", "input", "resonance", "resonance"],
+                      proposal=[band, band, "input:nz_g", band, other],
+                      augment=["gain", "input", "input", "gain", "gain"])).to_csv(tmp_path / "rounds.csv", index=False)
+    got = bic.band_rows(tmp_path)
+    assert list(zip(got["round"], got.proposal)) == [(1, band), (2, band), (2, other)]
+    # a table without the proposal column: the band as tried, without its gain's fit
+    pd.DataFrame(dict(round=[1], operator=["resonance"], augment=["gain"],
+                      candidate=["resonance:rotor_rpm:center=270.7,gain=1.2,gain_unit=10,width=3.222"])).to_csv(
+        tmp_path / "rounds.csv", index=False)
+    assert list(bic.band_rows(tmp_path).proposal) == [band]
+    (tmp_path / "rounds.csv").write_text("\n")  # a reference baseline's: no rounds
+    assert bic.band_rows(tmp_path).empty and bic.band_rows(tmp_path / "missing").empty
