@@ -124,13 +124,18 @@ def measure(ctx, model: Model, kinds=()) -> dict:
     return out
 
 
+# Settings that change only which tries a round makes, not how a named effect is trained:
+# a world run without them rebuilds the same.
+_CHOICE_ONLY = frozenset({"resonance_input"})
+
+
 def _other_settings(stored: dict | None, d: DiscoveryConfig) -> dict:
     """The [discovery] settings a world's folder was run with that differ from `d`, by name:
     (then, now). A setting added since must be at its default (it did not exist then)."""
     was, now = (stored or {}).get("discovery", {}), to_dict(d)
     default = to_dict(DiscoveryConfig(database=d.database))
     return {k: (was.get(k, f"(none; default {default[k]!r})"), v) for k, v in now.items()
-            if v != was.get(k, default[k])}
+            if v != was.get(k, default[k]) and k not in _CHOICE_ONLY}
 
 
 def _kinds(row) -> tuple:

@@ -64,3 +64,14 @@ def test_a_second_run_replaces_its_scenarios_rows_and_keeps_the_others(ae, tmp_p
     ae._save(pd.DataFrame(dict(scenario=["long-lag", "sideslip"], attributable=[1.1, 0.7])), path)
     got = pd.read_csv(path).set_index("scenario").attributable.to_dict()
     assert got == {"roll-rate": 0.8, "long-lag": 1.1, "sideslip": 0.7}
+
+
+def test_a_folder_run_with_other_training_settings_is_refused_but_not_one_before_a_choice_setting(ae):
+    from pvvjax._strict import to_dict
+    from pvvjax.config import DiscoveryConfig
+
+    now = DiscoveryConfig(folds=5, resonance_input=True)
+    then = {k: v for k, v in to_dict(now).items() if k not in ("resonance_input", "tie_share")}
+    assert ae._other_settings({"discovery": then}, now) == {}  # added since, at its default or choice-only
+    assert ae._other_settings({"discovery": {**then, "folds": 3}}, now) == {"folds": (3, 5)}
+    assert set(ae._other_settings({"discovery": then}, DiscoveryConfig(folds=5, tie_share=0.25))) == {"tie_share"}
