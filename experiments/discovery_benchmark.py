@@ -547,7 +547,9 @@ def _remeasured_section(found: dict) -> str:
     for nets, frames in sorted(found.items()):
         df = pd.concat(list(frames.values()), ignore_index=True)
         new, old = pd.to_numeric(df.attributable), pd.to_numeric(df.table_attributable)
-        flipped = df[(new >= 0.5) != (old >= 0.5)]
+        flipped = df[(new >= 0.5) != (old >= 0.5)].copy()
+        for c in ("attributable", "table_attributable"):  # four decimals, rounded down: 0.49999 is below 0.5
+            flipped[c] = [f"{np.floor(v * 1e4) / 1e4:.4f}" if np.isfinite(v) else "" for v in pd.to_numeric(flipped[c])]
         per = remeasured_by_scenario(frames).rename(columns={
             "at_least_half": "attributable ≥ 0.5 (4 / %d nets)" % nets, "gap_measured": f"gap measured (4 / {nets})",
             "median": f"median attributable (4 / {nets})"})
