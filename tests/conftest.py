@@ -135,3 +135,18 @@ def rbf_nets(dbs, database: str, n: int = 3, centers: int = 16):
     params = [jax.tree.map(np.asarray, rbf_fit(jax.random.key(s), x, y, centers, in_mask=in_mask)) for s in range(n)]
     db = dbs[database][list(DB_INPUTS[database])]
     return params, (db.min().to_numpy(), db.max().to_numpy())
+
+
+def experiment(name: str):
+    """The module of experiments/NAME.py (a script, not a package), with the experiments
+    folder importable as its own imports expect."""
+    import importlib.util
+    import sys
+
+    folder = Path(__file__).parents[1] / "experiments"
+    if str(folder) not in sys.path:
+        sys.path.insert(0, str(folder))
+    spec = importlib.util.spec_from_file_location(name, folder / f"{name}.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod

@@ -2,24 +2,14 @@
 its models rebuilt from the folder `write_discovery` leaves reproduce the discovery's own
 before and after, so that more nets per fold change only the training noise."""
 
-import importlib.util
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
-
-ROOT = Path(__file__).parents[1]
+from conftest import experiment
 
 
 @pytest.fixture(scope="module")
 def ae():
-    sys.path.insert(0, str(ROOT / "experiments"))
-    path = ROOT / "experiments" / "attributable_ensemble.py"
-    spec = importlib.util.spec_from_file_location("attributable_ensemble", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return experiment("attributable_ensemble")
 
 
 @pytest.mark.parametrize("augment", ["additive", "input"])

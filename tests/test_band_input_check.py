@@ -1,26 +1,12 @@
 """The check of whether `resonance_input` would change a finished benchmark world
 (experiments/band_input_check.py): which tries of a world's rounds it retrains."""
 
-import importlib.util
-import sys
-from pathlib import Path
-
 import pandas as pd
-
-ROOT = Path(__file__).parents[1]
-
-
-def _module():
-    sys.path.insert(0, str(ROOT / "experiments"))
-    path = ROOT / "experiments" / "band_input_check.py"
-    spec = importlib.util.spec_from_file_location("band_input_check", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+from conftest import experiment
 
 
 def test_each_band_of_each_round_is_checked_once(tmp_path):
-    bic = _module()
+    bic = experiment("band_input_check")
     band, other = "resonance:rotor_rpm:center=270.7,width=3.222", "resonance:rotor_rpm:center=244.9,width=3.222"
     pd.DataFrame(dict(round=[1, 1, 1, 2, 2], operator=["resonance", "resonance", "input", "resonance", "resonance"],
                       proposal=[band, band, "input:nz_g", band, other],
