@@ -31,7 +31,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 from discovery_benchmark import _GAP_COLUMNS, _campaign, _closed, scenario_config, scenario_configs  # noqa: E402
 
 from pvvjax._strict import to_dict  # noqa: E402
-from pvvjax.candidates import from_key  # noqa: E402
+from pvvjax.candidates import Candidate, from_key  # noqa: E402
 from pvvjax.config import DiscoveryConfig  # noqa: E402
 from pvvjax.databases import DB_INPUTS  # noqa: E402
 from pvvjax.discovery import Model  # noqa: E402
@@ -70,6 +70,13 @@ def chosen_rounds(folder: Path) -> pd.DataFrame:
     return r[r.chosen.fillna(False).astype(bool)].sort_values("round")
 
 
+def named_candidate(row) -> Candidate:
+    """A rounds-table row's candidate, its parameters at full precision where the table keeps
+    them (a table before that column: the key's four digits)."""
+    exact = getattr(row, "parameters", None)
+    return from_key(row.candidate, exact if isinstance(exact, str) else None)
+
+
 def rebuild(campaign, cfg, folder: Path, log=print, each=None) -> tuple:
     """A finished discovery's models retrained with `cfg` (its nets per fold). `each(round,
     model)`, if given, sees the model each round started from (and the final one, as the
@@ -101,7 +108,7 @@ def rebuild(campaign, cfg, folder: Path, log=print, each=None) -> tuple:
         elif r.augment == "lag":
             current = _fit_offset(ctx, current, with_lag=True)
         else:
-            current = _augment(ctx, current, from_key(r.candidate), r.augment)
+            current = _augment(ctx, current, named_candidate(r), r.augment)
     if each is not None:
         each(last + 1, current)
 

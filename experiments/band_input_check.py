@@ -25,7 +25,7 @@ from pathlib import Path
 import pandas as pd
 
 sys.path.insert(0, str(Path(__file__).parent))
-from attributable_ensemble import CONFIG, _save, rebuild  # noqa: E402
+from attributable_ensemble import CONFIG, _save, named_candidate, rebuild  # noqa: E402
 from discovery_benchmark import _campaign, scenario_config, scenario_configs  # noqa: E402
 
 from pvvjax.candidates import Candidate, from_key  # noqa: E402
@@ -41,13 +41,23 @@ def band_rows(folder: Path) -> pd.DataFrame:
         return pd.DataFrame(columns=["round", "proposal"])
     r = r[r.operator == "resonance"]
     if "proposal" not in r:  # a table before the column: the tried band without its gain's fit
-        r = r.assign(proposal=[_without(k, ("gain", "gain_unit", "coefficient")) for k in r.candidate])
+        r = r.assign(proposal=[_without(from_key(k)).key for k in r.candidate])
     return r.drop_duplicates(["round", "proposal"])
 
 
-def _without(key: str, names) -> str:
-    c = from_key(key)
-    return Candidate(c.operator, c.channels, {k: v for k, v in c.parameters.items() if k not in names}).key
+# What a band's try adds to the proposal it tries: its gain's unit and fit.
+_FITTED = ("gain", "gain_unit", "coefficient")
+
+
+def _without(c: Candidate, names=_FITTED) -> Candidate:
+    return Candidate(c.operator, c.channels, {k: v for k, v in c.parameters.items() if k not in names})
+
+
+def _proposal(row) -> Candidate:
+    """The band a row tried, at full precision where the table keeps its parameters."""
+    if isinstance(getattr(row, "parameters", None), str):
+        return _without(named_candidate(row))
+    return from_key(row.proposal)
 
 
 def check_world(sc: dict, overrides: dict, folder: Path, verify: bool, log=print) -> list[dict]:
@@ -62,13 +72,13 @@ def check_world(sc: dict, overrides: dict, folder: Path, verify: bool, log=print
     out = []
     for b in bands.itertuples():
         current = starts[b.round]
-        c = from_key(b.proposal)
+        c = _proposal(b)
         ok, conf = _confirm(ctx, current, _augment(ctx, current, c, "input"), c, b.where, cfg.discovery)
         row = dict(scenario=sc["name"], seed=sc["seed"], round=b.round, band=c.name, proposal=b.proposal,
                    table_gain_shrink=b.shrink, table_gain_confirmed=b.confirmed, input_shrink=conf["shrink"],
                    input_region_shrink=conf["local"], input_confirmed=ok, why=conf["why"])
         if verify and b.augment == "gain":
-            g = from_key(b.candidate)
+            g = named_candidate(b)
             row["gain_shrink"] = _confirm(ctx, current, _augment(ctx, current, g, "gain"), g, b.where,
                                           cfg.discovery)[1]["shrink"]
         log(f"    round {b.round}, {c.name}: as an input {conf['shrink']:+.1%} (all), {conf['local']:+.1%} "

@@ -22,6 +22,7 @@ parameter value a fit could have picked; `discovery` refines the chosen one by l
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -86,6 +87,13 @@ class Candidate:
         return describe(self)
 
     @property
+    def parameters_json(self) -> str:
+        """Its parameters at full precision, as a JSON object (the key keeps four digits)."""
+        def plain(v):
+            return float(v) if isinstance(v, (float, np.floating)) else int(v) if isinstance(v, np.integer) else v
+        return json.dumps({k: plain(v) for k, v in sorted(self.parameters.items())})
+
+    @property
     def complexity(self) -> int:
         """1 for a channel (or its magnitude), 2 for a derivative or a spread inside the window,
         3 for an operator with a fitted parameter or two channels (knee, resonance, lag,
@@ -97,10 +105,11 @@ def _fmt(v):
     return f"{v:.4g}" if isinstance(v, float) else str(v)
 
 
-def from_key(key: str) -> Candidate:
+def from_key(key: str, parameters: str | None = None) -> Candidate:
     """The candidate of a `Candidate.key` (as the rounds table and discovery.json keep it):
     operator:channel[*channel]:name=value,... Values are read back as written, floats to
-    four significant digits.
+    four significant digits, unless `parameters` (`Candidate.parameters_json`, as the rounds
+    table also keeps them) gives them at full precision.
 
     Raises:
         ValueError: naming the key, if it is not operator:channels[:parameters].
@@ -108,6 +117,8 @@ def from_key(key: str) -> Candidate:
     parts = key.split(":")
     if len(parts) not in (2, 3) or not parts[0]:
         raise ValueError(f"candidate key {key!r}: expected operator:channels[:name=value,...]")
+    if parameters:
+        return Candidate(parts[0], tuple(ch for ch in parts[1].split("*") if ch), json.loads(parameters))
     pars = {}
     for item in parts[2].split(",") if len(parts) == 3 and parts[2] else ():
         name, eq, text = item.partition("=")

@@ -33,6 +33,8 @@ def test_a_rebuilt_discovery_reproduces_its_before_and_after(ae, monkeypatch, tm
     res = discover(campaign, cfg, log=lambda m: None)
     assert [e["operator"] for e in res.effects] == ["abs_rate"] and res.after != res.before
     write_discovery(res, tmp_path, cfg)
+    (row,) = ae.chosen_rounds(tmp_path).itertuples()  # the named try, its parameters at full precision
+    assert ae.named_candidate(row).parameters == res.effects[0]["candidate"].parameters
 
     starts = {}
     ctx, base, after, _ = ae.rebuild(campaign, cfg, tmp_path, log=lambda m: None,

@@ -20,3 +20,17 @@ def test_each_band_of_each_round_is_checked_once(tmp_path):
     assert list(bic.band_rows(tmp_path).proposal) == [band]
     (tmp_path / "rounds.csv").write_text("\n")  # a reference baseline's: no rounds
     assert bic.band_rows(tmp_path).empty and bic.band_rows(tmp_path / "missing").empty
+
+
+def test_a_band_is_retrained_at_full_precision_where_the_table_keeps_it():
+    from types import SimpleNamespace
+
+    from pvvjax.candidates import Candidate
+
+    bic = experiment("band_input_check")
+    tried = Candidate("resonance", ("rotor_rpm",), {"center": 247.46321, "width": 3.2219, "gain_unit": 10.0,
+                                                     "gain": 1.2})
+    row = SimpleNamespace(candidate=tried.key, parameters=tried.parameters_json, proposal="unused")
+    assert bic._proposal(row).parameters == {"center": 247.46321, "width": 3.2219}
+    old = SimpleNamespace(candidate=tried.key, parameters=float("nan"), proposal=bic._without(tried).key)
+    assert bic._proposal(old).parameters == {"center": 247.5, "width": 3.222}  # a table before the column

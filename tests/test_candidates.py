@@ -94,6 +94,12 @@ def test_from_key_reads_back_every_operators_key(tiny):
             else:
                 assert back.parameters[k] == v
     assert from_key("lag::tau_s=3").channels == ()
+    # at full precision from the parameters the rounds table keeps beside the key
+    knee = Candidate("threshold", ("collective_pct",), {"knee": 63.258312, "above": True,
+                                                          "softness": np.float32(0.9405), "n": np.int64(3)})
+    back = from_key(knee.key, knee.parameters_json)
+    assert back.parameters == {"knee": 63.258312, "above": True, "softness": float(np.float32(0.9405)), "n": 3}
+    assert from_key(knee.key).parameters["knee"] == 63.26  # the key alone: four digits
     for bad in ("threshold", "threshold:x:knee", ":x", "a:b:c:d"):
         with pytest.raises(ValueError, match="candidate key"):
             from_key(bad)

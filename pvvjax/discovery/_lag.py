@@ -177,7 +177,8 @@ def _lag_round(ctx: _Ctx, lag: dict, inputs) -> tuple[dict, dict | None]:
     learned = f"learned τ {lag['learned']['tau_median_s']:.2f} s"
     c = Candidate("lag", (), {"tau_s": slow["tau_s"] if slow else round(float(lag["learned"]["tau_median_s"]), 2)})
     m = lambda t, k: t["metrics"][k] if t else np.nan  # noqa: E731
-    row = dict(round=0, where="all", candidate=c.key, name=c.name, operator="lag", channels="",
+    row = dict(round=0, where="all", candidate=c.key, parameters=c.parameters_json, name=c.name, operator="lag",
+               channels="",
                augment="trained through" if slow else "learned", p_value=lag["p_value"], cv_gain=np.nan,
                runners_up=f"{learned}; reference: τ {ref['tau_s']:g} s" if ref else learned,
                explained_fraction=lag["explained_fraction"],

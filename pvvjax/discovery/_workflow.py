@@ -405,7 +405,8 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
                             f"({over_control['judged_in']}))")
                 t_confirm += time.perf_counter() - t0
                 t0 = time.perf_counter()
-                rounds.append(dict(round=rnd + 1, where=where, candidate=c.key, proposal=refined.key, source=s.source,
+                rounds.append(dict(round=rnd + 1, where=where, candidate=c.key, parameters=c.parameters_json,
+                                   proposal=refined.key, source=s.source,
                                    name=c.name, operator=c.operator,
                                    channels=",".join(c.channels), augment=mode, p_value=p_value, cv_gain=s.gain,
                                    runners_up=alts, explained_fraction=explained,
