@@ -7,8 +7,8 @@ from its folder as the workflow built it (the peak nets and their offset, the la
 chosen ensembles, then every named effect in its round's way: `rounds.csv`, `lag_test.csv`)
 with `--nets` nets per fold, and so is the baseline of the null world of its seed (or of its
 reference world). The names are the discovery's; only the before, after and null numbers are
-new. With `--nets 4` (the config's `seeds`) it reproduces the table's numbers, up to the four
-digits a candidate's key keeps of its fitted parameters.
+new. With `--nets 4` (the config's `seeds`) it reproduces the table's numbers (a folder
+written before `rounds.csv` kept `parameters`: up to the four digits of a candidate's key).
 
     python experiments/attributable_ensemble.py /work/out --seed-offsets 0,1 --nets 16
 
@@ -29,28 +29,20 @@ import pandas as pd
 
 sys.path.insert(0, str(Path(__file__).parent))
 from discovery_benchmark import _GAP_COLUMNS, _campaign, _closed, scenario_config, scenario_configs  # noqa: E402
+from term_backfit_probe import baseline  # noqa: E402
 
 from pvvjax._strict import to_dict  # noqa: E402
 from pvvjax.candidates import Candidate, from_key  # noqa: E402
 from pvvjax.config import DiscoveryConfig  # noqa: E402
-from pvvjax.databases import DB_INPUTS  # noqa: E402
 from pvvjax.discovery import Model  # noqa: E402
-from pvvjax.discovery._confirm import _augment, _train_model  # noqa: E402
+from pvvjax.discovery._confirm import _augment  # noqa: E402
 from pvvjax.discovery._fits import _fit_offset  # noqa: E402
+from pvvjax.discovery._lag import _through_lag  # noqa: E402
 from pvvjax.discovery._model import _replay, metrics, predictions  # noqa: E402
-from pvvjax.discovery._workflow import _context  # noqa: E402
 from pvvjax.io import read_table  # noqa: E402
 
 CONFIG = Path(__file__).parent / "configs" / "discovery" / "benchmark.toml"
 _METRICS = ("ensemble_rms_g", "rms_g", "peak_error_g", "phase_error_s")
-
-
-def _through_lag(ctx, tau_s: float, train_offset_s: float) -> Model:
-    """Window nets trained through a lag of `tau_s` at `train_offset_s`, offset refitted (as
-    the lag test's `_lag_trials`)."""
-    inputs = tuple(DB_INPUTS[ctx.cfg.discovery.database])
-    params = _train_model(ctx, Model({}, inputs, offset_s=train_offset_s, lag_tau_s=tau_s, through_lag=True))
-    return _fit_offset(ctx, Model(params, inputs, lag_tau_s=tau_s, through_lag=True), with_lag=False)
 
 
 def _lag_row(folder: Path, role: str) -> pd.Series:
@@ -88,13 +80,7 @@ def rebuild(campaign, cfg, folder: Path, log=print, each=None) -> tuple:
         effect, and a callable giving the lag test's chosen reference of this world (nets
         through a lag, for a hidden world whose baseline is of that kind).
     """
-    d = cfg.discovery
-    ctx = _context(campaign, cfg, lambda m: None)
-    inputs = tuple(DB_INPUTS[d.database])
-    ctx.replay_params = _train_model(ctx, Model({}, inputs), rows="peaks")  # they calibrate the replay
-    base = _fit_offset(ctx, Model(ctx.replay_params, inputs), with_lag=False)
-    if d.train_rows == "windows":
-        base = base._replace(params=_train_model(ctx, base))
+    ctx, base, _ = baseline(campaign, cfg)
     current, last = base, 0
     for r in chosen_rounds(folder).itertuples():
         if each is not None:

@@ -47,12 +47,15 @@ def world(job: str, nets: int | None = None):
 
 
 def baseline(campaign, cfg):
-    """The workflow's baseline: peak nets that calibrate the replay, the offset fitted, and
-    the held-out windows at it. Returns (context, model, windows)."""
+    """The workflow's baseline: peak nets that calibrate the replay, the offset fitted (and
+    with `train_rows = "windows"` nets retrained on the windows there), and the held-out
+    windows at it. Returns (context, model, windows)."""
     ctx = _context(campaign, cfg, lambda m: None)
     inputs = tuple(DB_INPUTS[cfg.discovery.database])
     ctx.replay_params = _train_model(ctx, Model({}, inputs), rows="peaks")
     base = _fit_offset(ctx, Model(ctx.replay_params, inputs), with_lag=False)
+    if cfg.discovery.train_rows == "windows":
+        base = base._replace(params=_train_model(ctx, base))
     return ctx, base, _replay(ctx, base.offset_s)
 
 

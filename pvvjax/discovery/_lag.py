@@ -13,6 +13,14 @@ from ._learned import fit_learned_lag
 from ._model import Model, _Ctx, _inputs, _lag_windows, _replay, _Windows, metrics, predictions, window_layout
 
 
+def _through_lag(ctx: _Ctx, tau_s: float, train_offset_s: float) -> Model:
+    """Window nets trained through a lag of `tau_s` (τ = 0: none) at `train_offset_s`, their
+    offset refitted on the held-out windows."""
+    inputs = tuple(DB_INPUTS[ctx.cfg.discovery.database])
+    params = _train_model(ctx, Model({}, inputs, offset_s=train_offset_s, lag_tau_s=tau_s, through_lag=True))
+    return _fit_offset(ctx, Model(params, inputs, lag_tau_s=tau_s, through_lag=True), with_lag=False)
+
+
 def _lag_trials(ctx: _Ctx, delta: float, taus, reference_offsets, log=print) -> list[dict]:
     """Window nets trained through a lag of each τ, and without one (τ = 0), each replayed
     with its lag and its offset refitted: a lag tested against a pure delay.
@@ -29,13 +37,11 @@ def _lag_trials(ctx: _Ctx, delta: float, taus, reference_offsets, log=print) -> 
         seeds, full windows).
     """
     lo = ctx.cfg.discovery.offset_bounds[0]
-    inputs = tuple(DB_INPUTS[ctx.cfg.discovery.database])
     runs = [(0.0, float(o)) for o in sorted({*map(float, reference_offsets), float(delta)})]
     runs += [(float(t), max(lo, round(delta - t, 6))) for t in taus]
     out = []
     for tau, off in runs:
-        params = _train_model(ctx, Model({}, inputs, offset_s=off, lag_tau_s=tau, through_lag=True))
-        model = _fit_offset(ctx, Model(params, inputs, lag_tau_s=tau, through_lag=True), with_lag=False)
+        model = _through_lag(ctx, tau, off)
         win = _replay(ctx, model.offset_s)
         pred = predictions(ctx, model, win)
         m = metrics(pred, win)
