@@ -117,15 +117,16 @@ def from_key(key: str, parameters: str | None = None) -> Candidate:
     parts = key.split(":")
     if len(parts) not in (2, 3) or not parts[0]:
         raise ValueError(f"candidate key {key!r}: expected operator:channels[:name=value,...]")
+    channels = tuple(ch for ch in parts[1].split("*") if ch)
     if parameters:
-        return Candidate(parts[0], tuple(ch for ch in parts[1].split("*") if ch), json.loads(parameters))
+        return Candidate(parts[0], channels, json.loads(parameters))
     pars = {}
     for item in parts[2].split(",") if len(parts) == 3 and parts[2] else ():
         name, eq, text = item.partition("=")
         if not eq or not name:
             raise ValueError(f"candidate key {key!r}: parameter {item!r} is not name=value")
         pars[name] = _read(text)
-    return Candidate(parts[0], tuple(ch for ch in parts[1].split("*") if ch), pars)
+    return Candidate(parts[0], channels, pars)
 
 
 def _read(text: str):
