@@ -373,6 +373,12 @@ class DiscoveryConfig:
             "input" (an extra network input: the nets learn its shape and its interactions),
             or "auto" (both; the one that lowers the held-out RMS more). A lag is always a
             learned lag of the replay, a resonance a learned gain on the nets' output.
+        term_refit: what an additive term is refitted on after the nets are retrained on the
+            peaks minus its first fit: "peaks" (the residual of those nets) or "windows" (of
+            nets trained on every `train_stride`-th replay window minus it, about 25 times
+            the rows: the peak nets learn part of an effect through the inputs it moves with,
+            the load factor for |q̇|, and their residual holds the term's coefficient short);
+            the peak nets are then retrained on the peaks minus the refitted term.
         selection_stride: every n-th window of a counter enters the selection.
         local_selection: also run the selection inside each maneuver kind where the residual
             concentrates (Bonferroni over the subsets). Off by default: on the benchmark's
@@ -469,6 +475,7 @@ class DiscoveryConfig:
     floor_refinements: int = 4
     floor_control: bool = True
     augment: Literal["additive", "input", "auto"] = "auto"
+    term_refit: Literal["peaks", "windows"] = "peaks"
     selection_stride: int = 4
     local_selection: bool = False
     min_subset_conditions: int = 20

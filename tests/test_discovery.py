@@ -971,3 +971,48 @@ def test_each_operator_is_added_in_the_ways_the_config_allows():
     assert _modes("resonance", DiscoveryConfig(resonance_input=True)) == ("gain", "input")
     assert _modes("abs_rate", DiscoveryConfig(augment="input")) == ("input",)
     assert _modes("lag", DiscoveryConfig(augment="additive", resonance_input=True)) == ("lag",)
+
+
+@pytest.mark.parametrize("term_refit", ["peaks", "windows"])
+def test_an_additive_term_is_refitted_on_the_residual_of_the_nets_term_refit_names(
+        monkeypatch, small_campaign_dir, term_refit):
+    # The term is fitted on the model's residual, then refitted: "peaks", on the residual of
+    # the nets retrained on the peaks minus it (those nets are the model's); "windows", on
+    # that of nets trained on the strided windows minus it, the model's nets then retrained on
+    # the peaks minus the refitted term.
+    from pvvjax.campaign import load_campaign
+    from pvvjax.candidates import from_key
+    from pvvjax.config import DiscoveryConfig, ExperimentConfig, TrainConfig
+    from pvvjax.databases import DB_INPUTS
+    from pvvjax.discovery import Model, _confirm, _model, _workflow
+
+    d = DiscoveryConfig(seeds=1, folds=3, train_stride=16, term_refit=term_refit)
+    ctx = _workflow._context(load_campaign(small_campaign_dir),
+                             ExperimentConfig(train=TrainConfig(max_steps=100), discovery=d), lambda m: None)
+    inputs = tuple(DB_INPUTS["db1"])
+    ctx.replay_params = _confirm._train_model(ctx, Model({}, inputs), rows="peaks")
+    base = Model(ctx.replay_params, inputs, offset_s=0.5)
+    calls, fit = [], _confirm.fit_ensemble
+    monkeypatch.setattr(_confirm, "fit_ensemble",
+                        lambda x, y, folds, **kw: calls.append((x, y, fit(x, y, folds, **kw))) or calls[-1][2])
+    c = from_key("input:collective_pct:offset_s=0.5")
+    got = _confirm._augment(ctx, base, c, "additive")
+    win = _model._replay(ctx, base.offset_s)
+    first = _confirm._fit_term(ctx, base, c, win)
+    n_peaks = len(ctx.db)
+    assert len(calls) == (2 if term_refit == "windows" else 1)
+    assert calls[-1][1].shape[1] == n_peaks and calls[-1][2] is got.params  # the model's nets: on the peaks
+    refit_nets = calls[0][2]
+    if term_refit == "windows":
+        rows = (win.table.weight.to_numpy() >= 0.999) & (win.table.k.to_numpy() % 16 == 0)
+        assert calls[0][1].shape[1] == rows.sum() > 5 * n_peaks
+        x_c = win.values(c)[rows]  # the windows minus the first fit, per fold
+        np.testing.assert_allclose(calls[0][1], win.table.measured_g.to_numpy()[rows]
+                                   - (first[:, :1] + first[:, 1:] * x_c), rtol=1e-5, atol=1e-7)
+    refit = _confirm._fit_term(ctx, base._replace(params=refit_nets), c, win)
+    np.testing.assert_allclose(got.terms[-1][1], refit, rtol=1e-6)
+    assert not np.allclose(refit, first)
+    if term_refit == "windows":  # the model's nets: the peaks minus the refitted term
+        x_p = _confirm.values(c, ctx.train_table)
+        np.testing.assert_allclose(calls[1][1], ctx.db["peak_pvv_g"].to_numpy()
+                                   - (refit[:, :1] + refit[:, 1:] * x_p), rtol=1e-5, atol=1e-7)

@@ -69,12 +69,19 @@ def _fit_term(ctx: _Ctx, model: Model, c: Candidate, win: _Windows) -> np.ndarra
 def _augment(ctx: _Ctx, model: Model, c: Candidate, how: str) -> Model:
     """The model with one more effect: an extra network input, a learned gain on the nets'
     output (`gain_apply`), or an additive term (fitted on the windows, the nets retrained on
-    the corrected peaks, the term refitted)."""
+    the corrected peaks, the term refitted: on those nets' residual, or with `term_refit =
+    "windows"` on that of nets trained on the windows minus it, the peak nets then retrained
+    on the peaks minus the refitted term)."""
     if how in ("input", "gain"):
         trial = model._replace(**({"extra": model.extra + (c,)} if how == "input" else {"gains": model.gains + (c,)}))
         return trial._replace(params=_train_model(ctx, trial))
     win = _replay(ctx, model.offset_s)
     first = model._replace(terms=model.terms + ((c, _fit_term(ctx, model, c, win)),))
+    d = ctx.cfg.discovery
+    if d.term_refit == "windows" and not model.through_lag and d.train_rows == "peaks":
+        refit = _fit_term(ctx, model._replace(params=_train_model(ctx, first, rows="windows")), c, win)
+        refitted = model._replace(terms=model.terms + ((c, refit),))
+        return refitted._replace(params=_train_model(ctx, refitted))
     params = _train_model(ctx, first)
     refit = _fit_term(ctx, model._replace(params=params), c, win)
     return model._replace(params=params, terms=model.terms + ((c, refit),))
