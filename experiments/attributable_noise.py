@@ -9,6 +9,9 @@ acceleration 31 in docs/discovery.md ("How noisy is one world's attributable shr
 
     python experiments/attributable_noise.py 0:pitch-acceleration 0:null-31 \\
         abs_rate:pitch_rate_dps:offset_s=0.5 0.0288 --runs 4 --nets 4
+
+`--train KEY=VALUE ...` trains every net with other `[train]` settings (weight decay, patience,
+the optimizer): whether a training regime lowers that noise ("How noisy ...", the regimes).
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
+from discovery_benchmark import _settings  # noqa: E402
 from term_backfit_probe import baseline, world  # noqa: E402
 
 from pvvjax.candidates import from_key  # noqa: E402
@@ -48,8 +52,12 @@ def main():
     ap.add_argument("coefficient", type=float, help="its fixed coefficient")
     ap.add_argument("--runs", type=int, default=4, help="training seeds")
     ap.add_argument("--nets", type=int, default=4, help="nets per fold (the config's `seeds`)")
+    ap.add_argument("--train", nargs="+", action="extend", default=[], metavar="KEY=VALUE",
+                    help="[train] settings over the config's (a TOML value; a bare word is a string), "
+                         "e.g. --train weight_decay=0.01")
     args = ap.parse_args()
-    (hc, hcfg), (nc, ncfg) = world(args.hidden, args.nets), world(args.null, args.nets)
+    train = _settings(args.train)
+    (hc, hcfg), (nc, ncfg) = world(args.hidden, args.nets, train), world(args.null, args.nets, train)
     term = (from_key(args.candidate), args.coefficient)
     for r in range(args.runs):
         before, after = ensemble_rms(hc, dataclasses.replace(hcfg, seed=hcfg.seed + 1000 * r), term)

@@ -9,6 +9,11 @@ moves the coefficient towards the joint fit. Measured on pitch acceleration 31 i
 docs/discovery.md ("Backfitting a named term"):
 
     python experiments/term_backfit_probe.py 0:pitch-acceleration abs_rate:pitch_rate_dps:offset_s=0.5 --refits 4
+
+`--window-refits N` refits the term N times on nets trained on every `train_stride`-th replay
+window minus it (about 25 times the peaks: where the term's channel moves apart from the
+model's inputs, the split between them has data), each time retraining the peak nets on the
+peaks minus it: whether the peaks' few rows are what holds the coefficient short.
 """
 
 from __future__ import annotations
@@ -35,14 +40,19 @@ from pvvjax.discovery._workflow import _context  # noqa: E402
 CONFIG = Path(__file__).parent / "configs" / "discovery" / "benchmark.toml"
 
 
-def world(job: str, nets: int | None = None):
+def world(job: str, nets: int | None = None, train: dict | None = None):
     """The campaign and config of SEED_OFFSET:SCENARIO of the benchmark config (with `nets`
-    nets per fold: the discovery's `seeds`)."""
+    nets per fold: the discovery's `seeds`; `train`: [train] settings over the config's)."""
     offset, name = job.split(":")
     sc, overrides = find_scenario(CONFIG, int(offset), name)
     cfg = scenario_config(sc, overrides)
     if nets is not None:
         cfg = dataclasses.replace(cfg, discovery=dataclasses.replace(cfg.discovery, seeds=nets))
+    if train:
+        unknown = sorted(set(train) - {f.name for f in dataclasses.fields(cfg.train)})
+        if unknown:
+            raise SystemExit(f"--train: unknown [train] setting(s) {unknown}")
+        cfg = dataclasses.replace(cfg, train=dataclasses.replace(cfg.train, **train))
     return _campaign(sc["synth"]), cfg
 
 
@@ -64,6 +74,8 @@ def main():
     ap.add_argument("world", help="SEED_OFFSET:SCENARIO of the benchmark config")
     ap.add_argument("candidate", help="the term's candidate key, e.g. abs_rate:pitch_rate_dps:offset_s=0.5")
     ap.add_argument("--refits", type=int, default=4, help="refits after the workflow's one pass")
+    ap.add_argument("--window-refits", type=int, default=0,
+                    help="refits of the term on nets trained on the windows minus it (peak nets retrained after each)")
     args = ap.parse_args()
     (campaign, cfg), c, t0 = world(args.world), from_key(args.candidate), time.perf_counter()
     ctx, base, win = baseline(campaign, cfg)
@@ -82,6 +94,11 @@ def main():
         term = _fit_term(ctx, base._replace(params=params), c, win)  # on the new nets' residual
         m = base._replace(params=params, terms=base.terms + ((c, term),))
         show(f"refit {k + 2}", m)
+    m = base._replace(terms=base.terms + ((c, _fit_term(ctx, base, c, win)),))  # the workflow's first fit
+    for k in range(args.window_refits):
+        on_windows = _train_model(ctx, m, rows="windows")  # the windows minus the term as it stands
+        m = base._replace(terms=base.terms + ((c, _fit_term(ctx, base._replace(params=on_windows), c, win)),))
+        show(f"window refit {k + 1}", m._replace(params=_train_model(ctx, m)))  # peak nets, peaks minus it
 
 
 if __name__ == "__main__":
