@@ -43,6 +43,12 @@ CONFIG = Path(__file__).parent / "configs" / "discovery" / "benchmark.toml"
 def world(job: str, nets: int | None = None, train: dict | None = None):
     """The campaign and config of SEED_OFFSET:SCENARIO of the benchmark config (with `nets`
     nets per fold: the discovery's `seeds`; `train`: [train] settings over the config's)."""
+    sc, cfg = world_config(job, nets, train)
+    return _campaign(sc["synth"]), cfg
+
+
+def world_config(job: str, nets: int | None = None, train: dict | None = None):
+    """`world`'s scenario and config, without generating the campaign."""
     offset, name = job.split(":")
     sc, overrides = find_scenario(CONFIG, int(offset), name)
     cfg = scenario_config(sc, overrides)
@@ -53,7 +59,7 @@ def world(job: str, nets: int | None = None, train: dict | None = None):
         if unknown:
             raise SystemExit(f"--train: unknown [train] setting(s) {unknown}")
         cfg = dataclasses.replace(cfg, train=dataclasses.replace(cfg.train, **train))
-    return _campaign(sc["synth"]), cfg
+    return sc, cfg
 
 
 def baseline(campaign, cfg):
