@@ -378,7 +378,9 @@ class DiscoveryConfig:
             nets trained on every `train_stride`-th replay window minus it, about 25 times
             the rows: the peak nets learn part of an effect through the inputs it moves with,
             the load factor for |q̇|, and their residual holds the term's coefficient short);
-            the peak nets are then retrained on the peaks minus the refitted term.
+            the peak nets are then retrained on the peaks minus the refitted term. Off by
+            default: it lifts the benchmark's pitch families but names the load factor on two
+            of its null worlds (docs/discovery.md, "A term refitted on window nets").
         selection_stride: every n-th window of a counter enters the selection.
         local_selection: also run the selection inside each maneuver kind where the residual
             concentrates (Bonferroni over the subsets). Off by default: on the benchmark's
