@@ -29,7 +29,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).parent))
 from discovery_benchmark import _campaign, find_scenario, scenario_config  # noqa: E402
 
+from pvvjax._strict import ConfigError, from_dict, to_dict  # noqa: E402
 from pvvjax.candidates import from_key  # noqa: E402
+from pvvjax.config import TrainConfig  # noqa: E402
 from pvvjax.databases import DB_INPUTS  # noqa: E402
 from pvvjax.discovery import Model  # noqa: E402
 from pvvjax.discovery._confirm import _augment, _fit_term, _train_model  # noqa: E402
@@ -54,11 +56,12 @@ def world_config(job: str, nets: int | None = None, train: dict | None = None):
     cfg = scenario_config(sc, overrides)
     if nets is not None:
         cfg = dataclasses.replace(cfg, discovery=dataclasses.replace(cfg.discovery, seeds=nets))
-    if train:
-        unknown = sorted(set(train) - {f.name for f in dataclasses.fields(cfg.train)})
-        if unknown:
-            raise SystemExit(f"--train: unknown [train] setting(s) {unknown}")
-        cfg = dataclasses.replace(cfg, train=dataclasses.replace(cfg.train, **train))
+    if train:  # checked as a [train] table is: an unknown key or a wrong type is named
+        try:
+            train_cfg = from_dict(TrainConfig, {**to_dict(cfg.train), **train}, where="--train")
+        except ConfigError as e:
+            raise SystemExit(str(e)) from None
+        cfg = dataclasses.replace(cfg, train=train_cfg)
     return sc, cfg
 
 

@@ -13,5 +13,7 @@ def test_a_world_takes_its_nets_and_train_settings_and_refuses_an_unknown_one():
     assert cfg.discovery.seeds == 16 and cfg.train.weight_decay == 0.1 and cfg.train.optimizer == "lm"
     assert cfg.train.learning_rate == plain.train.learning_rate  # the rest is the config's
     assert plain.train.weight_decay == 0.0 and plain.train.optimizer == "adam"
-    with pytest.raises(SystemExit, match="weight_decai"):
+    with pytest.raises(SystemExit, match="weight_decai.*did you mean 'weight_decay'"):
         probe.world_config("0:pitch-acceleration", train={"weight_decai": 0.1})
+    with pytest.raises(SystemExit, match="--train.optimizer: 'sgd'"):
+        probe.world_config("0:pitch-acceleration", train={"optimizer": "sgd"})
