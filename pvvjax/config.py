@@ -378,9 +378,12 @@ class DiscoveryConfig:
             nets trained on every `train_stride`-th replay window minus it, about 25 times
             the rows: the peak nets learn part of an effect through the inputs it moves with,
             the load factor for |q̇|, and their residual holds the term's coefficient short);
-            the peak nets are then retrained on the peaks minus the refitted term. Off by
-            default: it lifts the benchmark's pitch families but names the load factor on two
-            of its null worlds (docs/discovery.md, "A term refitted on window nets").
+            the peak nets are then retrained on the peaks minus the refitted term. Every try
+            refitted so lifts the benchmark's pitch families but names the load factor on two
+            of its null worlds (docs/discovery.md, "A term refitted on window nets"), so
+            "named" refits the tries on the peaks (which tries confirm, and which one a round
+            names, are those of "peaks") and refits only the named term on window nets, kept
+            where that model confirms too.
         selection_stride: every n-th window of a counter enters the selection.
         local_selection: also run the selection inside each maneuver kind where the residual
             concentrates (Bonferroni over the subsets). Off by default: on the benchmark's
@@ -477,7 +480,7 @@ class DiscoveryConfig:
     floor_refinements: int = 4
     floor_control: bool = True
     augment: Literal["additive", "input", "auto"] = "auto"
-    term_refit: Literal["peaks", "windows"] = "peaks"
+    term_refit: Literal["peaks", "windows", "named"] = "peaks"
     selection_stride: int = 4
     local_selection: bool = False
     min_subset_conditions: int = 20

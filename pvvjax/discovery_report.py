@@ -131,6 +131,7 @@ def write_discovery(res: Discovery, out, cfg=None, worst: int = 4) -> Path:
                   "`lag_trials_always` (`pvvjax.lag_study` runs them on any campaign).", "", _md(res.lag_test), ""]
     if not res.rounds.empty:
         controlled = "control_shrink" in res.rounds and bool(res.rounds.control_shrink.notna().any())
+        refit = "window_refit_kept" in res.rounds
         lines += ["## Every proposal tried", "",
                   "A round proposes the candidates the selection cannot tell apart (held-out errors within one "
                   "standard error of the best's: the simplest, the one that explains most, then the others); each is "
@@ -151,13 +152,18 @@ def write_discovery(res: Discovery, out, cfg=None, worst: int = 4) -> Path:
                       " `control_shrink`, `control_region_shrink`: the same try added to the floor control (the "
                       "model retrained with its selection's floor refinements as inputs), where it must confirm "
                       "again (`floor_control`); `over_control_shrink`, `over_control_region_shrink`: the try's "
-                      "own model against the control, which it may beat instead." if controlled else ""), "",
+                      "own model against the control, which it may beat instead." if controlled else "") + (
+                      " `window_refit_*` (`term_refit = \"named\"`): the named term refitted on nets trained on the "
+                      "windows, its coefficient and ensemble's RMS after, and whether that model confirmed too and "
+                      "replaced the try." if refit else ""), "",
                   _md(res.rounds[["round", "name", *(["source"] if "source" in res.rounds else []), "augment",
                                   "p_value", "cv_gain", "rms_before_g", "rms_after_g",
                                   "ensemble_rms_before_g", "ensemble_rms_after_g", "shrink", "judged_in",
                                   "region_shrink", *(["control_shrink", "control_region_shrink", "over_control_shrink",
                                                     "over_control_region_shrink"] if controlled else []),
-                                  "confirmed", "why_not", "p_best_better", "chosen"]]), "",
+                                  "confirmed", "why_not", "p_best_better", "chosen",
+                                  *(["window_refit_coefficient", "window_refit_ensemble_rms_g",
+                                     "window_refit_kept"] if refit else [])]]), "",
                   "Runners-up of each proposal (held-out gain):", ""]
         lines += [f"- round {r.round}, {r.name} ({r.cv_gain:.3f}): {r.runners_up}"
                   for r in res.rounds.drop_duplicates(["round", "name"]).itertuples()

@@ -973,7 +973,7 @@ def test_each_operator_is_added_in_the_ways_the_config_allows():
     assert _modes("lag", DiscoveryConfig(augment="additive", resonance_input=True)) == ("lag",)
 
 
-@pytest.mark.parametrize("term_refit", ["peaks", "windows"])
+@pytest.mark.parametrize("term_refit", ["peaks", "windows", "named"])
 def test_an_additive_term_is_refitted_on_the_residual_of_the_nets_term_refit_names(
         monkeypatch, small_campaign_dir, term_refit):
     # The term is fitted on the model's residual, then refitted: "peaks", on the residual of
@@ -1016,3 +1016,60 @@ def test_an_additive_term_is_refitted_on_the_residual_of_the_nets_term_refit_nam
         x_p = _confirm.values(c, ctx.train_table)
         np.testing.assert_allclose(calls[1][1], ctx.db["peak_pvv_g"].to_numpy()
                                    - (refit[:, :1] + refit[:, 1:] * x_p), rtol=1e-5, atol=1e-7)
+
+
+@pytest.mark.parametrize("term_refit, kept", [("named", True), ("named", False), ("peaks", None)])
+def test_with_term_refit_named_only_the_named_term_is_refitted_on_window_nets_and_kept_if_it_confirms(
+        monkeypatch, tmp_path, small_campaign_dir, term_refit, kept):
+    # "named": every try is refitted on the peak nets (as "peaks"); the round's named additive
+    # term alone is refitted on window nets, from the same current model, and replaces the
+    # try where that model confirms too. The proposal and the confirmations' verdicts are
+    # forced; the fits, training and replay are the workflow's own.
+    from pvvjax.config import DiscoveryConfig, ExperimentConfig, TrainConfig
+    from pvvjax.discovery import _workflow, discover
+    from pvvjax.discovery_report import write_discovery
+    from pvvjax.selection import Selected
+
+    def propose(win, yhat, resid, M, rows, own, floor, d, seed, complexity, keys, is_floor):
+        j = next(i for i, k in enumerate(keys) if k.startswith("input:") and not is_floor[i])
+        return [("all", j, Selected(j, 0.1, 0.1, 0.001))], [], {"all": (rows, floor)}
+
+    augments, confirms, augment, confirm = [], [], _workflow._augment, _workflow._confirm
+
+    def augment_logged(ctx, model, c, how, refit=""):
+        augments.append((model, c, how, refit, augment(ctx, model, c, how, refit)))
+        return augments[-1][-1]
+
+    def confirm_forced(ctx, current, trial, c, where, d, slack=0.0):
+        _, out = confirm(ctx, current, trial, c, where, d, slack)
+        confirms.append((trial, out))
+        return (True if len(confirms) == 1 else kept), {**out, "why": "" if len(confirms) == 1 or kept else "forced"}
+
+    monkeypatch.setattr(_workflow, "_propose", propose)
+    monkeypatch.setattr(_workflow, "_augment", augment_logged)
+    monkeypatch.setattr(_workflow, "_confirm", confirm_forced)
+    d = DiscoveryConfig(seeds=1, folds=3, max_effects=1, floor_control=False, augment="additive",
+                        offset_step_s=0.5, train_stride=16, term_refit=term_refit)
+    cfg = ExperimentConfig(train=TrainConfig(max_steps=100), discovery=d)
+    res = discover(small_campaign_dir, cfg, log=lambda m: None)
+
+    row = res.rounds.iloc[0]
+    assert row.chosen and len(res.effects) == 1
+    report = write_discovery(res, tmp_path / "out", cfg).read_text()
+    assert ("window_refit_kept" in report) == (term_refit == "named")
+    peaks_try = augments[0][-1]
+    assert augments[0][3] == ""  # the try: refitted as "peaks" would
+    if term_refit == "peaks":
+        assert len(augments) == 1 and "window_refit_kept" not in res.rounds
+        assert res.final is peaks_try
+        return
+    (cur, c, how, refit, window_try), = augments[1:]
+    assert cur is augments[0][0] and c is peaks_try.terms[-1][0] and (how, refit) == ("additive", "windows")
+    assert not np.allclose(window_try.terms[-1][1], peaks_try.terms[-1][1])
+    assert row.window_refit_kept == kept
+    assert row.window_refit_coefficient == pytest.approx(np.median(window_try.terms[-1][1][:, 1]))
+    assert row.window_refit_ensemble_rms_g == confirms[1][1]["ensemble"][1]
+    final = window_try if kept else peaks_try
+    assert res.final is final
+    assert res.effects[0]["parameters"]["coefficient"] == pytest.approx(np.median(final.terms[-1][1][:, 1]))
+    assert res.after["ensemble_rms_g"] == pytest.approx(confirms[1 if kept else 0][1]["metrics"]["ensemble_rms_g"])

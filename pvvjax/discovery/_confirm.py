@@ -66,19 +66,25 @@ def _fit_term(ctx: _Ctx, model: Model, c: Candidate, win: _Windows) -> np.ndarra
     return out
 
 
-def _augment(ctx: _Ctx, model: Model, c: Candidate, how: str) -> Model:
+def _refits_on_windows(d, model: Model) -> bool:
+    """Whether a window refit differs from the peaks' one: a model trained through its lag,
+    or on the windows (`train_rows`), already refits on window nets."""
+    return not model.through_lag and d.train_rows == "peaks"
+
+
+def _augment(ctx: _Ctx, model: Model, c: Candidate, how: str, refit: str = "") -> Model:
     """The model with one more effect: an extra network input, a learned gain on the nets'
     output (`gain_apply`), or an additive term (fitted on the windows, the nets retrained on
-    the corrected peaks, the term refitted: on those nets' residual, or with `term_refit =
-    "windows"` on that of nets trained on the windows minus it, the peak nets then retrained
-    on the peaks minus the refitted term)."""
+    the corrected peaks, the term refitted: on those nets' residual, or with `refit`
+    "windows" (default: `term_refit`'s, "windows" there) on that of nets trained on the
+    windows minus it, the peak nets then retrained on the peaks minus the refitted term)."""
     if how in ("input", "gain"):
         trial = model._replace(**({"extra": model.extra + (c,)} if how == "input" else {"gains": model.gains + (c,)}))
         return trial._replace(params=_train_model(ctx, trial))
     win = _replay(ctx, model.offset_s)
     first = model._replace(terms=model.terms + ((c, _fit_term(ctx, model, c, win)),))
     d = ctx.cfg.discovery
-    if d.term_refit == "windows" and not model.through_lag and d.train_rows == "peaks":
+    if (refit or d.term_refit) == "windows" and _refits_on_windows(d, model):
         refit = _fit_term(ctx, model._replace(params=_train_model(ctx, first, rows="windows")), c, win)
         refitted = model._replace(terms=model.terms + ((c, refit),))
         return refitted._replace(params=_train_model(ctx, refitted))

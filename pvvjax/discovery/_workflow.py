@@ -28,6 +28,7 @@ from ._confirm import (
     _control_refinements,
     _floor_control,
     _paired_sign_flip,
+    _refits_on_windows,
     _rival,
     _train_model,
 )
@@ -458,6 +459,24 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
                                                                  alternatives=(), equivalents=(), source="rival"))
             tries, k = choose()
         _, row, where, s, c, trial, conf, _, _ = confirmed[k]
+        if d.term_refit == "named" and rounds[row]["augment"] == "additive" and _refits_on_windows(d, current):
+            # The tries were refitted on the peak nets, whose residual holds a term short; the
+            # named one alone is refitted on window nets, so floor structure that no try
+            # confirmed on the peaks cannot be named through it (docs/discovery.md).
+            term = trial.terms[-1][0]
+            w_trial = _augment(ctx, current, term, "additive", refit="windows")
+            kept, w_conf = _confirm(ctx, current, w_trial, term, where, d)
+            coefficient = float(np.median(w_trial.terms[-1][1][:, 1]))
+            rounds[row].update(window_refit_coefficient=coefficient, window_refit_kept=kept,
+                               window_refit_ensemble_rms_g=w_conf["ensemble"][1])
+            log(f"round {rnd + 1}: {c.name} refitted on window nets: coefficient "
+                f"{c.parameters['coefficient']:.4g} -> {coefficient:.4g}, ensemble's RMS "
+                f"{conf['ensemble'][1]:.4f} -> {w_conf['ensemble'][1]:.4f} g, shrink {w_conf['shrink']:+.1%} "
+                f"(all), {w_conf['local']:+.1%} ({w_conf['judged_in']}): "
+                + ("kept" if kept else f"not confirmed ({w_conf['why']}), the peaks' refit kept"))
+            if kept:
+                trial, conf = w_trial, w_conf
+                c = replace(c, parameters={**c.parameters, "coefficient": coefficient})
         effects.append(dict(rank=len(effects) + 1, round=rnd + 1, name=c.name, operator=c.operator,
                             channels=list(c.channels) or list(current.inputs), parameters=_public_parameters(c),
                             explained_fraction=s.explained_fraction, p_value=s.p_value, region=conf["region"],
