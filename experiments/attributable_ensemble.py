@@ -69,6 +69,13 @@ def named_candidate(row) -> Candidate:
     return from_key(row.candidate, exact if isinstance(exact, str) else None)
 
 
+def window_refit(row) -> str:
+    """"windows" where a round kept its named term refitted on window nets (`term_refit =
+    "named"`, rounds.csv's `window_refit_kept`), else "" (the config's own refit)."""
+    kept = getattr(row, "window_refit_kept", False)
+    return "windows" if kept is True or kept == "True" or (isinstance(kept, np.bool_) and kept) else ""
+
+
 def rebuild(campaign, cfg, folder: Path, log=print, each=None) -> tuple:
     """A finished discovery's models retrained with `cfg` (its nets per fold). `each(round,
     model)`, if given, sees the model each round started from (and the final one, as the
@@ -94,7 +101,7 @@ def rebuild(campaign, cfg, folder: Path, log=print, each=None) -> tuple:
         elif r.augment == "lag":
             current = _fit_offset(ctx, current, with_lag=True)
         else:
-            current = _augment(ctx, current, named_candidate(r), r.augment)
+            current = _augment(ctx, current, named_candidate(r), r.augment, refit=window_refit(r))
     if each is not None:
         each(last + 1, current)
 
@@ -120,6 +127,13 @@ def measure(ctx, model: Model, kinds=()) -> dict:
 # Settings that change only which tries a round makes, not how a named effect is trained:
 # a world run without them rebuilds the same.
 _CHOICE_ONLY = frozenset({"resonance_input"})
+# Values of a setting that rebuild the same: "named" refits a term as "peaks" does, unless its
+# round kept the window refit, which rounds.csv records (`window_refit`).
+_SAME_REBUILD = {"term_refit": ({"peaks", "named"},)}
+
+
+def _same_rebuild(key: str, then, now) -> bool:
+    return any(then in group and now in group for group in _SAME_REBUILD.get(key, ()))
 
 
 def _other_settings(stored: dict | None, d: DiscoveryConfig) -> dict:
@@ -127,8 +141,9 @@ def _other_settings(stored: dict | None, d: DiscoveryConfig) -> dict:
     (then, now). A setting added since must be at its default (it did not exist then)."""
     was, now = (stored or {}).get("discovery", {}), to_dict(d)
     default = to_dict(DiscoveryConfig(database=d.database))
+    then = {k: was.get(k, default[k]) for k in now}
     return {k: (was.get(k, f"(none; default {default[k]!r})"), v) for k, v in now.items()
-            if v != was.get(k, default[k]) and k not in _CHOICE_ONLY}
+            if v != then[k] and k not in _CHOICE_ONLY and not _same_rebuild(k, then[k], v)}
 
 
 def _kinds(row) -> tuple:

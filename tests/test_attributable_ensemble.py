@@ -12,8 +12,9 @@ def ae():
     return experiment("attributable_ensemble")
 
 
-@pytest.mark.parametrize("augment", ["additive", "input"])
-def test_a_rebuilt_discovery_reproduces_its_before_and_after(ae, monkeypatch, tmp_path, small_campaign_dir, augment):
+@pytest.mark.parametrize("augment, term_refit", [("additive", "peaks"), ("input", "peaks"), ("additive", "named")])
+def test_a_rebuilt_discovery_reproduces_its_before_and_after(ae, monkeypatch, tmp_path, small_campaign_dir, augment,
+                                                             term_refit):
     from pvvjax.campaign import load_campaign
     from pvvjax.config import DiscoveryConfig, ExperimentConfig, TrainConfig
     from pvvjax.discovery import _workflow, discover
@@ -28,13 +29,19 @@ def test_a_rebuilt_discovery_reproduces_its_before_and_after(ae, monkeypatch, tm
     confirm = _workflow._confirm
     monkeypatch.setattr(_workflow, "_confirm", lambda *a, **k: (True, confirm(*a, **k)[1]))
     campaign = load_campaign(small_campaign_dir)
-    d = DiscoveryConfig(seeds=2, folds=3, max_effects=1, augment=augment, offset_step_s=0.5)
+    d = DiscoveryConfig(seeds=2, folds=3, max_effects=1, augment=augment, offset_step_s=0.5, term_refit=term_refit,
+                        train_stride=16)
     cfg = ExperimentConfig(train=TrainConfig(max_steps=100), discovery=d)
     res = discover(campaign, cfg, log=lambda m: None)
     assert [e["operator"] for e in res.effects] == ["abs_rate"] and res.after != res.before
     write_discovery(res, tmp_path, cfg)
     (row,) = ae.chosen_rounds(tmp_path).itertuples()  # the named try, its parameters at full precision
-    assert ae.named_candidate(row).parameters == res.effects[0]["candidate"].parameters
+    named = res.effects[0]["candidate"].parameters
+    if term_refit == "named":  # the row is the try's (its coefficient fitted on the peak nets)
+        assert ae.window_refit(row) == "windows" and row.window_refit_coefficient == named.pop("coefficient")
+    else:
+        assert ae.window_refit(row) == ""
+    assert {k: v for k, v in ae.named_candidate(row).parameters.items() if k in named} == named
 
     starts = {}
     ctx, base, after, _ = ae.rebuild(campaign, cfg, tmp_path, log=lambda m: None,
@@ -62,8 +69,12 @@ def test_a_folder_run_with_other_training_settings_is_refused_but_not_one_before
     from pvvjax._strict import to_dict
     from pvvjax.config import DiscoveryConfig
 
-    now = DiscoveryConfig(folds=5, resonance_input=True)
+    now = DiscoveryConfig(folds=5, resonance_input=True, term_refit="named")
     then = {k: v for k, v in to_dict(now).items() if k not in ("resonance_input", "tie_share")}
     assert ae._other_settings({"discovery": then}, now) == {}  # added since, at its default or choice-only
     assert ae._other_settings({"discovery": {**then, "folds": 3}}, now) == {"folds": (3, 5)}
     assert set(ae._other_settings({"discovery": then}, DiscoveryConfig(folds=5, tie_share=0.25))) == {"tie_share"}
+    # "named" rebuilds as "peaks" save where rounds.csv says the window refit was kept; not "windows"
+    assert ae._other_settings({"discovery": {**then, "term_refit": "peaks"}}, now) == {}
+    assert ae._other_settings({"discovery": {**then, "term_refit": "windows"}}, now) == {
+        "term_refit": ("windows", "named")}
