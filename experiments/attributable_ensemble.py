@@ -72,8 +72,7 @@ def named_candidate(row) -> Candidate:
 def window_refit(row) -> str:
     """"windows" where a round kept its named term refitted on window nets (`term_refit =
     "named"`, rounds.csv's `window_refit_kept`), else "" (the config's own refit)."""
-    kept = getattr(row, "window_refit_kept", False)
-    return "windows" if kept is True or kept == "True" or (isinstance(kept, np.bool_) and kept) else ""
+    return "windows" if getattr(row, "window_refit_kept", False) in (True, "True") else ""
 
 
 def rebuild(campaign, cfg, folder: Path, log=print, each=None) -> tuple:
@@ -129,11 +128,11 @@ def measure(ctx, model: Model, kinds=()) -> dict:
 _CHOICE_ONLY = frozenset({"resonance_input"})
 # Values of a setting that rebuild the same: "named" refits a term as "peaks" does, unless its
 # round kept the window refit, which rounds.csv records (`window_refit`).
-_SAME_REBUILD = {"term_refit": ({"peaks", "named"},)}
+_SAME_REBUILD = {"term_refit": {"peaks", "named"}}
 
 
 def _same_rebuild(key: str, then, now) -> bool:
-    return any(then in group and now in group for group in _SAME_REBUILD.get(key, ()))
+    return {then, now} <= _SAME_REBUILD.get(key, set())
 
 
 def _other_settings(stored: dict | None, d: DiscoveryConfig) -> dict:

@@ -75,9 +75,9 @@ def _refits_on_windows(d, model: Model) -> bool:
 def _augment(ctx: _Ctx, model: Model, c: Candidate, how: str, refit: str = "") -> Model:
     """The model with one more effect: an extra network input, a learned gain on the nets'
     output (`gain_apply`), or an additive term (fitted on the windows, the nets retrained on
-    the corrected peaks, the term refitted: on those nets' residual, or with `refit`
-    "windows" (default: `term_refit`'s, "windows" there) on that of nets trained on the
-    windows minus it, the peak nets then retrained on the peaks minus the refitted term)."""
+    the corrected peaks, the term refitted: on those nets' residual, or, where `refit` (default
+    the config's `term_refit`) is "windows", on that of nets trained on the windows minus it,
+    the peak nets then retrained on the peaks minus the refitted term)."""
     if how in ("input", "gain"):
         trial = model._replace(**({"extra": model.extra + (c,)} if how == "input" else {"gains": model.gains + (c,)}))
         return trial._replace(params=_train_model(ctx, trial))
