@@ -75,15 +75,11 @@ res.localized["maneuver"].round(4)
 # %% [markdown]
 # Each proposal (the candidates the selection cannot tell from the best, simplest first) is
 # tried as an additive term and as an extra network input; the confirmed try that closes most
-# of the gap is `chosen`. A chosen term is then refitted once more on nets trained on every
-# 8th replay window (`term_refit = "named"`, the default): nets of ~200 peaks learn part of an
-# effect through the inputs it moves with, so the term fitted on their residual stays short.
-# `window_refit_coefficient` is its coefficient there, `window_refit_kept` whether that model
-# confirmed too and replaced the try.
+# of the gap is `chosen`.
 
 # %%
 res.rounds[["round", "name", "augment", "p_value", "cv_gain", "rms_before_g", "rms_after_g", "shrink",
-            "confirmed", "chosen", *[c for c in ("window_refit_coefficient", "window_refit_kept") if c in res.rounds]]]
+            "confirmed", "chosen"]]
 
 # %% [markdown]
 # The files a run writes (`pvvjax discover` writes the same): `discovery.json` in the format of
