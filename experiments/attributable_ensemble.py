@@ -149,75 +149,119 @@ def _kinds(row) -> tuple:
     return tuple(row.region.split(", ")) if isinstance(row.region, str) and row.region else ()
 
 
-def evaluate_offset(out: Path, offset: int, nets: int, only=(), log=print) -> pd.DataFrame:
+def _draw_config(cfg, nets: int, draw: int):
+    """`cfg` with `nets` nets per fold, trained from training draw `draw` (the config's seed +
+    1000 × draw: draw 0 is the discovery's own training; the folds stay the same)."""
+    return dataclasses.replace(cfg, seed=cfg.seed + 1000 * draw,
+                               discovery=dataclasses.replace(cfg.discovery, seeds=nets))
+
+
+def over_draws(draws: list, metric: str, named: bool) -> dict:
+    """One world's before / after / null over its training draws (`draws`: one (before, after,
+    null) metrics triple a draw): each the mean over the draws, the attributable shrink of
+    those means, and the spread a single draw has. The gap (before − null) of one draw is the
+    difference of two trainings; `gap_se_g` is the standard error of its mean, and `gap_z`
+    the mean gap in those units (a gap below about 2 is not measured apart from the training
+    noise). Nothing named closes nothing (the table's convention)."""
+    get = lambda i, k: np.array([d[i][k] for d in draws], dtype=float)  # noqa: E731
+    b, a, n = (get(i, metric) for i in range(3))
+    each = [_closed(*v) if named else 0.0 for v in zip(b, a, n)]
+    gap = b - n
+    se = float(np.std(gap, ddof=1) / np.sqrt(len(gap))) if len(gap) > 1 else np.nan
+    eb, ea, en = (get(i, "ensemble_rms_g").mean() for i in range(3))
+    return dict(before=b.mean(), after=a.mean(), null=n.mean(),
+                attributable=_closed(b.mean(), a.mean(), n.mean()) if named else 0.0,
+                attributable_draws=";".join(f"{v:.3f}" for v in each), gap_g=gap.mean(), gap_se_g=se,
+                gap_z=gap.mean() / se if se > 0 else np.nan,
+                ensemble_before_g=eb, ensemble_after_g=ea, ensemble_null_g=en,
+                attributable_ensemble=_closed(eb, ea, en) if named else 0.0)
+
+
+def table_name(nets: int, draws: int = 1) -> str:
+    """The re-measurement's file beside an offset's results."""
+    return f"attributable_nets{nets}" + (f"_draws{draws}" if draws > 1 else "") + ".csv"
+
+
+def evaluate_offset(out: Path, offset: int, nets: int, only=(), log=print, draws: int = 1) -> pd.DataFrame:
     """Every finished world of one seed offset of a benchmark output, re-measured with `nets`
-    nets per fold: one row per hidden world, its before / after / null on its gap metric and
-    over all windows (ensemble), with the table's attributable shrink beside the new one."""
+    nets per fold and `draws` training draws (`_draw_config`; each draw retrains the world's
+    models and its null's): one row per hidden world, its before / after / null on its gap
+    metric and over all windows (ensemble), means over the draws (`over_draws`), with the
+    table's attributable shrink beside the new one."""
     folder = out / (f"seed+{offset}" if offset else "")
     table = read_table(folder / "results.parquet")[0]
     scenarios, overrides = scenario_configs(CONFIG, offset)
     by_name = {s["name"]: s for s in scenarios}
-    nulls, rows = {}, []
+    nulls = {}
 
-    def config(sc):
+    def config(sc, draw):
         cfg = scenario_config(sc, overrides)
         differ = _other_settings(read_table(folder / sc["name"] / "windows.parquet")[1], cfg.discovery)
         if differ:  # its rounds were chosen with other settings
             raise SystemExit(f"{folder / sc['name']} was run with other settings than {CONFIG}'s: {differ}")
-        return dataclasses.replace(cfg, discovery=dataclasses.replace(cfg.discovery, seeds=nets))
+        return _draw_config(cfg, nets, draw)
 
-    def null_of(seed: int, through_lag: bool, kinds):
-        """The null world of `seed`: its baseline's metrics (and of its lag reference's)."""
-        if seed not in nulls:
+    def null_of(seed: int, draw: int, through_lag: bool, kinds):
+        """The null world of `seed` in training draw `draw`: its baseline's metrics (or its lag
+        reference's)."""
+        if (seed, draw) not in nulls:
+            for k in [k for k in nulls if k[1] != draw]:  # one draw's nulls held at a time: memory
+                del nulls[k]
             sc = next(s for s in scenarios if s["seed"] == seed and s["truth"] is None)
             t0 = time.perf_counter()
-            ctx, base, _, lag_ref = rebuild(_campaign(sc["synth"]), config(sc), folder / sc["name"], log)
-            nulls[seed] = dict(ctx=ctx, base=base, lag_ref=lag_ref, lagged=None)
-            log(f"  {sc['name']} (seed {seed}): baseline {time.perf_counter() - t0:.0f} s")
-        n = nulls[seed]
+            ctx, base, _, lag_ref = rebuild(_campaign(sc["synth"]), config(sc, draw), folder / sc["name"], log)
+            nulls[seed, draw] = dict(ctx=ctx, base=base, lag_ref=lag_ref, lagged=None)
+            log(f"  {sc['name']} (seed {seed}, draw {draw}): baseline {time.perf_counter() - t0:.0f} s")
+        n = nulls[seed, draw]
         if through_lag and n["lagged"] is None:
             n["lagged"] = n["lag_ref"]()
         got = measure(n["ctx"], n["lagged"] if through_lag else n["base"], kinds)
         n["ctx"].cache.clear()  # its replays at every offset the fits tried: memory, kept for three worlds
         return got
 
+    def one_draw(sc, row, draw):
+        kinds = _kinds(row)
+        ctx, base, after, _ = rebuild(_campaign(sc["synth"]), config(sc, draw), folder / sc["name"], log)
+        b, a = measure(ctx, base, kinds), measure(ctx, after, kinds)
+        if base.through_lag:  # no region against a null of another kind
+            b["region_g"] = np.nan
+        if sc["reference_world"] is not None:  # its own reference world: the baseline there, no rounds
+            rctx, rbase, _, _ = rebuild(_campaign(sc["reference_world"]), config(sc, draw),
+                                        folder / sc["name"] / "reference", log)
+            return b, a, measure(rctx, rbase, kinds)
+        return b, a, null_of(sc["seed"], draw, base.through_lag, kinds)
+
     hidden = table[table.hidden != "none"]
     if only:
         hidden = hidden[hidden.scenario.isin(only)]
-    for row in hidden.itertuples():
-        sc = by_name[row.scenario]
-        t0 = time.perf_counter()
-        log(f"  {row.scenario} (seed {row.seed}): {row.named}")
-        ctx, base, after, _ = rebuild(_campaign(sc["synth"]), config(sc), folder / sc["name"], log)
-        kinds = _kinds(row)
-        b, a = measure(ctx, base, kinds), measure(ctx, after, kinds)
-        if sc["reference_world"] is not None:  # its own reference world: the baseline there, no rounds
-            rctx, rbase, _, _ = rebuild(_campaign(sc["reference_world"]), config(sc), folder / sc["name"] / "reference",
-                                        log)
-            n = measure(rctx, rbase, kinds)
-        else:
-            n = null_of(sc["seed"], base.through_lag, kinds)
-        metric = row.gap_metric
-        new = dict(scenario=row.scenario, seed=row.seed, offset=offset, nets=nets, named=row.named,
-                   correct_first=row.correct_first, gap_metric=metric,
-                   before=b[metric], after=a[metric], null=n[metric],
-                   attributable=_closed(b[metric], a[metric], n[metric]) if row.named != "none" else 0.0,
-                   ensemble_before_g=b["ensemble_rms_g"], ensemble_after_g=a["ensemble_rms_g"],
-                   ensemble_null_g=n["ensemble_rms_g"],
-                   attributable_ensemble=_closed(b["ensemble_rms_g"], a["ensemble_rms_g"], n["ensemble_rms_g"]),
-                   attributable_region=(_closed(b["region_g"], a["region_g"], n["region_g"])
-                                        if kinds and not base.through_lag else np.nan),
-                   table_before=getattr(row, _GAP_COLUMNS[metric][0]),
-                   table_after=getattr(row, _GAP_COLUMNS[metric][1]),
-                   table_attributable=row.attributable_shrink, seconds=time.perf_counter() - t0)
-        if row.named == "none":  # nothing named: nothing closed (the table's convention)
-            new["attributable_ensemble"] = new["attributable_region"] = 0.0
-        rows.append(new)
-        log(f"  {row.scenario}: {metric} before {new['before']:.4f}, after {new['after']:.4f}, null {new['null']:.4f}: "
-            f"attributable {new['attributable']:.2f} (table {new['table_attributable']:.2f}); "
-            f"{new['seconds']:.0f} s")
-        _save(pd.DataFrame(rows), folder / f"attributable_nets{nets}.csv")
+    per, seconds, rows = {}, {}, []
+    for draw in range(draws):  # draws outermost: a null's models are rebuilt once a draw
+        for row in hidden.itertuples():
+            sc = by_name[row.scenario]
+            t0 = time.perf_counter()
+            log(f"  {row.scenario} (seed {row.seed}, draw {draw}): {row.named}")
+            per.setdefault(row.scenario, []).append(one_draw(sc, row, draw))
+            seconds[row.scenario] = seconds.get(row.scenario, 0.0) + time.perf_counter() - t0
+        rows = [_row(row, per[row.scenario], offset, nets, seconds[row.scenario]) for row in hidden.itertuples()]
+        for new in rows:
+            log(f"  {new['scenario']}, {draw + 1} draw(s): {new['gap_metric']} before {new['before']:.4f}, after "
+                f"{new['after']:.4f}, null {new['null']:.4f}: attributable {new['attributable']:.2f} (draws "
+                f"{new['attributable_draws']}; gap {new['gap_g']:.4f} ± {new['gap_se_g']:.4f}; table "
+                f"{new['table_attributable']:.2f})")
+        _save(pd.DataFrame(rows), folder / table_name(nets, draws))  # after each draw: the means so far
     return pd.DataFrame(rows)
+
+
+def _row(row, per: list, offset: int, nets: int, seconds: float) -> dict:
+    """A world's re-measured row from its draws' (before, after, null) metrics."""
+    metric, named = row.gap_metric, row.named != "none"
+    new = dict(scenario=row.scenario, seed=row.seed, offset=offset, nets=nets, draws=len(per), named=row.named,
+               correct_first=row.correct_first, gap_metric=metric, **over_draws(per, metric, named))
+    regions = np.mean([(b["region_g"], a["region_g"], n["region_g"]) for b, a, n in per], axis=0)
+    new["attributable_region"] = _closed(*regions) if named else 0.0  # NaN without a region
+    before, after = _GAP_COLUMNS[metric]
+    return new | dict(table_before=getattr(row, before), table_after=getattr(row, after),
+                      table_attributable=row.attributable_shrink, seconds=seconds)
 
 
 def _save(df: pd.DataFrame, path: Path) -> None:
@@ -234,13 +278,17 @@ def main():
     ap.add_argument("out", type=Path, help="a benchmark output folder (discovery_benchmark.py --out)")
     ap.add_argument("--seed-offsets", default="0", help="comma-separated, as the benchmark's")
     ap.add_argument("--nets", type=int, default=16, help="nets per fold (the discovery's `seeds`)")
+    ap.add_argument("--draws", type=int, default=1,
+                    help="training draws (the config's seed + 1000 × draw), each retraining every model; the "
+                         "before, after and null are their means")
     ap.add_argument("--only", default="", help="comma-separated hidden scenario names")
     args = ap.parse_args()
     only = tuple(s for s in args.only.split(",") if s)
     frames = []
     for off in (int(v) for v in args.seed_offsets.split(",")):
         print(f"seed offset {off}", flush=True)
-        frames.append(evaluate_offset(args.out, off, args.nets, only, log=lambda m: print(m, flush=True)))
+        frames.append(evaluate_offset(args.out, off, args.nets, only, log=lambda m: print(m, flush=True),
+                                      draws=args.draws))
     df = pd.concat(frames, ignore_index=True)
     print(df[["scenario", "seed", "named", "gap_metric", "before", "after", "null", "attributable",
               "table_attributable", "seconds"]].to_string())

@@ -438,11 +438,13 @@ def main():
 
 def remeasured(out: Path, offsets) -> dict:
     """The re-measurements of experiments/attributable_ensemble.py in `out`
-    (`[seed+N/]attributable_netsK.csv`): {nets per fold: {offset: rows}}."""
+    (`[seed+N/]attributable_netsK.csv`): {nets per fold: {offset: rows}}. Those over several
+    training draws (`..._drawsR.csv`) are another measurement, not read here."""
     found = {}
     for off in offsets:
         for path in sorted((out / (f"seed+{off}" if off else "")).glob("attributable_nets*.csv")):
-            found.setdefault(int(path.stem.removeprefix("attributable_nets")), {})[off] = pd.read_csv(path)
+            if (nets := path.stem.removeprefix("attributable_nets")).isdigit():
+                found.setdefault(int(nets), {})[off] = pd.read_csv(path)
     return found
 
 

@@ -79,3 +79,35 @@ def test_a_folder_run_with_other_training_settings_is_refused_but_not_one_before
     assert ae._other_settings({"discovery": {**then, "term_refit": "peaks"}}, now) == {}
     assert ae._other_settings({"discovery": {**then, "term_refit": "windows"}}, now) == {
         "term_refit": ("windows", "named")}
+
+
+def test_a_world_over_training_draws_is_the_shrink_of_the_mean_before_after_and_null(ae):
+    def m(g, e):
+        return dict(peak_error_g=g, ensemble_rms_g=e)
+
+    draws = [(m(0.050, 0.040), m(0.044, 0.036), m(0.040, 0.035)),  # closes 0.6 of its gap
+             (m(0.046, 0.042), m(0.044, 0.040), m(0.042, 0.036)),  # 0.5
+             (m(0.048, 0.044), m(0.043, 0.039), m(0.038, 0.037))]  # 0.5
+    got = ae.over_draws(draws, "peak_error_g", named=True)
+    assert (got["before"], got["after"], got["null"]) == pytest.approx((0.048, 0.04367, 0.040), abs=1e-5)
+    assert got["attributable"] == pytest.approx((0.048 - 0.131 / 3) / (0.048 - 0.040))  # not the mean of 0.6, 0.5, 0.5
+    assert got["attributable_draws"] == "0.600;0.500;0.500"
+    gaps = np.array([0.010, 0.004, 0.010])
+    assert got["gap_g"] == pytest.approx(gaps.mean())
+    assert got["gap_se_g"] == pytest.approx(gaps.std(ddof=1) / np.sqrt(3))
+    assert got["gap_z"] == pytest.approx(gaps.mean() / got["gap_se_g"])
+    assert got["attributable_ensemble"] == pytest.approx((0.042 - 0.115 / 3) / (0.042 - 0.036))
+    nothing = ae.over_draws(draws, "peak_error_g", named=False)  # nothing named closes nothing
+    assert nothing["attributable"] == nothing["attributable_ensemble"] == 0.0 and nothing["gap_g"] == got["gap_g"]
+    one = ae.over_draws(draws[:1], "peak_error_g", named=True)  # one draw: the table's own measure, no spread
+    assert one["attributable"] == pytest.approx(0.6) and np.isnan(one["gap_se_g"]) and np.isnan(one["gap_z"])
+
+
+def test_a_training_draw_shifts_the_training_seed_only(ae):
+    from pvvjax.config import DiscoveryConfig, ExperimentConfig
+
+    cfg = ExperimentConfig(seed=3, discovery=DiscoveryConfig(seeds=4, split_seed=7))
+    assert ae._draw_config(cfg, 4, 0) == cfg  # draw 0: the discovery's own training
+    two = ae._draw_config(cfg, 16, 2)
+    assert two.seed == 2003 and two.discovery.seeds == 16 and two.discovery.split_seed == 7  # the same folds
+    assert ae.table_name(16) == "attributable_nets16.csv" and ae.table_name(4, 4) == "attributable_nets4_draws4.csv"

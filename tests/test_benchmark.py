@@ -233,6 +233,7 @@ def test_remeasured_worlds_are_counted_beside_the_tables_own(bench, tmp_path):
     (tmp_path / "seed+2").mkdir()
     rows([0.9, 0.6], [np.nan, 0.4]).to_csv(tmp_path / "attributable_nets16.csv", index=False)
     rows([np.nan, 0.0], [0.8, 0.0]).to_csv(tmp_path / "seed+2" / "attributable_nets16.csv", index=False)
+    rows([0.7, 0.7], [0.8, 0.0]).to_csv(tmp_path / "attributable_nets4_draws4.csv", index=False)  # another measure
     found = bench.remeasured(tmp_path, [0, 1, 2])
     assert list(found) == [16] and list(found[16]) == [0, 2]  # no file for offset 1
     got = bench.remeasured_by_scenario(found[16]).set_index("scenario")
