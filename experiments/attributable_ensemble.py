@@ -13,7 +13,11 @@ written before `rounds.csv` kept `parameters`: up to the four digits of a candid
     python experiments/attributable_ensemble.py /work/out --seed-offsets 0,1 --nets 16
 
 writes OUT/[seed+N/]attributable_nets16.csv beside each offset's results, and prints the
-worlds side by side with the table's own attributable shrink.
+worlds side by side with the table's own attributable shrink. With `--draws R` every model
+(the world's and its null's) is retrained R times from other training seeds, and the before,
+after and null are the means over those draws (OUT/[seed+N/]attributable_nets4_draws4.csv for
+`--nets 4 --draws 4`): the expected error of the workflow's ensemble rather than one draw of
+it, with each draw's shrink and the gap's standard error beside them.
 """
 
 from __future__ import annotations
