@@ -160,23 +160,38 @@ def _draw_config(cfg, nets: int, draw: int):
                                discovery=dataclasses.replace(cfg.discovery, seeds=nets))
 
 
+_RESAMPLES = 2000  # bootstrap resamples of a world's draws
+
+
 def over_draws(draws: list, metric: str, named: bool) -> dict:
     """One world's before / after / null over its training draws (`draws`: one (before, after,
     null) metrics triple a draw): each the mean over the draws, the attributable shrink of
     those means, and the spread a single draw has. The gap (before − null) of one draw is the
     difference of two trainings; `gap_se_g` is the standard error of its mean, and `gap_z`
     the mean gap in those units (a gap below about 2 is not measured apart from the training
-    noise). Nothing named closes nothing (the table's convention)."""
+    noise). `attributable_lo` and `_hi` bound the shrink of the means by the 5th and 95th
+    percentiles of the same over the draws resampled (bootstrap; a resample without a gap
+    counts as below every shrink: NaN where it is the 5th percentile's). Nothing named closes
+    nothing (the table's convention)."""
     get = lambda i, k: np.array([d[i][k] for d in draws], dtype=float)  # noqa: E731
     b, a, n = (get(i, metric) for i in range(3))
     each = [_closed(*v) if named else 0.0 for v in zip(b, a, n)]
     gap = b - n
     se = float(np.std(gap, ddof=1) / np.sqrt(len(gap))) if len(gap) > 1 else np.nan
+    lo = hi = 0.0 if not named else np.nan
+    if named and len(gap) > 1:
+        i = np.random.default_rng(0).integers(len(gap), size=(_RESAMPLES, len(gap)))
+        bb, ab, nb = b[i].mean(1), a[i].mean(1), n[i].mean(1)
+        boot = np.where(bb > nb, (bb - ab) / np.where(bb > nb, bb - nb, 1.0), -np.inf)
+        lo, hi = (float(v) if np.isfinite(v) else np.nan for v in np.percentile(boot, [5, 95], method="inverted_cdf"))
     eb, ea, en = (get(i, "ensemble_rms_g").mean() for i in range(3))
     return dict(before=b.mean(), after=a.mean(), null=n.mean(),
                 attributable=_closed(b.mean(), a.mean(), n.mean()) if named else 0.0,
+                attributable_lo=lo, attributable_hi=hi,
                 attributable_draws=";".join(f"{v:.3f}" for v in each), gap_g=gap.mean(), gap_se_g=se,
                 gap_z=gap.mean() / se if se > 0 else np.nan,
+                **{f"{k}_draws": ";".join(f"{v:.6g}" for v in x)
+                   for k, x in (("before", b), ("after", a), ("null", n))},
                 ensemble_before_g=eb, ensemble_after_g=ea, ensemble_null_g=en,
                 attributable_ensemble=_closed(eb, ea, en) if named else 0.0)
 

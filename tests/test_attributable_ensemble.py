@@ -97,10 +97,17 @@ def test_a_world_over_training_draws_is_the_shrink_of_the_mean_before_after_and_
     assert got["gap_se_g"] == pytest.approx(gaps.std(ddof=1) / np.sqrt(3))
     assert got["gap_z"] == pytest.approx(gaps.mean() / got["gap_se_g"])
     assert got["attributable_ensemble"] == pytest.approx((0.042 - 0.115 / 3) / (0.042 - 0.036))
+    assert got["before_draws"] == "0.05;0.046;0.048" and got["null_draws"] == "0.04;0.042;0.038"
+    assert 0.5 <= got["attributable_lo"] <= got["attributable"] <= got["attributable_hi"] <= 0.6  # within the draws'
+    # a fourth draw whose null is far above its before: most resamples have no gap
+    shaky = ae.over_draws([*draws, (m(0.03, 0.04), m(0.03, 0.04), m(0.06, 0.04))], "peak_error_g", named=True)
+    assert np.isnan(shaky["attributable_lo"]) and shaky["attributable_hi"] >= 0.5
     nothing = ae.over_draws(draws, "peak_error_g", named=False)  # nothing named closes nothing
-    assert nothing["attributable"] == nothing["attributable_ensemble"] == 0.0 and nothing["gap_g"] == got["gap_g"]
+    assert nothing["attributable"] == nothing["attributable_ensemble"] == nothing["attributable_hi"] == 0.0
+    assert nothing["gap_g"] == got["gap_g"]
     one = ae.over_draws(draws[:1], "peak_error_g", named=True)  # one draw: the table's own measure, no spread
     assert one["attributable"] == pytest.approx(0.6) and np.isnan(one["gap_se_g"]) and np.isnan(one["gap_z"])
+    assert np.isnan(one["attributable_lo"]) and np.isnan(one["attributable_hi"])
 
 
 def test_a_training_draw_shifts_the_training_seed_only(ae):
