@@ -261,14 +261,14 @@ def evaluate_offset(out: Path, offset: int, nets: int, only=(), log=print, draws
             log(f"  {row.scenario} (seed {row.seed}, draw {draw}): {row.named}")
             per.setdefault(row.scenario, []).append(one_draw(sc, row, draw))
             seconds[row.scenario] = seconds.get(row.scenario, 0.0) + time.perf_counter() - t0
-            new = _row(row, per[row.scenario], offset, nets, seconds[row.scenario])
+            rows = [_row(r, per[r.scenario], offset, nets, seconds[r.scenario]) for r in hidden.itertuples()
+                    if r.scenario in per]
+            _save(pd.DataFrame(rows), folder / table_name(nets, draws))  # after each world: the draws so far
+            new = next(r for r in rows if r["scenario"] == row.scenario)
             log(f"  {row.scenario}, {draw + 1} draw(s): {new['gap_metric']} before {new['before']:.4f}, after "
                 f"{new['after']:.4f}, null {new['null']:.4f}: attributable {new['attributable']:.2f} (draws "
                 f"{new['attributable_draws']}; gap {new['gap_g']:.4f} ± {new['gap_se_g']:.4f}; table "
                 f"{new['table_attributable']:.2f}); {new['seconds']:.0f} s")
-            rows = [_row(r, per[r.scenario], offset, nets, seconds[r.scenario]) for r in hidden.itertuples()
-                    if r.scenario in per]
-            _save(pd.DataFrame(rows), folder / table_name(nets, draws))  # after each world: the draws so far
     return pd.DataFrame(rows)
 
 
