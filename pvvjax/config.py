@@ -386,7 +386,9 @@ class DiscoveryConfig:
             where that model confirms too. Off by default ("peaks"): on 34 benchmark worlds it
             keeps every first name and null, but lowers the held-out error no better than
             "peaks" (the attributable shrink rises on 13, falls on 18; on six fresh seeds it
-            falls on four), docs/discovery.md "The named term refitted on window nets".
+            falls on four; averaged over eight training draws on four worlds, no better and no
+            worse), docs/discovery.md "The named term refitted on window nets" and "The
+            attributable shrink over training draws".
         selection_stride: every n-th window of a counter enters the selection.
         local_selection: also run the selection inside each maneuver kind where the residual
             concentrates (Bonferroni over the subsets). Off by default: on the benchmark's
