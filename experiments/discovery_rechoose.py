@@ -11,7 +11,10 @@ from the one logged: the worlds to re-run, and nothing else.
         [--tie-share 0.5]
         [--csv OUT.csv]                                             # every round, recomputed
 
-`--min-shrink=-inf` turns off "beyond the floor first" (every tied candidate kept).
+`--min-shrink=-inf` turns off "beyond the floor first" (every tied candidate kept). A round
+whose named input gave way to its proposal's term (`augment_tie = "additive"`, `p_input_better`
+logged) counts as unchanged where the same proposal is chosen; whether the term would tie
+with another proposal's input needs that input's predictions, so it is not replayed.
 """
 
 from __future__ import annotations
@@ -59,11 +62,17 @@ def rechoose(rounds: pd.DataFrame, noise: float, alpha: float, min_shrink: float
         c = g[g.confirmed.astype(bool)].reset_index(drop=True)
         if not len(c):
             continue
-        k = _choose(tries(c), noise, alpha, min_shrink, share)
-        logged = np.flatnonzero(c.chosen.astype(bool))
-        label = lambda i: f"{c.name[i]} ({c.augment[i]})"  # noqa: E731
-        out.append(dict(round=int(rnd), logged=label(logged[0]) if len(logged) else "",
-                        recomputed=label(k), changed=list(logged) != [k]))
+        t = tries(c)
+        k = _choose(t, noise, alpha, min_shrink, share)
+        logged = g[g.chosen.astype(bool)]
+        label = lambda r: f"{r['name']} ({r['augment']})"  # noqa: E731
+        same = len(logged) == 1 and logged.index[0] == g.index[g.confirmed.astype(bool)][k]
+        if len(logged) == 1 and pd.notna(logged.iloc[0].get("p_input_better", np.nan)):
+            # `augment_tie`: the proposal's term named in place of its input; a choice of the
+            # proposal that recomputes the same.
+            same = tries(logged.assign(confirmed=True))[0][3] == t[k][3]
+        out.append(dict(round=int(rnd), logged=label(logged.iloc[0]) if len(logged) else "",
+                        recomputed=label(c.iloc[k]), changed=not same))
     return pd.DataFrame(out, columns=["round", "logged", "recomputed", "changed"])
 
 

@@ -373,6 +373,14 @@ class DiscoveryConfig:
             "input" (an extra network input: the nets learn its shape and its interactions),
             or "auto" (both; the one that lowers the held-out RMS more). A lag is always a
             learned lag of the replay, a resonance a learned gain on the nets' output.
+        augment_tie: with "auto", which way of the named proposal is kept: "shrink" (the
+            try named, whichever way lowered the RMS more) or "additive" (its term where the
+            term ties with the input as `_choose` ties tries, confirmed on its own or not:
+            the round confirmed the effect; a term is two numbers per fold fitted on every
+            window, an input is learned anew by each training on ~200 peaks, and one
+            training's shrink is one draw of that). Over eight training draws the term's
+            held-out RMS is the lower one on the benchmark worlds measured
+            (docs/discovery.md, "Additive or input, over training draws").
         term_refit: what an additive term is refitted on after the nets are retrained on the
             peaks minus its first fit: "peaks" (the residual of those nets) or "windows" (of
             nets trained on every `train_stride`-th replay window minus it, about 25 times
@@ -485,6 +493,7 @@ class DiscoveryConfig:
     floor_refinements: int = 4
     floor_control: bool = True
     augment: Literal["additive", "input", "auto"] = "auto"
+    augment_tie: Literal["shrink", "additive"] = "shrink"
     term_refit: Literal["peaks", "windows", "named"] = "peaks"
     selection_stride: int = 4
     local_selection: bool = False

@@ -132,6 +132,7 @@ def write_discovery(res: Discovery, out, cfg=None, worst: int = 4) -> Path:
     if not res.rounds.empty:
         controlled = "control_shrink" in res.rounds and bool(res.rounds.control_shrink.notna().any())
         refit = "window_refit_kept" in res.rounds
+        way_tie = "p_input_better" in res.rounds and bool(res.rounds.p_input_better.notna().any())
         lines += ["## Every proposal tried", "",
                   "A round proposes the candidates the selection cannot tell apart (held-out errors within one "
                   "standard error of the best's: the simplest, the one that explains most, then the others); each is "
@@ -155,13 +156,17 @@ def write_discovery(res: Discovery, out, cfg=None, worst: int = 4) -> Path:
                       "own model against the control, which it may beat instead." if controlled else "") + (
                       " `window_refit_*` (`term_refit = \"named\"`): the named term refitted on nets trained on the "
                       "windows, its coefficient and ensemble's RMS after, and whether that model confirmed too and "
-                      "replaced the try." if refit else ""), "",
+                      "replaced the try." if refit else "") + (
+                      " `p_input_better` (`augment_tie = \"additive\"`): that the named input predicts better "
+                      "than its proposal's term (by condition); where the term ties with it, the term is named, "
+                      "confirmed alone or not." if way_tie else ""), "",
                   _md(res.rounds[["round", "name", *(["source"] if "source" in res.rounds else []), "augment",
                                   "p_value", "cv_gain", "rms_before_g", "rms_after_g",
                                   "ensemble_rms_before_g", "ensemble_rms_after_g", "shrink", "judged_in",
                                   "region_shrink", *(["control_shrink", "control_region_shrink", "over_control_shrink",
                                                     "over_control_region_shrink"] if controlled else []),
-                                  "confirmed", "why_not", "p_best_better", "chosen",
+                                  "confirmed", "why_not", "p_best_better", *(["p_input_better"] if way_tie else []),
+                                  "chosen",
                                   *(["window_refit_coefficient", "window_refit_ensemble_rms_g",
                                      "window_refit_kept"] if refit else [])]]), "",
                   "Runners-up of each proposal (held-out gain):", ""]

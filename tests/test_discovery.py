@@ -570,6 +570,15 @@ def test_rechoose_replays_a_rounds_choice_from_rounds_csv_and_flags_a_change():
     new = rounds.assign(proposal="p", source="selection")
     assert {x[3] for x in mod.tries(new[new.confirmed.astype(bool)])} == {"p"}
     assert not mod.rechoose(new, 0.02, 0.01, 0.05).changed.any()  # one proposal: all beyond or none
+    # `augment_tie = "additive"`: the pitch-rate term named in place of its input (not confirmed
+    # alone) is the same choice of proposal; the yaw-rate term in its place is not.
+    term = dict(round=1, candidate="input:pitch_rate_dps:coefficient=0.01,offset_s=0.6,transform=abs",
+                name="pitch rate magnitude", operator="input", augment="additive", shrink=0.054, cv_gain=0.0634,
+                confirmed=False, chosen=True, p_input_better=0.4)
+    tie = pd.concat([rounds.assign(chosen=False), pd.DataFrame([term])], ignore_index=True)
+    assert mod.rechoose(tie, 0.02, 0.01, 0.05).to_dict("records") == [dict(
+        round=1, logged="pitch rate magnitude (additive)", recomputed="pitch rate magnitude (input)", changed=False)]
+    assert mod.rechoose(tie, 0.02, 0.01, -np.inf).changed.all()  # the yaw-rate knee's round: another proposal
 
 
 # --------------------------------------------------------------------------- end to end
@@ -1073,3 +1082,51 @@ def test_with_term_refit_named_only_the_named_term_is_refitted_on_window_nets_an
     assert res.final is final
     assert res.effects[0]["parameters"]["coefficient"] == pytest.approx(np.median(final.terms[-1][1][:, 1]))
     assert res.after["ensemble_rms_g"] == pytest.approx(confirms[1 if kept else 0][1]["metrics"]["ensemble_rms_g"])
+
+
+@pytest.mark.parametrize("augment_tie, shrinks, way", [("shrink", (0.05, 0.06), "input"),
+                                                       ("additive", (0.05, 0.06), "additive"),
+                                                       ("additive", (0.01, 0.20), "input")])
+def test_with_augment_tie_additive_a_named_input_gives_way_to_its_proposals_term_where_they_tie(
+        monkeypatch, tmp_path, small_campaign_dir, augment_tie, shrinks, way):
+    # "auto" retrains the proposal as a term and as an input; the input confirms, the term
+    # does not (forced), and their shrinks over all windows are forced. "shrink" names the
+    # input; "additive" names the term where it ties with the input (within `shrink_noise`,
+    # 0.05 against 0.06) though it did not confirm alone, and not where it is far below
+    # (0.01 against 0.20). The fits, training and replay are the workflow's own.
+    from pvvjax.config import DiscoveryConfig, ExperimentConfig, TrainConfig
+    from pvvjax.discovery import _workflow, discover
+    from pvvjax.discovery_report import write_discovery
+    from pvvjax.selection import Selected
+
+    def propose(win, yhat, resid, M, rows, own, floor, d, seed, complexity, keys, is_floor):
+        j = next(i for i, k in enumerate(keys) if k.startswith("input:") and not is_floor[i])
+        return [("all", j, Selected(j, 0.1, 0.1, 0.001))], [], {"all": (rows, floor)}
+
+    confirm, trials = _workflow._confirm, []
+
+    def confirm_forced(ctx, current, trial, c, where, d, slack=0.0):
+        _, out = confirm(ctx, current, trial, c, where, d, slack)
+        trials.append(trial)
+        additive = bool(trial.terms)
+        return not additive, {**out, "shrink": shrinks[0 if additive else 1], "why": "forced" if additive else ""}
+
+    monkeypatch.setattr(_workflow, "_propose", propose)
+    monkeypatch.setattr(_workflow, "_confirm", confirm_forced)
+    d = DiscoveryConfig(seeds=1, folds=3, max_effects=1, floor_control=False, offset_step_s=0.5,
+                        augment_tie=augment_tie)
+    cfg = ExperimentConfig(train=TrainConfig(max_steps=100), discovery=d)
+    res = discover(small_campaign_dir, cfg, log=lambda m: None)
+
+    rows = res.rounds[res.rounds["round"] == 1]
+    assert list(rows.augment) == ["additive", "input"] and list(rows.confirmed) == [False, True]
+    named = rows[rows.chosen]
+    assert list(named.augment) == [way] and [e["key"] for e in res.effects] == list(named.candidate)
+    term, input_ = trials
+    assert res.final is (term if way == "additive" else input_)
+    assert ("coefficient" in res.effects[0]["parameters"]) == (way == "additive")
+    asked = rows.p_input_better.notna().tolist()  # the term's p, asked where "additive" could name it
+    assert asked == [augment_tie == "additive", False]
+    if augment_tie == "additive":
+        assert 0 < rows.p_input_better.iloc[0] <= 1
+    assert ("p_input_better" in write_discovery(res, tmp_path / "out", cfg).read_text()) == (augment_tie == "additive")

@@ -251,6 +251,12 @@ def _beyond_floor(control_shrink: float, min_shrink: float) -> bool:
     return not control_shrink < min_shrink
 
 
+def _tied(shrink: float, best: float, p: float, noise: float, alpha: float, share: float) -> bool:
+    """Whether a try of this shrink ties with the best's (`_choose`): within `noise` of it, or
+    not beaten at p < `alpha` (p: that the best predicts better) with `share` of it."""
+    return shrink >= best - noise or (p >= alpha and shrink >= share * best)
+
+
 def _choose(tries, noise: float, alpha: float, min_shrink: float, share: float = 0.0) -> int:
     """Which confirmed try of a round is named. tries: (shrink, selection gain, p, candidate,
     control shrink) of each: p the one-sided p-value that the try of the largest shrink
@@ -291,7 +297,7 @@ def _choose(tries, noise: float, alpha: float, min_shrink: float, share: float =
     knee was named.
     """
     best = max(t[0] for t in tries)
-    tied = [i for i, t in enumerate(tries) if t[0] >= best - noise or (t[2] >= alpha and t[0] >= share * best)]
+    tied = [i for i, t in enumerate(tries) if _tied(t[0], best, t[2], noise, alpha, share)]
     beyond = {tries[i][3] for i in tied if _beyond_floor(tries[i][4], min_shrink)}
     tied = [i for i in tied if tries[i][3] in beyond] or tied
     ranked = [i for i in tied if np.isfinite(tries[i][1])]

@@ -30,6 +30,7 @@ from ._confirm import (
     _paired_sign_flip,
     _refits_on_windows,
     _rival,
+    _tied,
     _train_model,
 )
 from ._fits import _fit_offset, _keep_better, _refine
@@ -344,7 +345,7 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
                     f"{cur_metrics['ensemble_rms_g']:.4f} -> "
                     f"{metrics(predictions(ctx, controls[key], win), win)['ensemble_rms_g']:.4f} g")
             return controls.get(key), kept
-        confirmed, tried = [], set()
+        confirmed, tried, ways = [], set(), {}  # ways: every try, confirmed or not, by (proposal, way)
 
         def try_proposal(where, j, s):
             """Retrain the proposal (column `j` of `lib`, found in `where`, `s` its `Selected`) in
@@ -420,16 +421,18 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
                                    over_control_region_shrink=over_control["local"],
                                    control_terms="; ".join(r.name for r in kept) if control is not None else "",
                                    confirmed=ok, why_not=conf["why"],
-                                   p_best_better=np.nan, chosen=False))
+                                   p_best_better=np.nan, p_input_better=np.nan, chosen=False))
                 log(f"  {c.name} ({mode}): held-out RMS {cur_metrics['rms_g']:.4f} -> {conf['metrics']['rms_g']:.4f} "
                     f"g (median over seeds); ensemble's {conf['ensemble'][0]:.4f} -> {conf['ensemble'][1]:.4f} g, "
                     f"shrink {conf['shrink']:+.1%} (all), {conf['local']:+.1%} "
                     f"({conf['judged_in']}): "
                     f"{'confirmed' if ok else 'not confirmed (' + conf['why'] + ')'}")
+                done = _Confirmed(conf["shrink"], len(rounds) - 1, where,
+                                  s._replace(p_value=p_value, explained_fraction=explained), c, trial, conf,
+                                  refined.key, on_control["shrink"])
+                ways[(refined.key, mode)] = done
                 if ok:  # "auto" tries both ways and keeps the better
-                    confirmed.append(_Confirmed(conf["shrink"], len(rounds) - 1, where,
-                                                s._replace(p_value=p_value, explained_fraction=explained), c,
-                                                trial, conf, refined.key, on_control["shrink"]))
+                    confirmed.append(done)
 
         def choose():
             """The confirmed tries as `_choose` compares them, and the index of the one named."""
@@ -458,7 +461,19 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
             try_proposal(named.where, a, named.selected._replace(index=a, gain=g, explained_fraction=g,
                                                                  alternatives=(), equivalents=(), source="rival"))
             tries, k = choose()
-        _, row, where, s, c, trial, conf, _, _ = confirmed[k]
+        named = confirmed[k]
+        term = ways.get((named.proposal, "additive"))
+        if d.augment_tie == "additive" and rounds[named.row]["augment"] == "input" and term is not None:
+            # The proposal is confirmed; which way adds it is a choice between fits: the term,
+            # where it ties with the input as `_choose` ties tries (config's `augment_tie`).
+            p = _paired_sign_flip(term.conf, named.conf, _SIGN_FLIPS, cfg.seed + rnd)[0]
+            rounds[term.row]["p_input_better"] = p
+            if _tied(term.shrink, named.shrink, p, d.shrink_noise, d.alpha, d.tie_share):
+                log(f"round {rnd + 1}: {named.candidate.name} added as a term, not an input: its shrink "
+                    f"{term.shrink:+.1%} ties with the input's {named.shrink:+.1%} (p = {p:.3f} that the input "
+                    "predicts better)")
+                named = term
+        _, row, where, s, c, trial, conf, _, _ = named
         if d.term_refit == "named" and rounds[row]["augment"] == "additive" and _refits_on_windows(d, current):
             # The tries were refitted on the peak nets, whose residual holds a term short; the
             # named one alone is refitted on window nets, so floor structure that no try
