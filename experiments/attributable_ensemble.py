@@ -17,7 +17,11 @@ worlds side by side with the table's own attributable shrink. With `--draws R` e
 (the world's and its null's) is retrained R times from other training seeds, and the before,
 after and null are the means over those draws (OUT/[seed+N/]attributable_nets4_draws4.csv for
 `--nets 4 --draws 4`): the expected error of the workflow's ensemble rather than one draw of
-it, with each draw's shrink and the gap's standard error beside them.
+it, with each draw's shrink and the gap's standard error beside them. With `--augment
+additive` (or `input`) every named term or extra input is added the other way of its
+proposal (`..._draws8_additive.csv`): the before and the null are the same trainings, so
+the two files' after pair draw by draw (docs/discovery.md, "A term or an input, over
+training draws").
 """
 
 from __future__ import annotations
@@ -79,10 +83,11 @@ def window_refit(row) -> str:
     return "windows" if getattr(row, "window_refit_kept", False) in (True, "True") else ""
 
 
-def rebuild(campaign, cfg, folder: Path, log=print, each=None) -> tuple:
+def rebuild(campaign, cfg, folder: Path, log=print, each=None, way: str = "") -> tuple:
     """A finished discovery's models retrained with `cfg` (its nets per fold). `each(round,
     model)`, if given, sees the model each round started from (and the final one, as the
-    round after the last named).
+    round after the last named). `way` ("additive" or "input"), if given, adds every named
+    term or extra input that way instead (the other way of its round's proposal).
 
     Returns:
         (context, baseline, after, lag reference): the workflow's baseline (the lag test's
@@ -104,7 +109,12 @@ def rebuild(campaign, cfg, folder: Path, log=print, each=None) -> tuple:
         elif r.augment == "lag":
             current = _fit_offset(ctx, current, with_lag=True)
         else:
-            current = _augment(ctx, current, named_candidate(r), r.augment, refit=window_refit(r))
+            how, c = r.augment, named_candidate(r)
+            if way and how in _WAYS and way != how:
+                how, c = way, dataclasses.replace(c, parameters={k: v for k, v in c.parameters.items()
+                                                                 if k not in _FITTED})
+                log(f"    added as {how}")
+            current = _augment(ctx, current, c, how, refit=window_refit(r))
     if each is not None:
         each(last + 1, current)
 
@@ -127,9 +137,11 @@ def measure(ctx, model: Model, kinds=()) -> dict:
     return out
 
 
-# Settings that change only which tries a round makes, not how a named effect is trained:
-# a world run without them rebuilds the same.
-_CHOICE_ONLY = frozenset({"resonance_input"})
+# Settings that change only which tries a round makes or names, not how a named effect is
+# trained: a world run without them rebuilds the same (rounds.csv says what was named).
+_CHOICE_ONLY = frozenset({"resonance_input", "augment_tie"})
+_WAYS = ("additive", "input")  # the ways `--augment` swaps
+_FITTED = ("coefficient",)  # what an additive try adds to its proposal's candidate
 # Values of a setting that rebuild the same: "named" refits a term as "peaks" does, unless its
 # round kept the window refit, which rounds.csv records (`window_refit`).
 _SAME_REBUILD = {"term_refit": {"peaks", "named"}}
@@ -196,17 +208,20 @@ def over_draws(draws: list, metric: str, named: bool) -> dict:
                 attributable_ensemble=_closed(eb, ea, en) if named else 0.0)
 
 
-def table_name(nets: int, draws: int = 1) -> str:
+def table_name(nets: int, draws: int = 1, way: str = "") -> str:
     """The re-measurement's file beside an offset's results."""
-    return f"attributable_nets{nets}" + (f"_draws{draws}" if draws > 1 else "") + ".csv"
+    return f"attributable_nets{nets}" + (f"_draws{draws}" if draws > 1 else "") + (f"_{way}" if way else "") + ".csv"
 
 
-def evaluate_offset(out: Path, offset: int, nets: int, only=(), log=print, draws: int = 1) -> pd.DataFrame:
+def evaluate_offset(out: Path, offset: int, nets: int, only=(), log=print, draws: int = 1,
+                    way: str = "") -> pd.DataFrame:
     """Every finished world of one seed offset of a benchmark output, re-measured with `nets`
     nets per fold and `draws` training draws (`_draw_config`; each draw retrains the world's
     models and its null's): one row per hidden world, its before / after / null on its gap
     metric and over all windows (ensemble), means over the draws (`over_draws`), with the
-    table's attributable shrink beside the new one."""
+    table's attributable shrink beside the new one. `way`: every named term or input added
+    that way (`rebuild`); the before and the null are the same trainings either way, so two
+    runs' after pair draw by draw."""
     folder = out / (f"seed+{offset}" if offset else "")
     table = read_table(folder / "results.parquet")[0]
     scenarios, overrides = scenario_configs(CONFIG, offset)
@@ -240,7 +255,7 @@ def evaluate_offset(out: Path, offset: int, nets: int, only=(), log=print, draws
 
     def one_draw(sc, row, draw):
         kinds = _kinds(row)
-        ctx, base, after, _ = rebuild(_campaign(sc["synth"]), config(sc, draw), folder / sc["name"], log)
+        ctx, base, after, _ = rebuild(_campaign(sc["synth"]), config(sc, draw), folder / sc["name"], log, way=way)
         b, a = measure(ctx, base, kinds), measure(ctx, after, kinds)
         if base.through_lag:  # no region against a null of another kind
             b["region_g"] = np.nan
@@ -263,7 +278,7 @@ def evaluate_offset(out: Path, offset: int, nets: int, only=(), log=print, draws
             seconds[row.scenario] = seconds.get(row.scenario, 0.0) + time.perf_counter() - t0
             rows = [_row(r, per[r.scenario], offset, nets, seconds[r.scenario]) for r in hidden.itertuples()
                     if r.scenario in per]
-            _save(pd.DataFrame(rows), folder / table_name(nets, draws))  # after each world: the draws so far
+            _save(pd.DataFrame(rows), folder / table_name(nets, draws, way))  # after each world: the draws so far
             new = next(r for r in rows if r["scenario"] == row.scenario)
             log(f"  {row.scenario}, {draw + 1} draw(s): {new['gap_metric']} before {new['before']:.4f}, after "
                 f"{new['after']:.4f}, null {new['null']:.4f}: attributable {new['attributable']:.2f} (draws "
@@ -302,13 +317,16 @@ def main():
                     help="training draws (the config's seed + 1000 × draw), each retraining every model; the "
                          "before, after and null are their means")
     ap.add_argument("--only", default="", help="comma-separated hidden scenario names")
+    ap.add_argument("--augment", choices=_WAYS, default="",
+                    help="add every named term or extra input this way instead (the other way of its proposal); "
+                         "the file gets the way's name")
     args = ap.parse_args()
     only = tuple(s for s in args.only.split(",") if s)
     frames = []
     for off in (int(v) for v in args.seed_offsets.split(",")):
         print(f"seed offset {off}", flush=True)
         frames.append(evaluate_offset(args.out, off, args.nets, only, log=lambda m: print(m, flush=True),
-                                      draws=args.draws))
+                                      draws=args.draws, way=args.augment))
     df = pd.concat(frames, ignore_index=True)
     print(df[["scenario", "seed", "named", "gap_metric", "before", "after", "null", "attributable",
               "table_attributable", "seconds"]].to_string())

@@ -433,7 +433,7 @@ def main():
         else:
             tables[off] = run_all(scenarios, overrides, out, update=args.update, resume=args.resume)
     if args.docs:
-        write_docs(tables, args.config, args.seed_offsets, remeasured(Path(args.out), offsets))
+        write_docs(tables, args.config, args.seed_offsets, remeasured(Path(args.out), offsets), args.settings)
 
 
 def remeasured(out: Path, offsets) -> dict:
@@ -577,8 +577,11 @@ Worlds on the other side of 0.5 ({len(flipped)}):
     return text
 
 
-def write_docs(tables: dict, config: str, offsets: str, found: dict | None = None):
+def write_docs(tables: dict, config: str, offsets: str, found: dict | None = None, settings=()):
+    """docs/discovery-benchmark.md from the offsets' tables; `settings`: the run's `--set`
+    items, which its command line repeats."""
     tables = {off: _blank(t) for off, t in tables.items()}
+    sets = "".join(f" --set {v}" for v in settings)
     df = tables[min(tables)]
     cols = ["scenario", "seed", "database", "hidden", "named", "correct_first", "truth_confirmed", "parameter",
             "true_value", "fitted_value", "reference", "ensemble_null_g", "ensemble_before_g", "ensemble_after_g",
@@ -606,7 +609,7 @@ def write_docs(tables: dict, config: str, offsets: str, found: dict | None = Non
 """ for off, t in reps.items())
     text = f"""# Discovery: hidden-effect benchmark
 
-Command: `python experiments/discovery_benchmark.py {config} --seed-offsets {offsets} --docs`
+Command: `python experiments/discovery_benchmark.py {config} --seed-offsets {offsets}{sets} --docs`
 (2-core VM, {time.strftime('%Y-%m-%d')}; `seconds` is the wall time of each scenario:
 generation, training, offset, selection, retraining and replays).
 

@@ -54,6 +54,19 @@ def test_a_rebuilt_discovery_reproduces_its_before_and_after(ae, monkeypatch, tm
         for k in ("ensemble_rms_g", "rms_g", "peak_error_g"):
             assert got[k] == pytest.approx(want[k], rel=1e-9), k
     assert np.isnan(ae.measure(ctx, base)["region_g"])  # no kinds given
+    if term_refit == "named":
+        return
+    # `--augment`: the named effect added the other way of its proposal, from the same baseline
+    from pvvjax.discovery._confirm import _augment
+
+    other = "input" if augment == "additive" else "additive"
+    _, base2, swapped, _ = ae.rebuild(campaign, cfg, tmp_path, log=lambda m: None, way=other)
+    assert bool(swapped.terms) == (other == "additive") and bool(swapped.extra) == (other == "input")
+    c = swapped.terms[-1][0] if other == "additive" else swapped.extra[-1]
+    assert c.parameters == {k: v for k, v in named.items() if k != "coefficient"}  # the proposal, unfitted
+    assert ae.measure(ctx, base2) == ae.measure(ctx, base)  # the same before
+    assert ae.measure(ctx, swapped) == ae.measure(ctx, _augment(ctx, base, c, other))
+    assert ae.table_name(4, 8, "input") == "attributable_nets4_draws8_input.csv"
 
 
 def test_a_second_run_replaces_its_scenarios_rows_and_keeps_the_others(ae, tmp_path):
