@@ -83,11 +83,12 @@ def window_refit(row) -> str:
     return "windows" if getattr(row, "window_refit_kept", False) in (True, "True") else ""
 
 
-def rebuild(campaign, cfg, folder: Path, log=print, each=None, way: str = "") -> tuple:
+def rebuild(campaign, cfg, folder: Path, log=print, each=None, way: str = "", refit: str = "") -> tuple:
     """A finished discovery's models retrained with `cfg` (its nets per fold). `each(round,
     model)`, if given, sees the model each round started from (and the final one, as the
     round after the last named). `way` ("additive" or "input"), if given, adds every named
-    term or extra input that way instead (the other way of its round's proposal).
+    term or extra input that way instead (the other way of its round's proposal); `refit`
+    ("peaks" or "windows"), if given, refits every term so instead of as its round did.
 
     Returns:
         (context, baseline, after, lag reference): the workflow's baseline (the lag test's
@@ -114,7 +115,8 @@ def rebuild(campaign, cfg, folder: Path, log=print, each=None, way: str = "") ->
                 how, c = way, dataclasses.replace(c, parameters={k: v for k, v in c.parameters.items()
                                                                  if k not in _FITTED})
                 log(f"    added as {how}")
-            current = _augment(ctx, current, c, how, refit=window_refit(r))
+            how_refit = {"": window_refit(r), "peaks": "peaks", "windows": "windows"}[refit]
+            current = _augment(ctx, current, c, how, refit=how_refit)
     if each is not None:
         each(last + 1, current)
 
@@ -208,20 +210,21 @@ def over_draws(draws: list, metric: str, named: bool) -> dict:
                 attributable_ensemble=_closed(eb, ea, en) if named else 0.0)
 
 
-def table_name(nets: int, draws: int = 1, way: str = "") -> str:
+def table_name(nets: int, draws: int = 1, way: str = "", refit: str = "") -> str:
     """The re-measurement's file beside an offset's results."""
-    return f"attributable_nets{nets}" + (f"_draws{draws}" if draws > 1 else "") + (f"_{way}" if way else "") + ".csv"
+    return (f"attributable_nets{nets}" + (f"_draws{draws}" if draws > 1 else "") + (f"_{way}" if way else "")
+            + (f"_refit-{refit}" if refit else "") + ".csv")
 
 
 def evaluate_offset(out: Path, offset: int, nets: int, only=(), log=print, draws: int = 1,
-                    way: str = "") -> pd.DataFrame:
+                    way: str = "", refit: str = "") -> pd.DataFrame:
     """Every finished world of one seed offset of a benchmark output, re-measured with `nets`
     nets per fold and `draws` training draws (`_draw_config`; each draw retrains the world's
     models and its null's): one row per hidden world, its before / after / null on its gap
     metric and over all windows (ensemble), means over the draws (`over_draws`), with the
     table's attributable shrink beside the new one. `way`: every named term or input added
-    that way (`rebuild`); the before and the null are the same trainings either way, so two
-    runs' after pair draw by draw."""
+    that way, `refit`: every term refitted so (`rebuild`); the before and the null are the same
+    trainings either way, so two runs' after pair draw by draw."""
     folder = out / (f"seed+{offset}" if offset else "")
     table = read_table(folder / "results.parquet")[0]
     scenarios, overrides = scenario_configs(CONFIG, offset)
@@ -255,7 +258,8 @@ def evaluate_offset(out: Path, offset: int, nets: int, only=(), log=print, draws
 
     def one_draw(sc, row, draw):
         kinds = _kinds(row)
-        ctx, base, after, _ = rebuild(_campaign(sc["synth"]), config(sc, draw), folder / sc["name"], log, way=way)
+        ctx, base, after, _ = rebuild(_campaign(sc["synth"]), config(sc, draw), folder / sc["name"], log, way=way,
+                                      refit=refit)
         b, a = measure(ctx, base, kinds), measure(ctx, after, kinds)
         if base.through_lag:  # no region against a null of another kind
             b["region_g"] = np.nan
@@ -278,7 +282,8 @@ def evaluate_offset(out: Path, offset: int, nets: int, only=(), log=print, draws
             seconds[row.scenario] = seconds.get(row.scenario, 0.0) + time.perf_counter() - t0
             rows = [_row(r, per[r.scenario], offset, nets, seconds[r.scenario]) for r in hidden.itertuples()
                     if r.scenario in per]
-            _save(pd.DataFrame(rows), folder / table_name(nets, draws, way))  # after each world: the draws so far
+            # after each world: the draws so far
+            _save(pd.DataFrame(rows), folder / table_name(nets, draws, way, refit))
             new = next(r for r in rows if r["scenario"] == row.scenario)
             log(f"  {row.scenario}, {draw + 1} draw(s): {new['gap_metric']} before {new['before']:.4f}, after "
                 f"{new['after']:.4f}, null {new['null']:.4f}: attributable {new['attributable']:.2f} (draws "
@@ -320,13 +325,16 @@ def main():
     ap.add_argument("--augment", choices=_WAYS, default="",
                     help="add every named term or extra input this way instead (the other way of its proposal); "
                          "the file gets the way's name")
+    ap.add_argument("--refit", choices=("peaks", "windows"), default="",
+                    help="refit every named term so (term_refit's \"peaks\" or \"windows\"), not as its round did; "
+                         "the file gets _refit-NAME")
     args = ap.parse_args()
     only = tuple(s for s in args.only.split(",") if s)
     frames = []
     for off in (int(v) for v in args.seed_offsets.split(",")):
         print(f"seed offset {off}", flush=True)
         frames.append(evaluate_offset(args.out, off, args.nets, only, log=lambda m: print(m, flush=True),
-                                      draws=args.draws, way=args.augment))
+                                      draws=args.draws, way=args.augment, refit=args.refit))
     df = pd.concat(frames, ignore_index=True)
     print(df[["scenario", "seed", "named", "gap_metric", "before", "after", "null", "attributable",
               "table_attributable", "seconds"]].to_string())

@@ -67,6 +67,12 @@ def test_a_rebuilt_discovery_reproduces_its_before_and_after(ae, monkeypatch, tm
     assert ae.measure(ctx, base2) == ae.measure(ctx, base)  # the same before
     assert ae.measure(ctx, swapped) == ae.measure(ctx, _augment(ctx, base, c, other))
     assert ae.table_name(4, 8, "input") == "attributable_nets4_draws8_input.csv"
+    if augment == "additive":  # `--refit windows`: the named term refitted on window nets
+        _, _, refitted, _ = ae.rebuild(campaign, cfg, tmp_path, log=lambda m: None, refit="windows")
+        term = refitted.terms[-1][0]
+        assert ae.measure(ctx, refitted) == ae.measure(ctx, _augment(ctx, base, term, "additive", refit="windows"))
+        assert ae.measure(ctx, refitted) != ae.measure(ctx, after)
+        assert ae.table_name(4, 8, refit="windows") == "attributable_nets4_draws8_refit-windows.csv"
 
 
 def test_a_second_run_replaces_its_scenarios_rows_and_keeps_the_others(ae, tmp_path):
