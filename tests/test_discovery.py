@@ -1114,7 +1114,7 @@ def test_with_augment_tie_additive_a_named_input_gives_way_to_its_proposals_term
     monkeypatch.setattr(_workflow, "_propose", propose)
     monkeypatch.setattr(_workflow, "_confirm", confirm_forced)
     d = DiscoveryConfig(seeds=1, folds=3, max_effects=1, floor_control=False, offset_step_s=0.5,
-                        augment_tie=augment_tie)
+                        augment_tie=augment_tie, term_refit="peaks")  # the way alone, no window refit
     cfg = ExperimentConfig(train=TrainConfig(max_steps=100), discovery=d)
     res = discover(small_campaign_dir, cfg, log=lambda m: None)
 
