@@ -72,7 +72,8 @@ class Residual(NamedTuple):
 
 
 class _Confirmed(NamedTuple):
-    """A try of a round that confirmed: what `_choose` compares and what naming it takes."""
+    """A try of a round: what `_choose` compares and what naming it takes (`augment_tie` may
+    name a term that did not confirm alone in place of its proposal's input)."""
 
     shrink: float  # of the ensemble's RMS over all windows
     row: int  # in the rounds table
@@ -431,7 +432,7 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
                                   s._replace(p_value=p_value, explained_fraction=explained), c, trial, conf,
                                   refined.key, on_control["shrink"])
                 ways[(refined.key, mode)] = done
-                if ok:  # "auto" tries both ways and keeps the better
+                if ok:  # "auto" tries both ways; `_choose`, then `augment_tie`, keeps one
                     confirmed.append(done)
 
         def choose():
