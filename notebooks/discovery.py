@@ -56,7 +56,9 @@ len(campaign), len(campaign.conditions())
 # db1 nets, 5-fold by condition over 3 seeds; every counter is replayed by the nets that
 # held its condition out, at a fitted offset; candidates are ranked by forward selection
 # with cross-validation by condition and a block-permutation test; each significant one is
-# added as an input, the nets are retrained, and it is kept only if the held-out RMS drops.
+# added as an additive term and as an extra input, the nets are retrained each way, and it
+# is kept only if the held-out RMS drops (as its term where the two ways tie, the term then
+# refitted on nets trained on the replay windows).
 
 # %%
 cfg = ExperimentConfig(discovery=DiscoveryConfig(seeds=3, proposals=2, max_effects=1, offset_step_s=0.25))
