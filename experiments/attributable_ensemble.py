@@ -115,8 +115,7 @@ def rebuild(campaign, cfg, folder: Path, log=print, each=None, way: str = "", re
                 how, c = way, dataclasses.replace(c, parameters={k: v for k, v in c.parameters.items()
                                                                  if k not in _FITTED})
                 log(f"    added as {how}")
-            how_refit = {"": window_refit(r), "peaks": "peaks", "windows": "windows"}[refit]
-            current = _augment(ctx, current, c, how, refit=how_refit)
+            current = _augment(ctx, current, c, how, refit=refit or window_refit(r))
     if each is not None:
         each(last + 1, current)
 
