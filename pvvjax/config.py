@@ -381,8 +381,8 @@ class DiscoveryConfig:
             numbers per fold fitted on every window, an input is learned anew by each
             training on ~200 peaks; tied, the term is the smaller model. Over eight
             training draws the term's held-out RMS is the lower on the five benchmark worlds
-            of the config's seeds (by 2.2 ± 0.4 mg on average), and on the three worlds
-            where the rule changes the way by 0.4 ± 0.6 mg (pitch rate 51's attributable
+            of the config's seeds (by 2.2 ± 0.4 mg on average), and on the five worlds
+            where the rule changes the way by 0.5 ± 0.4 mg (pitch rate 51's attributable
             shrink 0.29 → 0.62), docs/discovery.md "A term or an input, over training draws".
         term_refit: what an additive term is refitted on after the nets are retrained on the
             peaks minus its first fit: "peaks" (the residual of those nets) or "windows" (of
