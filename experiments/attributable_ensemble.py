@@ -1,7 +1,7 @@
 """The benchmark's attributable shrink re-measured with a larger ensemble.
 
 With four nets per fold one world's attributable shrink moves by ±0.4 with the training seed
-alone (docs/discovery.md, "How noisy is one world's attributable shrink"). This re-measures
+alone (docs/discovery-studies.md, "How noisy is one world's attributable shrink"). This re-measures
 finished benchmark worlds without re-running their discovery: each world's model is rebuilt
 from its folder as the workflow built it (the peak nets and their offset, the lag test's
 chosen ensembles, then every named effect in its round's way: `rounds.csv`, `lag_test.csv`)
@@ -20,7 +20,7 @@ after and null are the means over those draws (OUT/[seed+N/]attributable_nets4_d
 it, with each draw's shrink and the gap's standard error beside them. With `--augment
 additive` (or `input`) every named term or extra input is added the other way of its
 proposal (`..._draws8_additive.csv`): the before and the null are the same trainings, so
-the two files' after pair draw by draw (docs/discovery.md, "A term or an input, over
+the two files' after pair draw by draw (docs/discovery-studies.md, "A term or an input, over
 training draws").
 """
 

@@ -5,7 +5,7 @@ with another training seed (the config's `seed` + 1000 × run) and an ensemble o
 nets per fold: both baselines (offset calibrated, as the workflow's) and the hidden world's
 model with one additive term of a fixed coefficient (no fit: the same effect every run), then
 the attributable shrink (before − after) / (before − null's before). Measured on pitch
-acceleration 31 in docs/discovery.md ("How noisy is one world's attributable shrink"):
+acceleration 31 in docs/discovery-studies.md ("How noisy is one world's attributable shrink"):
 
     python experiments/attributable_noise.py 0:pitch-acceleration 0:null-31 \\
         abs_rate:pitch_rate_dps:offset_s=0.5 0.0288 --runs 4 --nets 4

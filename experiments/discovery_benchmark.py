@@ -639,7 +639,7 @@ On the config's seeds:
   baseline (a gap to attribute); the others count as below 0.5. Before, after and the
   null's before come from three trainings: on a world whose gap is a few times the
   training noise, one world's value moves with the training seed alone (the same term on
-  pitch acceleration 31: 0.18–1.15 with four nets per fold; docs/discovery.md, "How noisy
+  pitch acceleration 31: 0.18–1.15 with four nets per fold; docs/discovery-studies.md, "How noisy
   is one world's attributable shrink").
 - `peak_*`: mean abs peak error over counters (g); `phase_*`: mean abs peak-time error over
   the transient counters (s; 3–5 s already on the null worlds, where a flat counter's

@@ -3,7 +3,7 @@ nets (`discovery._lag._learned_lag`, the settings of the benchmark config), per 
 
 Each job is SEED_OFFSET:SCENARIO of the benchmark config; one row per world (learned τ, its
 median and range over folds × seeds, the lagged nets' held-out ensemble RMS, seconds) is
-printed and written to OUT (CSV, with the config). The table in docs/discovery.md ("The lag
+printed and written to OUT (CSV, with the config). The table in docs/discovery-studies.md ("The lag
 test judged by a learned lag"):
 
     python experiments/learned_lag_probe.py 0:long-lag,0:null-31,3:long-lag --out runs/learned-lag.csv

@@ -4,7 +4,7 @@ an additive term; the nets retrained each time, the held-out ensemble RMS before
 
 Each job is SEED_OFFSET:SCENARIO of the benchmark config. `--bands top` tries the band of
 the grid at the top rotor speed (where the benchmark's mode acts), `all` every band of the
-grid (on a null world: what a band could gain by chance). The numbers in docs/discovery.md
+grid (on a null world: what a band could gain by chance). The numbers in docs/discovery-studies.md
 ("A band as a network input"):
 
     python experiments/resonance_modes_probe.py 11:rotor-resonance,14:rotor-resonance \\

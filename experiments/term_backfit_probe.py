@@ -6,7 +6,7 @@ model's residual, the nets retrained on the peaks minus it, the term refitted on
 nets had learned part of the effect through their own inputs, the first fit is short of it;
 each further refit (retrain on the peaks minus the term, refit on the new nets' residual)
 moves the coefficient towards the joint fit. Measured on pitch acceleration 31 in
-docs/discovery.md ("Backfitting a named term"):
+docs/discovery-studies.md ("Backfitting a named term"):
 
     python experiments/term_backfit_probe.py 0:pitch-acceleration abs_rate:pitch_rate_dps:offset_s=0.5 --refits 4
 

@@ -367,7 +367,7 @@ class DiscoveryConfig:
             per confirmed try, and one per distinct control). A try that fails there is still
             confirmed if its own model beats the control as a confirmation would (a floor
             proxy does not beat the floor it stands for). On by default (the benchmark's 77
-            worlds, docs/discovery.md); off: the current model alone.
+            worlds, docs/discovery-studies.md); off: the current model alone.
         augment: how a candidate joins the model: "additive" (a term b·candidate fitted on the
             windows, cross-fitted by fold, the nets retrained on the peaks minus it),
             "input" (an extra network input: the nets learn its shape and its interactions),
@@ -383,7 +383,7 @@ class DiscoveryConfig:
             training draws the term's held-out RMS is the lower on the five benchmark worlds
             of the config's seeds (by 2.2 ± 0.4 mg on average), and on the five worlds
             where the rule changes the way by 0.5 ± 0.4 mg (pitch rate 51's attributable
-            shrink 0.29 → 0.62), docs/discovery.md "A term or an input, over training draws".
+            shrink 0.29 → 0.62), docs/discovery-studies.md "A term or an input, over training draws".
         term_refit: what an additive term is refitted on after the nets are retrained on the
             peaks minus its first fit: "peaks" (the residual of those nets) or "windows" (of
             nets trained on every `train_stride`-th replay window minus it, about 25 times
@@ -391,7 +391,7 @@ class DiscoveryConfig:
             the load factor for |q̇|, and their residual holds the term's coefficient short);
             the peak nets are then retrained on the peaks minus the refitted term. Every try
             refitted so lifts the benchmark's pitch families but names the load factor on two
-            of its null worlds (docs/discovery.md, "A term refitted on window nets"), so
+            of its null worlds (docs/discovery-studies.md, "A term refitted on window nets"), so
             "named" refits the tries on the peaks (which tries confirm, and which one a round
             names, are those of "peaks") and refits only the named term on window nets, kept
             where that model confirms too: the default since 2026-11-27. Single draws could
@@ -399,7 +399,7 @@ class DiscoveryConfig:
             13 and fell on 18; on six fresh seeds it fell on four). Over eight training draws
             of eight worlds its held-out RMS is lower by 0.4 ± 0.2 mg on average (lower on
             seven), fresh seeds included, and its coefficients are closer to the generator's
-            (roll rate 4 / 4, pitch acceleration 4 / 5 on the table), docs/discovery.md "The
+            (roll rate 4 / 4, pitch acceleration 4 / 5 on the table), docs/discovery-studies.md "The
             named term refitted on window nets". Cost: one training on the windows per named
             term.
         selection_stride: every n-th window of a counter enters the selection.
@@ -450,7 +450,7 @@ class DiscoveryConfig:
             learned gain on every rotor-speed band of the grid at once and propose the band
             of the largest gain as a resonance (retrained as a gain; the confirmation decides).
             A mode the nets learned as a mean per rotor-speed level leaves a residual no
-            prediction × band column explains (`docs/discovery.md`). Only for nets trained on
+            prediction × band column explains (`docs/discovery-studies.md`). Only for nets trained on
             the peaks: window nets (after a confirmed lag, or `train_rows = "windows"`)
             under-learn the lowest rotor speed, and a band there confirmed on two of three
             long-lag worlds. Off by default.
@@ -468,7 +468,7 @@ class DiscoveryConfig:
             the nets' many weights take the mode's top rotor-speed level additively before the
             one gain grows (learned 0.6-0.7, the truth ~1.2). The resonance probe's band, a
             forced guess without a test, trains in unit steps (1): in steps of 10 it confirms a
-            band on a world without a mode (`docs/discovery.md`).
+            band on a world without a mode (`docs/discovery-studies.md`).
         probe_alpha: the probe's band confirms only if its retraining predicts better where
             the band acts at this level (`discovery._propose._probe_test`, by condition): the
             band is a forced guess, and its shrink alone confirmed bands on worlds without a

@@ -159,7 +159,7 @@ def _control_refinements(refinements, c: Candidate) -> tuple:
     `c` is built from (`source_channels`). An effect that acts through the model's own inputs
     (a mode of rotor speed; the pitch rate, which the load factor carries) is partly a knee
     of them: a control holding that knee would test the effect against a piece of itself
-    (measured: the right first name lost on two benchmark worlds, docs/discovery.md)."""
+    (measured: the right first name lost on two benchmark worlds, docs/discovery-studies.md)."""
     mine = source_channels(c.channels)
     return tuple(r for r in refinements if not source_channels(r.channels) & mine)
 
@@ -178,7 +178,7 @@ def _floor_control(ctx: _Ctx, current: Model, refinements) -> Model | None:
     proxy predicts no better than the refinements it stands for, but the control's extra
     inputs can cost an effect more than they explain: on a rotor-resonance world two
     climb-rate knees, uncorrelated with the band (r = -0.01), left it +4.8 % on top of them,
-    where alone it beat them by 13.3 % (docs/discovery.md). On the benchmark's worlds
+    where alone it beat them by 13.3 % (docs/discovery-studies.md). On the benchmark's worlds
     measured, no try rejected on top of a control beat it alone except the truth's. On a
     control, the RMS over all windows may rise by `shrink_noise` (the retraining's noise)
     where the try gains twice `min_shrink` where it acts (the bar of a gain over all windows

@@ -120,7 +120,7 @@ def _lag_test(ctx: _Ctx, delta: float, log) -> dict:
     × seeds, is at least `lag_slow_s`. At the lowest offset the learned τ takes the delay
     and the fast dynamics too (rotor inflow and wake settle within about a second): on the
     benchmark's worlds without a slow lag it is 0.9-1.9 s, with a 2 s lag 2.6-3.2 s, and it
-    moves by tenths of a second over folds and seeds (docs/discovery.md).
+    moves by tenths of a second over folds and seeds (docs/discovery-studies.md).
 
     The lag is then added as window nets trained through it (`_lag_trials` at
     `lag_test_taus`): the reference is the best ensemble without a lag or with one of at
@@ -130,7 +130,7 @@ def _lag_test(ctx: _Ctx, delta: float, log) -> dict:
     p-value of a sign-flip test by condition (`_paired_sign_flip`). It is not required: the
     difference of two window trainings moves by up to 18 points with the nets'
     initialization, and a null world's nets trained through a 2 s lag gained as much as a
-    lag world's (docs/discovery.md), where the learned τ separates them. So where the
+    lag world's (docs/discovery-studies.md), where the learned τ separates them. So where the
     learned τ confirms no lag the trainings, which would decide nothing, are skipped unless
     `lag_trials_always` (`lag_study` runs them on any world).
 
