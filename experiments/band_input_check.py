@@ -1,7 +1,7 @@
 """Would `resonance_input` change a finished benchmark world?
 
 The option adds one try per resonance band a round proposes: the band as an extra network
-input beside its gain (`discovery._workflow._modes`). Every other try, and so every choice,
+input beside its gain (`discovery._round._modes`). Every other try, and so every choice,
 is the same unless one of those tries confirms. This retrains each band a world's rounds
 tried (`rounds.csv`) as an input on the model that round started from (rebuilt from the
 world's folder: `attributable_ensemble.rebuild`) and asks the workflow's first test

@@ -17,7 +17,7 @@ def test_a_rebuilt_discovery_reproduces_its_before_and_after(ae, monkeypatch, tm
                                                              term_refit):
     from pvvjax.campaign import load_campaign
     from pvvjax.config import DiscoveryConfig, ExperimentConfig, TrainConfig
-    from pvvjax.discovery import _workflow, discover
+    from pvvjax.discovery import _round, _workflow, discover
     from pvvjax.discovery_report import write_discovery
     from pvvjax.selection import Selected
 
@@ -26,8 +26,8 @@ def test_a_rebuilt_discovery_reproduces_its_before_and_after(ae, monkeypatch, tm
         return [("all", j, Selected(j, 0.1, 0.1, 0.001))], [], {"all": (rows, floor)}
 
     monkeypatch.setattr(_workflow, "_propose", propose)  # one effect named, the rest the workflow's own
-    confirm = _workflow._confirm
-    monkeypatch.setattr(_workflow, "_confirm", lambda *a, **k: (True, confirm(*a, **k)[1]))
+    confirm = _round._confirm
+    monkeypatch.setattr(_round, "_confirm", lambda *a, **k: (True, confirm(*a, **k)[1]))
     campaign = load_campaign(small_campaign_dir)
     d = DiscoveryConfig(seeds=2, folds=3, max_effects=1, augment=augment, offset_step_s=0.5, term_refit=term_refit,
                         train_stride=16)

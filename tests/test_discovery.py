@@ -867,7 +867,7 @@ def test_a_try_must_confirm_again_on_top_of_the_floor_control_or_beat_it_alone(m
     # replay and the confirmations are the workflow's own.
     from pvvjax.campaign import load_campaign
     from pvvjax.config import DiscoveryConfig, ExperimentConfig, TrainConfig
-    from pvvjax.discovery import _workflow, discover
+    from pvvjax.discovery import _round, _workflow, discover
     from pvvjax.discovery._model import source_channels
     from pvvjax.discovery_report import write_discovery
     from pvvjax.selection import Selected
@@ -883,7 +883,7 @@ def test_a_try_must_confirm_again_on_top_of_the_floor_control_or_beat_it_alone(m
         return ([("all", j, Selected(j, 0.1, 0.1, 0.001))], [("all", f, 0.05)],
                 {"all": (rows, np.column_stack([floor, M[rows, f]]))})
 
-    asked, confirm = [], _workflow._confirm
+    asked, confirm = [], _round._confirm
 
     def confirm_on_the_current_model_only(ctx, current, trial, c, where, d, slack=0.0):
         ok, out = confirm(ctx, current, trial, c, where, d, slack)
@@ -893,7 +893,7 @@ def test_a_try_must_confirm_again_on_top_of_the_floor_control_or_beat_it_alone(m
         return False, {**out, "why": "too small a shrink"}
 
     monkeypatch.setattr(_workflow, "_propose", propose)
-    monkeypatch.setattr(_workflow, "_confirm", confirm_on_the_current_model_only)
+    monkeypatch.setattr(_round, "_confirm", confirm_on_the_current_model_only)
     d = DiscoveryConfig(seeds=1, folds=3, max_effects=1, floor_control=True, augment="input", offset_step_s=0.5)
     cfg = ExperimentConfig(train=TrainConfig(max_steps=100), discovery=d)
     res = discover(load_campaign(small_campaign_dir), cfg, log=lambda m: None)
@@ -928,7 +928,7 @@ def test_a_weak_name_brings_its_runner_up_on_other_channels_which_is_retrained_a
     # is named. Proposal, runners-up and shrinks are forced; training, replay, the controls and
     # the choice are the workflow's own.
     from pvvjax.config import DiscoveryConfig, ExperimentConfig, TrainConfig
-    from pvvjax.discovery import _workflow, discover
+    from pvvjax.discovery import _round, _workflow, discover
     from pvvjax.discovery._model import source_channels
     from pvvjax.discovery._propose import _unaligned_key
     from pvvjax.selection import Selected
@@ -947,7 +947,7 @@ def test_a_weak_name_brings_its_runner_up_on_other_channels_which_is_retrained_a
         return ([("all", j, Selected(j, 0.1, 0.1, 0.001, ((near, 0.09), (r, 0.08))))], [("all", f, 0.05)],
                 {"all": (rows, np.column_stack([floor, M[rows, f]]))})
 
-    confirm = _workflow._confirm
+    confirm = _round._confirm
     shrink = {"proposal": (0.10, 0.01 if weak else 0.06), "rival": (0.095, 0.08)}  # (current model, control)
 
     def confirm_forced(ctx, current, trial, c, where, d, slack=0.0):
@@ -955,7 +955,7 @@ def test_a_weak_name_brings_its_runner_up_on_other_channels_which_is_retrained_a
         return True, {**out, "shrink": shrink[who[_unaligned_key(c)]][1 if current.extra else 0], "why": ""}
 
     monkeypatch.setattr(_workflow, "_propose", propose)
-    monkeypatch.setattr(_workflow, "_confirm", confirm_forced)
+    monkeypatch.setattr(_round, "_confirm", confirm_forced)
     d = DiscoveryConfig(seeds=1, folds=3, max_effects=1, floor_control=True, augment="input", offset_step_s=0.5)
     res = discover(small_campaign_dir, ExperimentConfig(train=TrainConfig(max_steps=100), discovery=d),
                    log=lambda m: None)
@@ -972,7 +972,7 @@ def test_a_weak_name_brings_its_runner_up_on_other_channels_which_is_retrained_a
 
 def test_each_operator_is_added_in_the_ways_the_config_allows():
     from pvvjax.config import DiscoveryConfig
-    from pvvjax.discovery._workflow import _modes
+    from pvvjax.discovery._round import _modes
 
     d = DiscoveryConfig()
     assert _modes("lag", d) == ("lag",) and _modes("resonance", d) == ("gain",)
@@ -1035,7 +1035,7 @@ def test_with_term_refit_named_only_the_named_term_is_refitted_on_window_nets_an
     # try where that model confirms too. The proposal and the confirmations' verdicts are
     # forced; the fits, training and replay are the workflow's own.
     from pvvjax.config import DiscoveryConfig, ExperimentConfig, TrainConfig
-    from pvvjax.discovery import _workflow, discover
+    from pvvjax.discovery import _round, _workflow, discover
     from pvvjax.discovery_report import write_discovery
     from pvvjax.selection import Selected
 
@@ -1043,7 +1043,7 @@ def test_with_term_refit_named_only_the_named_term_is_refitted_on_window_nets_an
         j = next(i for i, k in enumerate(keys) if k.startswith("input:") and not is_floor[i])
         return [("all", j, Selected(j, 0.1, 0.1, 0.001))], [], {"all": (rows, floor)}
 
-    augments, confirms, augment, confirm = [], [], _workflow._augment, _workflow._confirm
+    augments, confirms, augment, confirm = [], [], _round._augment, _round._confirm
 
     def augment_logged(ctx, model, c, how, refit=""):
         augments.append((model, c, how, refit, augment(ctx, model, c, how, refit)))
@@ -1055,8 +1055,8 @@ def test_with_term_refit_named_only_the_named_term_is_refitted_on_window_nets_an
         return (True if len(confirms) == 1 else kept), {**out, "why": "" if len(confirms) == 1 or kept else "forced"}
 
     monkeypatch.setattr(_workflow, "_propose", propose)
-    monkeypatch.setattr(_workflow, "_augment", augment_logged)
-    monkeypatch.setattr(_workflow, "_confirm", confirm_forced)
+    monkeypatch.setattr(_round, "_augment", augment_logged)
+    monkeypatch.setattr(_round, "_confirm", confirm_forced)
     d = DiscoveryConfig(seeds=1, folds=3, max_effects=1, floor_control=False, augment="additive",
                         offset_step_s=0.5, train_stride=16, term_refit=term_refit)
     cfg = ExperimentConfig(train=TrainConfig(max_steps=100), discovery=d)
@@ -1095,7 +1095,7 @@ def test_with_augment_tie_additive_a_named_input_gives_way_to_its_proposals_term
     # 0.05 against 0.06) though it did not confirm alone, and not where it is far below
     # (0.01 against 0.20). The fits, training and replay are the workflow's own.
     from pvvjax.config import DiscoveryConfig, ExperimentConfig, TrainConfig
-    from pvvjax.discovery import _workflow, discover
+    from pvvjax.discovery import _round, _workflow, discover
     from pvvjax.discovery_report import write_discovery
     from pvvjax.selection import Selected
 
@@ -1103,7 +1103,7 @@ def test_with_augment_tie_additive_a_named_input_gives_way_to_its_proposals_term
         j = next(i for i, k in enumerate(keys) if k.startswith("input:") and not is_floor[i])
         return [("all", j, Selected(j, 0.1, 0.1, 0.001))], [], {"all": (rows, floor)}
 
-    confirm, trials = _workflow._confirm, []
+    confirm, trials = _round._confirm, []
 
     def confirm_forced(ctx, current, trial, c, where, d, slack=0.0):
         _, out = confirm(ctx, current, trial, c, where, d, slack)
@@ -1112,7 +1112,7 @@ def test_with_augment_tie_additive_a_named_input_gives_way_to_its_proposals_term
         return not additive, {**out, "shrink": shrinks[0 if additive else 1], "why": "forced" if additive else ""}
 
     monkeypatch.setattr(_workflow, "_propose", propose)
-    monkeypatch.setattr(_workflow, "_confirm", confirm_forced)
+    monkeypatch.setattr(_round, "_confirm", confirm_forced)
     d = DiscoveryConfig(seeds=1, folds=3, max_effects=1, floor_control=False, offset_step_s=0.5,
                         augment_tie=augment_tie, term_refit="peaks")  # the way alone, no window refit
     cfg = ExperimentConfig(train=TrainConfig(max_steps=100), discovery=d)

@@ -32,8 +32,9 @@ The workflow reads the campaign only (never a generator's ground truth).
 The package's private modules, one concept each: `_model` (the nets, the replay windows, the
 predictions and metrics), `_fits` (least-squares fits of a lag, a knee or band, the offset),
 `_propose` (the candidate matrix, the floor covariates and the selection's proposals),
-`_confirm` (add a candidate, retrain, compare by condition, name), `_lag` (the lag test) and
-`_workflow` (`discover`, `summary`).
+`_confirm` (add a candidate, retrain, compare by condition, name), `_round` (one round's
+tries, each way, judged and one named), `_lag` (the lag test) and `_workflow` (`discover`,
+`summary`).
 """
 
 from ._model import Model, delag, fit_ensemble, floor_features, gain_apply, metrics

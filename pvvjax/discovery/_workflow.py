@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import os
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
@@ -18,44 +18,31 @@ from ..config import DiscoveryConfig, ExperimentConfig
 from ..databases import DB_INPUTS, STATE_CHANNELS, build_databases
 from ..replay import make_settings, prepare
 from ..residuals import localize
-from ..selection import Selected
 from ..selection import gain as _selection_gain
 from ._confirm import (
-    _SIGN_FLIPS,
-    _augment,
-    _choose,
-    _confirm,
-    _control_refinements,
-    _floor_control,
-    _paired_sign_flip,
-    _refits_on_windows,
-    _rival,
-    _tied,
     _train_model,
 )
-from ._fits import _fit_offset, _keep_better, _refine
+from ._fits import _fit_offset
 from ._lag import _lag_round, _lag_test, _table_row
 from ._model import (
     Model,
     _Ctx,
-    _gain_unit,
     _lag_windows,
     _replay,
     _selection_column,
     floor_features,
     metrics,
     predictions,
-    source_channels,
 )
 from ._propose import (
     _candidate_matrix,
     _floor,
     _neighbour_cells,
-    _probe_test,
     _propose,
     _resonance_probe,
     _unaligned_key,
 )
+from ._round import _Round
 
 
 class Residual(NamedTuple):
@@ -69,21 +56,6 @@ class Residual(NamedTuple):
     groups: np.ndarray
     folds: int
     seed: int
-
-
-class _Confirmed(NamedTuple):
-    """A try of a round: what `_choose` compares and what naming it takes (`augment_tie` may
-    name a term that did not confirm alone in place of its proposal's input)."""
-
-    shrink: float  # of the ensemble's RMS over all windows
-    row: int  # in the rounds table
-    where: str
-    selected: Selected  # the selection's (p-value and explained fraction as confirmed)
-    candidate: Candidate  # as tried (fitted parameters added)
-    trial: Model
-    conf: dict  # `_confirm`'s
-    proposal: str  # the key of the proposal it tries (its term and input share it)
-    control_shrink: float  # on top of its floor control, over all windows; NaN without one
 
 
 @dataclass
@@ -197,18 +169,6 @@ def _context(campaign: Campaign, cfg: ExperimentConfig, log) -> _Ctx:
     return _Ctx(campaign, cfg, db, db[list(DB_INPUTS[d.database])].to_numpy(np.float64), folds, info,
                 np.array([fold_of[c] for c in info.condition]), batch, recs, settings,
                 window_table(campaign, train_iv, d.exclude_channels), replay_params={})
-
-
-def _modes(operator: str, d) -> tuple[str, ...]:
-    """The ways a proposal of `operator` is added and retrained (`_confirm._augment`): a lag
-    refitted in the replay, a band as a gain on the nets' output (and, with
-    `resonance_input`, as an extra input too), any other candidate as `augment` says
-    ("auto": an additive term and an extra input)."""
-    if operator == "lag":
-        return ("lag",)
-    if operator == "resonance":
-        return ("gain", "input") if d.resonance_input else ("gain",)
-    return ("additive", "input") if d.augment == "auto" else (d.augment,)
 
 
 def _public_parameters(c: Candidate) -> dict:
@@ -335,170 +295,18 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
             + "".join(f"; {len(s.equivalents)} equivalent to the best in {where}: "
                       + ", ".join(lib[a].name for a, _ in s.equivalents[:10]) for where, _, s in proposals[:1]))
         refinements = [lib[j] for where, j, _ in absorbed if where == "all"] if d.floor_control else []
-        controls = {}  # the floor controls of this round, by the keys of the refinements they hold
-
-        def control_for(c):
-            kept = _control_refinements(refinements, c)
-            key = tuple(r.key for r in kept)
-            if kept and key not in controls:
-                controls[key] = _floor_control(ctx, current, kept)
-                log(f"round {rnd + 1}: floor control ({'; '.join(r.name for r in kept)} as inputs): ensemble's RMS "
-                    f"{cur_metrics['ensemble_rms_g']:.4f} -> "
-                    f"{metrics(predictions(ctx, controls[key], win), win)['ensemble_rms_g']:.4f} g")
-            return controls.get(key), kept
-        confirmed, tried, ways = [], set(), {}  # ways: every try, confirmed or not, by (proposal, way)
-
-        def try_proposal(where, j, s):
-            """Retrain the proposal (column `j` of `lib`, found in `where`, `s` its `Selected`) in
-            each way it can be added; its rows go to `rounds`, its confirmed tries to `confirmed`."""
-            nonlocal t_confirm
-            t0 = time.perf_counter()
-            rows, fl = designs[where]
-            refined = _keep_better(lib[j], _refine(lib[j], resid[rows], win.at(
-                lib[j].parameters.get("offset_s", win.offset))[rows], yhat[rows], base=fl), win, yhat, resid,
-                rows, fl, d.folds, cfg.seed + rnd, log)
-            used.add(_unaligned_key(lib[j]))
-            if refined.key in tried:  # two grid knees refined to the same one: retrained already
-                log(f"  {lib[j].name}: refined to {refined.name}, tried already")
-                return
-            tried.add(refined.key)
-            modes = _modes(refined.operator, d)
-            alts = "; ".join(f"{lib[a].name} ({g:.3f})" for a, g in s.alternatives)
-            for mode in modes:
-                c = refined
-                if mode == "lag":
-                    trial = _fit_offset(ctx, current, with_lag=True)
-                    c = replace(c, parameters={"tau_s": trial.lag_tau_s})
-                else:
-                    if mode == "gain" and s.source != "probe":  # a tested band: its gain in steps of gain_unit
-                        c = replace(c, parameters={**c.parameters, "gain_unit": d.gain_unit})
-                    added = c
-                    trial = _augment(ctx, current, c, mode)
-                    if trial.terms and trial.terms[-1][0] is c:
-                        c = replace(c, parameters={**c.parameters,
-                                                   "coefficient": float(np.median(trial.terms[-1][1][:, 1]))})
-                    if mode == "gain":
-                        gain = _gain_unit(c) * np.median(trial.params["gain"][..., -1])
-                        c = replace(c, parameters={**c.parameters, "gain": float(gain)})
-                ok, conf = _confirm(ctx, current, trial, c, where, d)
-                p_value, explained = s.p_value, s.explained_fraction
-                if s.source == "probe":  # no selection p: its retraining's, by condition
-                    p_value, explained, why = _probe_test(conf, dict(pred=pred, win=win), c, cfg.seed + rnd,
-                                                          d.probe_alpha)
-                    if ok and why:
-                        ok, conf["why"] = False, why
-                unset = dict(shrink=np.nan, local=np.nan)
-                on_control, over_control, control, kept = unset, unset, None, ()
-                if ok and refinements and mode != "lag":
-                    control, kept = control_for(added)
-                if control is not None:  # the same try on top of the floor control
-                    ok, on_control = _confirm(ctx, control, _augment(ctx, control, added, mode), added, where, d,
-                                              slack=d.shrink_noise)
-                    if not ok:  # or the try alone beats the control (`_floor_control`)
-                        ok, over_control = _confirm(ctx, control, trial, added, where, d, slack=d.shrink_noise)
-                    if not ok:
-                        conf["why"] = (f"not confirmed on top of the floor control: {on_control['why']} (shrink "
-                                       f"{on_control['shrink']:+.1%} (all), {on_control['local']:+.1%} "
-                                       f"({on_control['judged_in']})), nor better than it alone "
-                                       f"({over_control['shrink']:+.1%}, {over_control['local']:+.1%})")
-                    elif over_control is not unset:
-                        log(f"  {c.name} ({mode}): not confirmed on top of the floor control (shrink "
-                            f"{on_control['shrink']:+.1%} (all), {on_control['local']:+.1%}), but better than it "
-                            f"alone ({over_control['shrink']:+.1%} (all), {over_control['local']:+.1%} "
-                            f"({over_control['judged_in']}))")
-                t_confirm += time.perf_counter() - t0
-                t0 = time.perf_counter()
-                rounds.append(dict(round=rnd + 1, where=where, candidate=c.key, parameters=c.parameters_json,
-                                   proposal=refined.key, source=s.source,
-                                   name=c.name, operator=c.operator,
-                                   channels=",".join(c.channels), augment=mode, p_value=p_value, cv_gain=s.gain,
-                                   runners_up=alts, explained_fraction=explained,
-                                   rms_before_g=cur_metrics["rms_g"], rms_after_g=conf["metrics"]["rms_g"],
-                                   ensemble_rms_before_g=conf["ensemble"][0], ensemble_rms_after_g=conf["ensemble"][1],
-                                   floor_terms=floor_terms, shrink=conf["shrink"], judged_in=conf["judged_in"],
-                                   region_shrink=conf["local"], control_shrink=on_control["shrink"],
-                                   control_region_shrink=on_control["local"],
-                                   over_control_shrink=over_control["shrink"],
-                                   over_control_region_shrink=over_control["local"],
-                                   control_terms="; ".join(r.name for r in kept) if control is not None else "",
-                                   confirmed=ok, why_not=conf["why"],
-                                   p_best_better=np.nan, p_input_better=np.nan, chosen=False))
-                log(f"  {c.name} ({mode}): held-out RMS {cur_metrics['rms_g']:.4f} -> {conf['metrics']['rms_g']:.4f} "
-                    f"g (median over seeds); ensemble's {conf['ensemble'][0]:.4f} -> {conf['ensemble'][1]:.4f} g, "
-                    f"shrink {conf['shrink']:+.1%} (all), {conf['local']:+.1%} "
-                    f"({conf['judged_in']}): "
-                    f"{'confirmed' if ok else 'not confirmed (' + conf['why'] + ')'}")
-                done = _Confirmed(conf["shrink"], len(rounds) - 1, where,
-                                  s._replace(p_value=p_value, explained_fraction=explained), c, trial, conf,
-                                  refined.key, on_control["shrink"])
-                ways[(refined.key, mode)] = done
-                if ok:  # "auto" tries both ways; `_choose`, then `augment_tie`, keeps one
-                    confirmed.append(done)
-
-        def choose():
-            """The confirmed tries as `_choose` compares them, and the index of the one named."""
-            top = max(confirmed, key=lambda t: t.shrink).conf
-            ps = [1.0 if t.conf is top else _paired_sign_flip(t.conf, top, _SIGN_FLIPS, cfg.seed + rnd)[0]
-                  for t in confirmed]
-            for t, p in zip(confirmed, ps):
-                rounds[t.row]["p_best_better"] = p
-            tries = [(t.shrink, np.nan if t.selected.source == "probe" else t.selected.gain, p, t.proposal,
-                      t.control_shrink) for t, p in zip(confirmed, ps)]
-            return tries, _choose(tries, d.shrink_noise, d.alpha, d.min_shrink, d.tie_share)
-
-        for where, j, s in proposals:
-            try_proposal(where, j, s)
-        if not confirmed:
+        step = _Round(ctx, rnd, current, pred, cur_metrics, win, yhat, resid, lib, designs, refinements,
+                      floor_terms, used, rounds, log)
+        named = step.name(proposals)
+        t_confirm += step.seconds
+        if named is None:
             break
-        tries, k = choose()
-        taken = set().union(*(source_channels(lib[j].channels) for _, j, _ in proposals))
-        named = confirmed[k]
-        rival = _rival(k, tries, named.selected.alternatives, [c.channels for c in lib], taken,
-                       d.min_shrink, d.min_gain)
-        if rival is not None:  # a weak name: its runner-up on other channels retrained beside it
-            a, g = rival
-            log(f"round {rnd + 1}: {named.candidate.name} gains less than min_shrink on top of its floor control; "
-                f"its runner-up on other channels, {lib[a].name} (gain {g:.3f}), is tried as well")
-            try_proposal(named.where, a, named.selected._replace(index=a, gain=g, explained_fraction=g,
-                                                                 alternatives=(), equivalents=(), source="rival"))
-            tries, k = choose()
-        named = confirmed[k]
-        term = ways.get((named.proposal, "additive"))
-        if d.augment_tie == "additive" and rounds[named.row]["augment"] == "input" and term is not None:
-            # The proposal is confirmed; which way adds it is a choice between fits: the term,
-            # where it ties with the input as `_choose` ties tries (config's `augment_tie`).
-            p = _paired_sign_flip(term.conf, named.conf, _SIGN_FLIPS, cfg.seed + rnd)[0]
-            rounds[term.row]["p_input_better"] = p
-            if _tied(term.shrink, named.shrink, p, d.shrink_noise, d.alpha, d.tie_share):
-                log(f"round {rnd + 1}: {named.candidate.name} added as a term, not an input: its shrink "
-                    f"{term.shrink:+.1%} ties with the input's {named.shrink:+.1%} (p = {p:.3f} that the input "
-                    "predicts better)")
-                named = term
-        _, row, where, s, c, trial, conf, _, _ = named
-        if d.term_refit == "named" and rounds[row]["augment"] == "additive" and _refits_on_windows(d, current):
-            # The tries were refitted on the peak nets, whose residual holds a term short; the
-            # named one alone is refitted on window nets, so floor structure that no try
-            # confirmed on the peaks cannot be named through it (docs/discovery.md).
-            term = trial.terms[-1][0]
-            w_trial = _augment(ctx, current, term, "additive", refit="windows")
-            kept, w_conf = _confirm(ctx, current, w_trial, term, where, d)
-            coefficient = float(np.median(w_trial.terms[-1][1][:, 1]))
-            rounds[row].update(window_refit_coefficient=coefficient, window_refit_kept=kept,
-                               window_refit_ensemble_rms_g=w_conf["ensemble"][1])
-            log(f"round {rnd + 1}: {c.name} refitted on window nets: coefficient "
-                f"{c.parameters['coefficient']:.4g} -> {coefficient:.4g}, ensemble's RMS "
-                f"{conf['ensemble'][1]:.4f} -> {w_conf['ensemble'][1]:.4f} g, shrink {w_conf['shrink']:+.1%} "
-                f"(all), {w_conf['local']:+.1%} ({w_conf['judged_in']}): "
-                + ("kept" if kept else f"not confirmed ({w_conf['why']}), the peaks' refit kept"))
-            if kept:
-                trial, conf = w_trial, w_conf
-                c = replace(c, parameters={**c.parameters, "coefficient": coefficient})
+        c, conf = named.candidate, named.conf
         effects.append(dict(rank=len(effects) + 1, round=rnd + 1, name=c.name, operator=c.operator,
                             channels=list(c.channels) or list(current.inputs), parameters=_public_parameters(c),
-                            explained_fraction=s.explained_fraction, p_value=s.p_value, region=conf["region"],
-                            key=c.key, candidate=c, found_in=where))
-        rounds[row]["chosen"] = True
-        current, pred, cur_metrics = trial, conf["pred"], conf["metrics"]
+                            explained_fraction=named.selected.explained_fraction, p_value=named.selected.p_value,
+                            region=conf["region"], key=c.key, candidate=c, found_in=named.where))
+        current, pred, cur_metrics = named.trial, conf["pred"], conf["metrics"]
     sec["explain"], sec["confirm"] = t_explain, t_confirm
 
     # Before and after on the final model's windows (the same counters and windows; the
