@@ -8,13 +8,14 @@ from the one logged: the worlds to re-run, and nothing else.
 
     python experiments/discovery_rechoose.py runs/discovery-benchmark [more folders]
         [--shrink-noise 0.02] [--alpha 0.01] [--min-shrink 0.05]   # over each folder's config
-        [--tie-share 0.5]
+        [--tie-share 0.5] [--augment-tie additive]
         [--csv OUT.csv]                                             # every round, recomputed
 
-`--min-shrink=-inf` turns off "beyond the floor first" (every tied candidate kept). A round
-whose named input gave way to its proposal's term (`augment_tie = "additive"`, `p_input_better`
-logged) counts as unchanged where the same proposal is chosen; whether the term would tie
-with another proposal's input needs that input's predictions, so it is not replayed.
+`--min-shrink=-inf` turns off "beyond the floor first" (every tied candidate kept).
+`augment_tie` is replayed too (`--augment-tie shrink` or `additive`; default each folder's):
+a chosen input gives way to its proposal's term where the term's row logs `p_input_better`
+and the two tie. Folders written before that p was logged for every confirmed input have it
+on the named term only; a choice of another proposal's input keeps the input there.
 """
 
 from __future__ import annotations
@@ -26,20 +27,25 @@ import numpy as np
 import pandas as pd
 
 from pvvjax.config import load_config
-from pvvjax.discovery._confirm import _choose
+from pvvjax.discovery._confirm import _choose, _tied
 
 # Parameters a try adds to its proposal's candidate (a term's coefficient, a band's gain).
 _FITTED = r"(?:coefficient|gain|gain_unit)=[^,]*,?"
 
 
+def proposals(rows: pd.DataFrame) -> pd.Series:
+    """The proposal each row of `rounds.csv` tries (a term and an input of one proposal share
+    it). Files written before the `proposal` column: the candidate without the parameters its
+    try fitted."""
+    if "proposal" in rows:
+        return rows["proposal"]
+    return rows.candidate.str.replace(_FITTED, "", regex=True).str.rstrip(",:")
+
+
 def tries(rows: pd.DataFrame) -> list[tuple]:
     """`_choose`'s tries from the confirmed rows of one round of `rounds.csv`. Files written
-    before the `proposal` and `source` columns: the proposal is the candidate without the
-    parameters its try fitted, and a probe's band the one without a `gain_unit`."""
-    if "proposal" in rows:
-        proposal = rows["proposal"]
-    else:
-        proposal = rows.candidate.str.replace(_FITTED, "", regex=True).str.rstrip(",:")
+    before the `source` column: a probe's band is the one without a `gain_unit`."""
+    proposal = proposals(rows)
     if "source" in rows:
         probe = rows["source"].eq("probe")
     else:
@@ -50,29 +56,31 @@ def tries(rows: pd.DataFrame) -> list[tuple]:
 
 
 def rechoose(rounds: pd.DataFrame, noise: float, alpha: float, min_shrink: float,
-             share: float = 0.0) -> pd.DataFrame:
+             share: float = 0.0, augment_tie: str = "shrink") -> pd.DataFrame:
     """Every round with a confirmed try (round 0, the lag test's, has its own rule): the try
-    logged as chosen and the one `_choose` picks with these settings.
+    logged as chosen and the one `_choose` picks with these settings, then, with
+    `augment_tie = "additive"`, its proposal's term where it ties with a chosen input.
 
     Returns:
         round, logged, recomputed (name (augment)), changed.
     """
     out = []
     for rnd, g in rounds[rounds["round"] > 0].groupby("round"):
-        c = g[g.confirmed.astype(bool)].reset_index(drop=True)
-        if not len(c):
+        confirmed = g[g.confirmed.astype(bool)]
+        if not len(confirmed):
             continue
-        t = tries(c)
+        t = tries(confirmed)
         k = _choose(t, noise, alpha, min_shrink, share)
+        pick = confirmed.index[k]
+        if augment_tie == "additive" and g.loc[pick, "augment"] == "input" and "p_input_better" in g:
+            terms = g[g.augment.eq("additive") & proposals(g).eq(t[k][3]) & g.p_input_better.notna()]
+            if len(terms) and _tied(terms.shrink.iloc[0], t[k][0], terms.p_input_better.iloc[0], noise, alpha,
+                                    share):
+                pick = terms.index[0]
         logged = g[g.chosen.astype(bool)]
         label = lambda r: f"{r['name']} ({r['augment']})"  # noqa: E731
-        same = len(logged) == 1 and logged.index[0] == g.index[g.confirmed.astype(bool)][k]
-        if len(logged) == 1 and pd.notna(logged.iloc[0].get("p_input_better", np.nan)):
-            # `augment_tie`: the proposal's term named in place of its input; a choice of the
-            # proposal that recomputes the same.
-            same = tries(logged.assign(confirmed=True))[0][3] == t[k][3]
         out.append(dict(round=int(rnd), logged=label(logged.iloc[0]) if len(logged) else "",
-                        recomputed=label(c.iloc[k]), changed=not same))
+                        recomputed=label(g.loc[pick]), changed=not (len(logged) == 1 and logged.index[0] == pick)))
     return pd.DataFrame(out, columns=["round", "logged", "recomputed", "changed"])
 
 
@@ -84,6 +92,7 @@ def main():
     ap.add_argument("--min-shrink", type=float, help="=-inf: no 'beyond the floor first'")
     ap.add_argument("--tie-share", type=float,
                     help="default: each folder's config (0.5 where it predates tie_share; 0 replays the old rule)")
+    ap.add_argument("--augment-tie", choices=["shrink", "additive"], help="default: each folder's config")
     ap.add_argument("--csv", help="write every round, recomputed, here")
     args = ap.parse_args()
     tables = []
@@ -98,7 +107,8 @@ def main():
             alpha = d.alpha if args.alpha is None else args.alpha
             min_shrink = d.min_shrink if args.min_shrink is None else args.min_shrink
             share = d.tie_share if args.tie_share is None else args.tie_share
-            tables.append(rechoose(rounds, noise, alpha, min_shrink, share).assign(world=str(path.parent)))
+            way = d.augment_tie if args.augment_tie is None else args.augment_tie
+            tables.append(rechoose(rounds, noise, alpha, min_shrink, share, way).assign(world=str(path.parent)))
     if not tables:
         raise SystemExit(f"no rounds.csv under {args.folders}")
     table = pd.concat(tables, ignore_index=True)

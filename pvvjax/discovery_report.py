@@ -157,9 +157,9 @@ def write_discovery(res: Discovery, out, cfg=None, worst: int = 4) -> Path:
                       " `window_refit_*` (`term_refit = \"named\"`): the named term refitted on nets trained on the "
                       "windows, its coefficient and ensemble's RMS after, and whether that model confirmed too and "
                       "replaced the try." if refit else "") + (
-                      " `p_input_better` (`augment_tie = \"additive\"`): that the named input predicts better "
-                      "than its proposal's term (by condition); where the term ties with it, the term is named, "
-                      "confirmed alone or not." if way_tie else ""), "",
+                      " `p_input_better` (`augment_tie = \"additive\"`, on a term's row): that its proposal's "
+                      "input, confirmed, predicts better than the term (by condition); where the named input's "
+                      "term ties with it, the term is named, confirmed alone or not." if way_tie else ""), "",
                   _md(res.rounds[["round", "name", *(["source"] if "source" in res.rounds else []), "augment",
                                   "p_value", "cv_gain", "rms_before_g", "rms_after_g",
                                   "ensemble_rms_before_g", "ensemble_rms_after_g", "shrink", "judged_in",

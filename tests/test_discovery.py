@@ -570,15 +570,22 @@ def test_rechoose_replays_a_rounds_choice_from_rounds_csv_and_flags_a_change():
     new = rounds.assign(proposal="p", source="selection")
     assert {x[3] for x in mod.tries(new[new.confirmed.astype(bool)])} == {"p"}
     assert not mod.rechoose(new, 0.02, 0.01, 0.05).changed.any()  # one proposal: all beyond or none
-    # `augment_tie = "additive"`: the pitch-rate term named in place of its input (not confirmed
-    # alone) is the same choice of proposal; the yaw-rate term in its place is not.
+    # `augment_tie = "additive"`: the pitch-rate term (not confirmed alone) named in place of its
+    # input, as the term's logged p and shrink tie it; the old rule or no tie names the input,
+    # and the yaw-rate knee's choice (no floor first) is another proposal.
     term = dict(round=1, candidate="input:pitch_rate_dps:coefficient=0.01,offset_s=0.6,transform=abs",
                 name="pitch rate magnitude", operator="input", augment="additive", shrink=0.054, cv_gain=0.0634,
                 confirmed=False, chosen=True, p_input_better=0.4)
     tie = pd.concat([rounds.assign(chosen=False), pd.DataFrame([term])], ignore_index=True)
-    assert mod.rechoose(tie, 0.02, 0.01, 0.05).to_dict("records") == [dict(
-        round=1, logged="pitch rate magnitude (additive)", recomputed="pitch rate magnitude (input)", changed=False)]
-    assert mod.rechoose(tie, 0.02, 0.01, -np.inf).changed.all()  # the yaw-rate knee's round: another proposal
+    assert mod.rechoose(tie, 0.02, 0.01, 0.05, augment_tie="additive").to_dict("records") == [dict(
+        round=1, logged="pitch rate magnitude (additive)", recomputed="pitch rate magnitude (additive)",
+        changed=False)]
+    assert mod.rechoose(tie, 0.02, 0.01, 0.05, augment_tie="shrink").recomputed.tolist() == [
+        "pitch rate magnitude (input)"]
+    beaten = tie.assign(shrink=tie.shrink.where(tie.index != tie.index[-1], 0.030),
+                        p_input_better=tie.p_input_better.where(tie.index != tie.index[-1], 0.001))
+    assert mod.rechoose(beaten, 0.02, 0.01, 0.05, augment_tie="additive").changed.all()  # not tied: the input
+    assert mod.rechoose(tie, 0.02, 0.01, -np.inf, augment_tie="additive").changed.all()
 
 
 # --------------------------------------------------------------------------- end to end
@@ -1130,3 +1137,45 @@ def test_with_augment_tie_additive_a_named_input_gives_way_to_its_proposals_term
     if augment_tie == "additive":
         assert 0 < rows.p_input_better.iloc[0] <= 1
     assert ("p_input_better" in write_discovery(res, tmp_path / "out", cfg).read_text()) == (augment_tie == "additive")
+
+
+def test_every_confirmed_inputs_term_logs_the_p_that_rechoose_replays_the_way_from(monkeypatch, small_campaign_dir):
+    # Two proposals, each retrained as a term (forced not to confirm) and as an input
+    # (confirms): with `augment_tie = "additive"` both terms log `p_input_better`, so that
+    # experiments/discovery_rechoose.py replays the way for whichever input a round names,
+    # and replaying the run's own settings gives back the logged choice.
+    import importlib.util
+    from pathlib import Path
+
+    from pvvjax.config import DiscoveryConfig, ExperimentConfig, TrainConfig
+    from pvvjax.discovery import _round, _workflow, discover
+    from pvvjax.selection import Selected
+
+    def propose(win, yhat, resid, M, rows, own, floor, d, seed, complexity, keys, is_floor):
+        js = [i for i, k in enumerate(keys) if k.startswith("input:") and not is_floor[i]][:2]
+        return [("all", j, Selected(j, g, g, 0.001)) for j, g in zip(js, (0.1, 0.09))], [], {"all": (rows, floor)}
+
+    confirm = _round._confirm
+
+    def confirm_forced(ctx, current, trial, c, where, d, slack=0.0):
+        _, out = confirm(ctx, current, trial, c, where, d, slack)
+        additive = bool(trial.terms)
+        return not additive, {**out, "shrink": 0.05 if additive else 0.06, "why": "forced" if additive else ""}
+
+    monkeypatch.setattr(_workflow, "_propose", propose)
+    monkeypatch.setattr(_round, "_confirm", confirm_forced)
+    d = DiscoveryConfig(seeds=1, folds=3, max_effects=1, floor_control=False, offset_step_s=0.5, term_refit="peaks")
+    res = discover(small_campaign_dir, ExperimentConfig(train=TrainConfig(max_steps=100), discovery=d),
+                   log=lambda m: None)
+    rows = res.rounds[res.rounds["round"] == 1]
+    assert list(rows.augment) == ["additive", "input"] * 2 and rows.proposal.nunique() == 2
+    assert rows.p_input_better.notna().tolist() == [True, False, True, False]
+    assert list(rows[rows.chosen].augment) == ["additive"]  # 0.05 against 0.06: within shrink_noise
+
+    path = Path(__file__).parents[1] / "experiments" / "discovery_rechoose.py"
+    spec = importlib.util.spec_from_file_location("discovery_rechoose", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    again = mod.rechoose(res.rounds, d.shrink_noise, d.alpha, d.min_shrink, d.tie_share, d.augment_tie)
+    assert len(again) == 1 and not again.changed.any()
+    assert mod.rechoose(res.rounds, d.shrink_noise, d.alpha, d.min_shrink, d.tie_share, "shrink").changed.all()

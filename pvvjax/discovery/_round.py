@@ -214,22 +214,34 @@ class _Round:
             self.try_proposal(named.where, a, named.selected._replace(index=a, gain=g, explained_fraction=g,
                                                                       alternatives=(), equivalents=(), source="rival"))
             tries, k = self._choose()
+        self._input_ties()
         named = self._refit_named(self._way(self.confirmed[k]))
         self.rounds[named.row]["chosen"] = True
         self.seconds += time.perf_counter() - t0
         return named
 
+    def _input_ties(self):
+        """With `augment_tie = "additive"`, log on the term row of every proposal whose input
+        confirmed the p that the input predicts better (`p_input_better`): what `_way` decides
+        by, for whichever input is named, and what `discovery_rechoose` replays it from."""
+        if self.d.augment_tie != "additive":
+            return
+        for t in self.confirmed:
+            term = self.ways.get((t.proposal, "additive"))
+            if self.rounds[t.row]["augment"] == "input" and term is not None:
+                self.rounds[term.row]["p_input_better"] = _paired_sign_flip(term.conf, t.conf, _SIGN_FLIPS,
+                                                                            self.seed)[0]
+
     def _way(self, named: _Confirmed) -> _Confirmed:
         """With `augment_tie = "additive"`, a named input's proposal as its additive term where
-        the two tie."""
+        the two tie (`p_input_better`, logged by `_input_ties`)."""
         term = self.ways.get((named.proposal, "additive"))
         if self.d.augment_tie != "additive" or self.rounds[named.row]["augment"] != "input" or term is None:
             return named
         # The proposal is confirmed; which way adds it is a choice between fits: the term,
         # where it ties with the input as `_choose` ties tries (config's `augment_tie`).
         d = self.d
-        p = _paired_sign_flip(term.conf, named.conf, _SIGN_FLIPS, self.seed)[0]
-        self.rounds[term.row]["p_input_better"] = p
+        p = self.rounds[term.row]["p_input_better"]
         if not _tied(term.shrink, named.shrink, p, d.shrink_noise, d.alpha, d.tie_share):
             return named
         self.log(f"round {self.rnd + 1}: {named.candidate.name} added as a term, not an input: its shrink "
