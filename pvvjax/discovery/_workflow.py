@@ -19,9 +19,7 @@ from ..databases import DB_INPUTS, STATE_CHANNELS, build_databases
 from ..replay import make_settings, prepare
 from ..residuals import localize
 from ..selection import gain as _selection_gain
-from ._confirm import (
-    _train_model,
-)
+from ._confirm import _train_model
 from ._fits import _fit_offset
 from ._lag import _lag_round, _lag_test, _table_row
 from ._model import (
