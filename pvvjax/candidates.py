@@ -57,9 +57,12 @@ _WORDS = {
     "gross_weight_lb": "gross weight", "density_ratio": "air density", "advance_ratio": "advance ratio",
     "mlf": "maneuver load factor", "thrust_coefficient": "thrust coefficient", "blade_loading": "blade loading",
 }
+# The rates of the attitude angles and of the altitude are named apart from the roll-rate,
+# pitch-rate and climb-rate channels: they are other candidates (Euler rates, a differentiated
+# altimeter), and a report that lists both under one name cannot be read.
 _RATE_WORDS = {"pitch_rate_dps": "pitch acceleration", "roll_rate_dps": "roll acceleration",
-               "yaw_rate_dps": "yaw acceleration", "roll_angle_deg": "roll rate", "pitch_angle_deg": "pitch rate",
-               "airspeed_kt": "acceleration", "altitude_ft": "climb rate"}
+               "yaw_rate_dps": "yaw acceleration", "roll_angle_deg": "roll angle rate",
+               "pitch_angle_deg": "pitch attitude rate", "airspeed_kt": "airspeed rate", "altitude_ft": "altitude rate"}
 
 
 @dataclass(frozen=True)

@@ -73,7 +73,24 @@ def test_operators_and_names():
     assert describe(mag) == "roll rate magnitude"
     assert describe(Candidate("abs_rate", ("pitch_rate_dps",))) == "pitch acceleration magnitude"
     assert describe(th) == "collective knee (above 62)"
+    assert describe(Candidate("abs_rate", ("roll_angle_deg",))) == "roll angle rate magnitude"
     assert th.key == "threshold:collective_pct:above=True,knee=62,softness=1e-06"
+
+
+def test_names_tell_every_channels_candidates_apart():
+    # A name shared by two candidates (the roll-rate channel and the rate of the roll angle
+    # were both "roll rate") makes a round's proposals and runners-up unreadable.
+    from pvvjax.candidates import _WORDS
+
+    chans = [*_WORDS, "rotor_torque_pct"]  # and a channel without words of its own
+    cands = [c for ch in chans for c in (
+        Candidate("input", (ch,)), Candidate("input", (ch,), {"transform": "abs"}), Candidate("rate", (ch,)),
+        Candidate("abs_rate", (ch,)), Candidate("window", (ch,)),
+        Candidate("threshold", (ch,), {"knee": 1.5, "above": True}), Candidate("resonance", (ch,), {"center": 1.5}))]
+    cands += [Candidate("product", (a, b)) for a in chans for b in chans if a < b]
+    names = {}
+    for c in cands:
+        assert names.setdefault(describe(c), c.key) == c.key, (describe(c), names[describe(c)], c.key)
 
 
 def test_from_key_reads_back_every_operators_key(tiny):
