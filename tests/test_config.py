@@ -98,3 +98,19 @@ def test_unit_conversions(unit, canonical, value, expected):
 def test_column_map_refuses_wrong_dimension():
     with pytest.raises(ValueError, match="cannot be converted"):
         ColumnMap(to="rotor_rpm", unit="m/s")
+
+
+def test_a_setting_added_later_at_its_earlier_behaviour_leaves_the_hash_of_tables_written_before_it():
+    # A results table written before `encompassing` existed stores a config without it; a
+    # config with it off (the earlier behaviour) is the same run, on (another rule) is not.
+    import dataclasses
+
+    from pvvjax._strict import to_dict
+
+    cfg = ExperimentConfig()
+    before = to_dict(cfg)
+    del before["discovery"]["encompassing"]
+    assert config_hash(before) == config_hash(cfg)
+    on = cfg.with_(discovery=dataclasses.replace(cfg.discovery, encompassing=True))
+    assert config_hash(on) != config_hash(cfg)
+    assert config_hash(on.with_(discovery=dataclasses.replace(on.discovery, alpha=0.05))) != config_hash(on)

@@ -1179,3 +1179,83 @@ def test_every_confirmed_inputs_term_logs_the_p_that_rechoose_replays_the_way_fr
     again = mod.rechoose(res.rounds, d.shrink_noise, d.alpha, d.min_shrink, d.tie_share, d.augment_tie)
     assert len(again) == 1 and not again.changed.any()
     assert mod.rechoose(res.rounds, d.shrink_noise, d.alpha, d.min_shrink, d.tie_share, "shrink").changed.all()
+
+
+def test_a_term_on_top_of_itself_keeps_little_of_its_coefficient_and_on_top_of_another_channel_most(
+        small_campaign_dir):
+    # `_round._kept_on_top`, the encompassing test's measure, with the workflow's own fits:
+    # the same term fitted again on top of its model has little left to explain (what it
+    # keeps is the nets' retraining noise: 0.19 here, 0.12 with 400 steps), the collective on
+    # top of the pedal most of its coefficient (0.76).
+    from pvvjax.campaign import load_campaign
+    from pvvjax.candidates import from_key
+    from pvvjax.config import DiscoveryConfig, ExperimentConfig, TrainConfig
+    from pvvjax.databases import DB_INPUTS
+    from pvvjax.discovery import Model, _confirm, _round, _workflow
+
+    d = DiscoveryConfig(seeds=1, folds=3, term_refit="peaks")
+    ctx = _workflow._context(load_campaign(small_campaign_dir),
+                             ExperimentConfig(train=TrainConfig(max_steps=100), discovery=d), lambda m: None)
+    inputs = tuple(DB_INPUTS["db1"])
+    ctx.replay_params = _confirm._train_model(ctx, Model({}, inputs), rows="peaks")
+    base = Model(ctx.replay_params, inputs, offset_s=0.5)
+    first = _confirm._augment(ctx, base, from_key("input:collective_pct:offset_s=0.5"), "additive")
+    other = _confirm._augment(ctx, base, from_key("input:pedal_pct:offset_s=0.5"), "additive")
+    assert abs(_round._kept_on_top(ctx, first, first.terms[-1])) < 0.3
+    assert _round._kept_on_top(ctx, other, first.terms[-1]) > 0.5
+
+
+@pytest.mark.parametrize("encompassing, kept, named", [
+    (False, None, "proposal"), (True, (0.0, 0.3), "rival"), (True, (0.3, 0.0), "proposal")])
+def test_with_encompassing_of_two_tied_channels_the_term_that_keeps_more_on_top_of_the_other_is_named(
+        monkeypatch, small_campaign_dir, encompassing, kept, named):
+    # Two proposals on other channels, both confirmed as terms and tied (shrinks 0.10 and
+    # 0.095, forced); the selection credits the first with more gain, which names it. With
+    # `encompassing`, each term is fitted on top of the other's model (`_kept_on_top`,
+    # forced: (the proposal's share, the rival's)); the one keeping more is named, and the
+    # rival's row logs both. Training, replay and the choice are the workflow's own.
+    from pvvjax.config import DiscoveryConfig, ExperimentConfig, TrainConfig
+    from pvvjax.discovery import _round, _workflow, discover
+    from pvvjax.discovery._model import source_channels
+    from pvvjax.selection import Selected
+
+    who = {}
+
+    def propose(win, yhat, resid, M, rows, own, floor, d, seed, complexity, keys, is_floor):
+        src = lambda i: source_channels(keys[i].split(":")[1].split("*"))  # noqa: E731
+        inputs = [i for i, k in enumerate(keys) if k.startswith("input:") and not is_floor[i]]
+        j = inputs[0]
+        r = next(i for i in inputs if not src(i) & src(j))
+        who.update({keys[j].split(":")[1]: "proposal", keys[r].split(":")[1]: "rival"})  # by channels
+        return ([("all", j, Selected(j, 0.1, 0.1, 0.001)), ("all", r, Selected(r, 0.08, 0.08, 0.001))], [],
+                {"all": (rows, floor)})
+
+    confirm = _round._confirm
+
+    def confirm_forced(ctx, current, trial, c, where, d, slack=0.0):
+        _, out = confirm(ctx, current, trial, c, where, d, slack)
+        return True, {**out, "shrink": {"proposal": 0.10, "rival": 0.095}[who["*".join(c.channels)]], "why": ""}
+
+    calls = []
+
+    def kept_forced(ctx, first, term):
+        calls.append(who["*".join(term[0].channels)])
+        return kept[0] if calls[-1] == "proposal" else kept[1]
+
+    monkeypatch.setattr(_workflow, "_propose", propose)
+    monkeypatch.setattr(_round, "_confirm", confirm_forced)
+    monkeypatch.setattr(_round, "_kept_on_top", kept_forced)
+    d = DiscoveryConfig(seeds=1, folds=3, max_effects=1, floor_control=False, augment="additive",
+                        offset_step_s=0.5, term_refit="peaks", encompassing=encompassing)
+    res = discover(small_campaign_dir, ExperimentConfig(train=TrainConfig(max_steps=100), discovery=d),
+                   log=lambda m: None)
+    tries = res.rounds[res.rounds["round"] == 1]
+    assert len(tries) == 2 and tries.confirmed.all() and tries.chosen.sum() == 1
+    assert who[tries[tries.chosen].iloc[0].channels] == named
+    assert [e["key"] for e in res.effects] == list(tries[tries.chosen].candidate)
+    assert sorted(calls) == ([] if not encompassing else ["proposal", "rival"])
+    if encompassing:
+        rival = tries[[who[ch] == "rival" for ch in tries.channels]].iloc[0]
+        assert (rival.kept_on_top, rival.named_kept_on_top) == (kept[1], kept[0])
+    else:
+        assert "kept_on_top" not in tries

@@ -257,6 +257,15 @@ def _tied(shrink: float, best: float, p: float, noise: float, alpha: float, shar
     return shrink >= best - noise or (p >= alpha and shrink >= share * best)
 
 
+def _ties(tries, noise: float, alpha: float, min_shrink: float, share: float = 0.0) -> list[int]:
+    """The indices of the tries `_choose` names among: those tied with the largest shrink,
+    less those that do not gain beyond their floor control where some tied candidate does."""
+    best = max(t[0] for t in tries)
+    tied = [i for i, t in enumerate(tries) if _tied(t[0], best, t[2], noise, alpha, share)]
+    beyond = {tries[i][3] for i in tied if _beyond_floor(tries[i][4], min_shrink)}
+    return [i for i in tied if tries[i][3] in beyond] or tied
+
+
 def _choose(tries, noise: float, alpha: float, min_shrink: float, share: float = 0.0) -> int:
     """Which confirmed try of a round is named. tries: (shrink, selection gain, p, candidate,
     control shrink) of each: p the one-sided p-value that the try of the largest shrink
@@ -296,10 +305,7 @@ def _choose(tries, noise: float, alpha: float, min_shrink: float, share: float =
     a collective knee 4.3 %, p = 0.011 by condition; by the gains (−0.026 against 0.071) the
     knee was named.
     """
-    best = max(t[0] for t in tries)
-    tied = [i for i, t in enumerate(tries) if _tied(t[0], best, t[2], noise, alpha, share)]
-    beyond = {tries[i][3] for i in tied if _beyond_floor(tries[i][4], min_shrink)}
-    tied = [i for i in tied if tries[i][3] in beyond] or tied
+    tied = _ties(tries, noise, alpha, min_shrink, share)
     ranked = [i for i in tied if np.isfinite(tries[i][1])]
     pick = [max(ranked, key=lambda i: (tries[i][1], tries[i][0]))] if ranked else []
     return max(pick + [i for i in tied if not np.isfinite(tries[i][1])], key=lambda i: tries[i][0])

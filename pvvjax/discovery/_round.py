@@ -22,6 +22,7 @@ from ._confirm import (
     _refits_on_windows,
     _rival,
     _tied,
+    _ties,
 )
 from ._fits import _fit_offset, _keep_better, _refine
 from ._model import Model, _Ctx, _gain_unit, _Windows, metrics, predictions, source_channels
@@ -53,6 +54,15 @@ def _modes(operator: str, d) -> tuple[str, ...]:
     if operator == "resonance":
         return ("gain", "input") if d.resonance_input else ("gain",)
     return ("additive", "input") if d.augment == "auto" else (d.augment,)
+
+
+def _kept_on_top(ctx: _Ctx, first: Model, term: tuple) -> float:
+    """The share of an additive term's own coefficient (`term`: its candidate as added and its
+    coefficients per fold, fitted alone) that it keeps when added on top of `first` (the
+    model with another term), retrained: about none where the other term explains it."""
+    c, alone = term
+    m = _augment(ctx, first, c, "additive")
+    return float(np.median(m.terms[-1][1][:, 1]) / np.median(alone[:, 1]))
 
 
 class _Round:
@@ -214,11 +224,50 @@ class _Round:
             self.try_proposal(named.where, a, named.selected._replace(index=a, gain=g, explained_fraction=g,
                                                                       alternatives=(), equivalents=(), source="rival"))
             tries, k = self._choose()
+        k = self._encompass(k, tries)
         self._input_ties()
         named = self._refit_named(self._way(self.confirmed[k]))
         self.rounds[named.row]["chosen"] = True
         self.seconds += time.perf_counter() - t0
         return named
+
+    def _encompass(self, k: int, tries) -> int:
+        """With `encompassing`, the named try's index after comparing its proposal's term with
+        each tied proposal's on other source channels (both confirmed as additive terms; lags
+        and bands aside), in turn: the one whose term keeps the larger share of its own
+        coefficient on top of the other's (`_kept_on_top`) is named, in its way of the largest
+        shrink. Each rival's term row logs what it kept on top (`kept_on_top`) and what the
+        named kept on top of it (`named_kept_on_top`)."""
+        if not self.d.encompassing:
+            return k
+        d, ways = self.d, self.ways
+
+        def term(t: _Confirmed):  # its proposal's additive try, where that confirmed
+            w = ways.get((t.proposal, "additive"))
+            ok = w is not None and t.candidate.operator not in ("lag", "resonance") and any(
+                w is c for c in self.confirmed)
+            return w if ok else None
+
+        tied = _ties(tries, d.shrink_noise, d.alpha, d.min_shrink, d.tie_share)
+        seen = {self.confirmed[k].proposal}
+        for i in tied:
+            named, t = self.confirmed[k], self.confirmed[i]
+            a, b = term(named), term(t)
+            if t.proposal in seen or a is None or b is None or (
+                    source_channels(t.candidate.channels) & source_channels(named.candidate.channels)):
+                continue
+            seen.add(t.proposal)
+            kept_b = _kept_on_top(self.ctx, a.trial, b.trial.terms[-1])
+            kept_a = _kept_on_top(self.ctx, b.trial, a.trial.terms[-1])
+            self.rounds[b.row].update(kept_on_top=kept_b, named_kept_on_top=kept_a)
+            won = kept_b > kept_a
+            self.log(f"round {self.rnd + 1}: encompassing: {t.candidate.name} keeps {kept_b:.2f} of its coefficient "
+                     f"on top of {named.candidate.name}, which keeps {kept_a:.2f} on top of it: "
+                     f"{t.candidate.name if won else named.candidate.name} named")
+            if won:
+                k = max((j for j, c in enumerate(self.confirmed) if c.proposal == t.proposal),
+                        key=lambda j: self.confirmed[j].shrink)
+        return k
 
     def _input_ties(self):
         """With `augment_tie = "additive"`, log on the term row of every proposal whose input
