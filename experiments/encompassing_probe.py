@@ -11,8 +11,9 @@ that keeps more of its own explains more of the other's gain than the other of i
 `RESULT` line of each training draw (`--draws`; tab-separated): the draw, each alone, each on
 top of the other (shrinks of the ensemble's RMS), then the coefficient kept by b on top of a
 and by a on top of b.
-Measured on roll rate 56 (fresh seeds + 15) in docs/discovery-studies.md ("Fresh seeds + 15
-under the current defaults"):
+Measured on every cross-channel tie of the benchmark's table and of seeds + 15 in
+docs/discovery-studies.md ("An encompassing test between tied channels"); the rule built on it
+is `[discovery] encompassing` (`discovery._round._kept_on_top`, the same measure):
 
     python experiments/encompassing_probe.py 15:roll-rate \
         input:roll_rate_dps:offset_s=0.5,transform=abs abs_rate:yaw_rate_dps:offset_s=0.5 --draws 4
