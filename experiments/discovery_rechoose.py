@@ -16,6 +16,12 @@ from the one logged: the worlds to re-run, and nothing else.
 a chosen input gives way to its proposal's term where the term's row logs `p_input_better`
 and the two tie. Folders written before that p was logged for every confirmed input have it
 on the named term only; a choice of another proposal's input keeps the input there.
+`encompassing` is replayed too (`--encompassing on` or `off`; default each folder's) from the
+shares its rounds logged (`kept_on_top`, `named_kept_on_top`, `kept_against`). A pair of tied
+terms the log has no shares for needs two retrainings: its round is listed as one to re-run
+(`unmeasured`), the choice left as if the rival lost. Folders written before `kept_against`
+was logged: each share is taken as measured against the try named at its step of the
+folder's own settings (what the workflow did).
 """
 
 from __future__ import annotations
@@ -27,7 +33,8 @@ import numpy as np
 import pandas as pd
 
 from pvvjax.config import load_config
-from pvvjax.discovery._confirm import _choose, _tied
+from pvvjax.discovery._confirm import _choose, _tied, _ties
+from pvvjax.discovery._model import source_channels
 
 # Parameters a try adds to its proposal's candidate (a term's coefficient, a band's gain).
 _FITTED = r"(?:coefficient|gain|gain_unit)=[^,]*,?"
@@ -55,15 +62,78 @@ def tries(rows: pd.DataFrame) -> list[tuple]:
     return list(zip(rows.shrink, gain, rows.p_best_better, proposal, control))
 
 
-def rechoose(rounds: pd.DataFrame, noise: float, alpha: float, min_shrink: float,
-             share: float = 0.0, augment_tie: str = "shrink") -> pd.DataFrame:
-    """Every round with a confirmed try (round 0, the lag test's, has its own rule): the try
-    logged as chosen and the one `_choose` picks with these settings, then, with
-    `augment_tie = "additive"`, its proposal's term where it ties with a chosen input.
+def encompass(rows: pd.DataFrame, t: list, k: int, tied: list[int], measured) -> tuple[int, list[str]]:
+    """`_round._Round._encompass` on one round's confirmed rows (`tries`' order): the named
+    try's index after each tied rival on other source channels, both proposals confirmed as
+    terms (lags and bands aside), is compared by what each term kept on top of the other.
+
+    Args:
+        rows, t: the confirmed rows and their `tries`. k: `_choose`'s pick. tied: `_ties`.
+        measured: (named proposal, rival proposal) -> (rival's share, named's share), or None
+            where not measured.
 
     Returns:
-        round, logged, recomputed (name (augment)), changed.
+        The named try's index, and the rivals without shares (their pair needs a re-run)."""
+    prop = proposals(rows).to_numpy()
+
+    def term(p):
+        r = rows[(prop == p) & rows.augment.eq("additive").to_numpy()]
+        return len(r) and not r.operator.isin(["lag", "resonance"]).any()
+
+    def sources(i):
+        return source_channels(str(rows.channels.iloc[i]).split(","))
+
+    seen, unmeasured = {prop[k]}, []
+    for i in tied:
+        if prop[i] in seen or not term(prop[k]) or not term(prop[i]) or sources(i) & sources(k):
+            continue
+        seen.add(prop[i])
+        shares = measured(prop[k], prop[i])
+        if shares is None:
+            unmeasured.append(str(rows["name"].iloc[i]))
+        elif shares[0] > shares[1]:
+            k = max(np.flatnonzero(prop == prop[i]), key=lambda j: t[j][0])
+    return int(k), unmeasured
+
+
+def logged_shares(rows: pd.DataFrame, t: list, own: tuple) -> dict:
+    """The encompassing shares one round logged: {(named proposal, rival proposal): (rival's
+    share, named's share)}. Without `kept_against`, the named of each pair is replayed with
+    the folder's `own` settings (noise, alpha, min_shrink, share)."""
+    if "kept_on_top" not in rows:
+        return {}
+    prop = proposals(rows).to_numpy()
+    got = np.flatnonzero(rows.kept_on_top.notna().to_numpy())
+    share = {i: (rows.kept_on_top.iloc[i], rows.named_kept_on_top.iloc[i]) for i in got}  # on a term's row
+    if "kept_against" in rows:
+        return {(rows.kept_against.iloc[i], prop[i]): share[i] for i in got}
+    by_rival = {prop[i]: share[i] for i in got}
+    pairs = {}
+
+    def record(named, rival):
+        if rival in by_rival:
+            pairs[named, rival] = by_rival[rival]
+        return by_rival.get(rival)
+
+    encompass(rows, t, _choose(t, *own), _ties(t, *own), record)
+    return pairs
+
+
+def rechoose(rounds: pd.DataFrame, noise: float, alpha: float, min_shrink: float,
+             share: float = 0.0, augment_tie: str = "shrink", encompassing: bool = False,
+             own: tuple | None = None) -> pd.DataFrame:
+    """Every round with a confirmed try (round 0, the lag test's, has its own rule): the try
+    logged as chosen and the one `_choose` picks with these settings, then, with
+    `encompassing`, the tied term that keeps more on top of the other (`encompass`, from the
+    shares logged), then, with `augment_tie = "additive"`, its proposal's term where it ties
+    with a chosen input. own: the folder's (noise, alpha, min_shrink, share), for logs
+    without `kept_against` (default: these).
+
+    Returns:
+        round, logged, recomputed (name (augment)), changed, unmeasured (the rivals whose
+        shares the log lacks, "; "-joined).
     """
+    own = own or (noise, alpha, min_shrink, share)
     out = []
     for rnd, g in rounds[rounds["round"] > 0].groupby("round"):
         confirmed = g[g.confirmed.astype(bool)]
@@ -71,6 +141,11 @@ def rechoose(rounds: pd.DataFrame, noise: float, alpha: float, min_shrink: float
             continue
         t = tries(confirmed)
         k = _choose(t, noise, alpha, min_shrink, share)
+        unmeasured = []
+        if encompassing:
+            shares = logged_shares(confirmed, t, own)
+            k, unmeasured = encompass(confirmed, t, k, _ties(t, noise, alpha, min_shrink, share),
+                                      lambda a, b: shares.get((a, b)))
         pick = confirmed.index[k]
         if augment_tie == "additive" and g.loc[pick, "augment"] == "input" and "p_input_better" in g:
             terms = g[g.augment.eq("additive") & proposals(g).eq(t[k][3]) & g.p_input_better.notna()]
@@ -80,8 +155,9 @@ def rechoose(rounds: pd.DataFrame, noise: float, alpha: float, min_shrink: float
         logged = g[g.chosen.astype(bool)]
         label = lambda r: f"{r['name']} ({r['augment']})"  # noqa: E731
         out.append(dict(round=int(rnd), logged=label(logged.iloc[0]) if len(logged) else "",
-                        recomputed=label(g.loc[pick]), changed=not (len(logged) == 1 and logged.index[0] == pick)))
-    return pd.DataFrame(out, columns=["round", "logged", "recomputed", "changed"])
+                        recomputed=label(g.loc[pick]), changed=not (len(logged) == 1 and logged.index[0] == pick),
+                        unmeasured="; ".join(unmeasured)))
+    return pd.DataFrame(out, columns=["round", "logged", "recomputed", "changed", "unmeasured"])
 
 
 def main():
@@ -93,6 +169,7 @@ def main():
     ap.add_argument("--tie-share", type=float,
                     help="default: each folder's config (0.5 where it predates tie_share; 0 replays the old rule)")
     ap.add_argument("--augment-tie", choices=["shrink", "additive"], help="default: each folder's config")
+    ap.add_argument("--encompassing", choices=["on", "off"], help="default: each folder's config")
     ap.add_argument("--csv", help="write every round, recomputed, here")
     args = ap.parse_args()
     tables = []
@@ -108,16 +185,23 @@ def main():
             min_shrink = d.min_shrink if args.min_shrink is None else args.min_shrink
             share = d.tie_share if args.tie_share is None else args.tie_share
             way = d.augment_tie if args.augment_tie is None else args.augment_tie
-            tables.append(rechoose(rounds, noise, alpha, min_shrink, share, way).assign(world=str(path.parent)))
+            enc = d.encompassing if args.encompassing is None else args.encompassing == "on"
+            own = (d.shrink_noise, d.alpha, d.min_shrink, d.tie_share)
+            table = rechoose(rounds, noise, alpha, min_shrink, share, way, enc, own)
+            tables.append(table.assign(world=str(path.parent)))
     if not tables:
         raise SystemExit(f"no rounds.csv under {args.folders}")
     table = pd.concat(tables, ignore_index=True)
     for r in table[table.changed].itertuples():
         print(f"{r.world}, round {r.round}: {r.logged} -> {r.recomputed}")
+    open_ = table[table.unmeasured != ""]
+    for r in open_.itertuples():
+        print(f"{r.world}, round {r.round}: encompassing not measured for {r.unmeasured} against the named: re-run")
     worlds = table.world.nunique()
     changed = table[table.changed].world.nunique()
     print(f"{len(table)} rounds with a confirmed try in {worlds} worlds; the choice changes in "
-          f"{int(table.changed.sum())} rounds of {changed} worlds")
+          f"{int(table.changed.sum())} rounds of {changed} worlds"
+          + (f"; {len(open_)} rounds of {open_.world.nunique()} worlds need a re-run" if len(open_) else ""))
     if args.csv:
         table.to_csv(args.csv, index=False)
 

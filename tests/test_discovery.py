@@ -555,7 +555,7 @@ def test_rechoose_replays_a_rounds_choice_from_rounds_csv_and_flags_a_change():
                                            chosen=False)]), rounds], ignore_index=True)
     now = mod.rechoose(rounds, 0.02, 0.01, 0.05)
     assert now.to_dict("records") == [dict(round=1, logged="yaw rate knee (additive)",
-                                           recomputed="pitch rate magnitude (input)", changed=True)]
+                                           recomputed="pitch rate magnitude (input)", changed=True, unmeasured="")]
     assert not mod.rechoose(rounds, 0.02, 0.01, -np.inf).changed.any()  # the rule it was logged under
     # A term and an input of one proposal share it (the term's coefficient is not part of it);
     # a band without a gain_unit is the probe's, which the selection did not rank.
@@ -579,7 +579,7 @@ def test_rechoose_replays_a_rounds_choice_from_rounds_csv_and_flags_a_change():
     tie = pd.concat([rounds.assign(chosen=False), pd.DataFrame([term])], ignore_index=True)
     assert mod.rechoose(tie, 0.02, 0.01, 0.05, augment_tie="additive").to_dict("records") == [dict(
         round=1, logged="pitch rate magnitude (additive)", recomputed="pitch rate magnitude (additive)",
-        changed=False)]
+        changed=False, unmeasured="")]
     assert mod.rechoose(tie, 0.02, 0.01, 0.05, augment_tie="shrink").recomputed.tolist() == [
         "pitch rate magnitude (input)"]
     beaten = tie.assign(shrink=tie.shrink.where(tie.index != tie.index[-1], 0.030),
@@ -587,6 +587,64 @@ def test_rechoose_replays_a_rounds_choice_from_rounds_csv_and_flags_a_change():
     assert mod.rechoose(beaten, 0.02, 0.01, 0.05, augment_tie="additive").changed.all()  # not tied: the input
     assert mod.rechoose(tie, 0.02, 0.01, -np.inf, augment_tie="additive").changed.all()
 
+
+
+def test_rechoose_replays_encompassing_from_the_shares_a_round_logged():
+    # Roll rate 56's round 1 as the workflow logged it with `encompassing` (fresh seeds + 15),
+    # before `kept_against`: |ṙ| led on gain; |p| kept 0.33 of its coefficient on top of it
+    # (|ṙ| -0.07) and was named, then the roll-angle rate (0.036) lost to |p| (0.037).
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).parents[1] / "experiments" / "discovery_rechoose.py"
+    spec = importlib.util.spec_from_file_location("discovery_rechoose", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    nan = float("nan")
+    p, r, a = ("input:roll_rate_dps:offset_s=0.5,transform=abs", "abs_rate:yaw_rate_dps:offset_s=0.5",
+               "abs_rate:roll_angle_deg:offset_s=0.5")
+    rows = [  # proposal, name, operator, channels, augment, shrink, gain, p, control, p_input_better, shares, chosen
+        (p, "roll rate magnitude", "input", "roll_rate_dps", "additive", 0.2229, 0.2820, 0.3282, 0.267, 0.9558,
+         0.3295, -0.0710, True),
+        (p, "roll rate magnitude", "input", "roll_rate_dps", "input", 0.1487, 0.2820, 0.0028, 0.293, nan, nan, nan,
+         False),
+        (r, "yaw acceleration magnitude", "abs_rate", "yaw_rate_dps", "additive", 0.2158, 0.3132, 0.2551, 0.291,
+         0.2551, nan, nan, False),
+        (r, "yaw acceleration magnitude", "abs_rate", "yaw_rate_dps", "input", 0.2390, 0.3132, 1.0, 0.307, nan, nan,
+         nan, False),
+        (a, "roll angle rate magnitude", "abs_rate", "roll_angle_deg", "additive", 0.2227, 0.2821, 0.3258, 0.304,
+         0.9004, 0.0361, 0.0374, False),
+        (a, "roll angle rate magnitude", "abs_rate", "roll_angle_deg", "input", 0.1631, 0.2821, 0.0163, 0.321, nan,
+         nan, nan, False),
+    ]
+    cols = ["proposal", "name", "operator", "channels", "augment", "shrink", "cv_gain", "p_best_better",
+            "control_shrink", "p_input_better", "kept_on_top", "named_kept_on_top", "chosen"]
+    rounds = pd.DataFrame(rows, columns=cols).assign(round=1, confirmed=True, source="selection")
+    settings = (0.02, 0.01, 0.05, 0.5)
+
+    def again(df, encompassing=True):
+        return mod.rechoose(df, *settings, augment_tie="additive", encompassing=encompassing).iloc[0]
+
+    assert not again(rounds).changed and again(rounds).unmeasured == ""  # the folder's own run
+    assert again(rounds, False).recomputed == "yaw acceleration magnitude (additive)"  # the rule off: the gain
+    # Without `kept_against`, each pair's named is the one the folder's settings had at its step.
+    shares = mod.logged_shares(rounds, mod.tries(rounds), settings)
+    assert shares == {(r, p): (0.3295, -0.0710), (p, a): (0.0361, 0.0374)}
+    logged = rounds.assign(kept_against=[r, None, None, None, p, None])
+    assert mod.logged_shares(logged, mod.tries(logged), settings) == shares
+    assert again(logged).recomputed == "roll rate magnitude (additive)"
+    # The roll-angle rate keeping more on top of |p| than |p| on top of it would be named.
+    won = logged.assign(kept_on_top=logged.kept_on_top.where(logged.kept_against != p, 0.05))
+    assert again(won).recomputed == "roll angle rate magnitude (additive)" and again(won).changed
+    # A folder run without the rule has no shares: the rounds with a tie to measure are listed.
+    bare = rounds.drop(columns=["kept_on_top", "named_kept_on_top"])
+    row = again(bare)
+    assert row.unmeasured == "roll rate magnitude; roll angle rate magnitude"
+    assert row.recomputed == "yaw acceleration magnitude (additive)"
+    # Ties on one source channel, or a rival whose term did not confirm, are not compared.
+    assert again(bare.assign(channels="roll_rate_dps")).unmeasured == ""
+    alone = bare[~((bare.proposal == p) & (bare.augment == "additive"))]
+    assert again(alone.assign(chosen=alone.proposal.eq(p))).unmeasured == "roll angle rate magnitude"
 
 # --------------------------------------------------------------------------- end to end
 # The hidden-effect case runs in notebooks/discovery.py (a hidden sideslip effect named
@@ -1257,5 +1315,7 @@ def test_with_encompassing_of_two_tied_channels_the_term_that_keeps_more_on_top_
     if encompassing:
         rival = tries[[who[ch] == "rival" for ch in tries.channels]].iloc[0]
         assert (rival.kept_on_top, rival.named_kept_on_top) == (kept[1], kept[0])
+        proposal = tries[[who[ch] == "proposal" for ch in tries.channels]].iloc[0]
+        assert rival.kept_against == proposal.proposal
     else:
         assert "kept_on_top" not in tries

@@ -236,8 +236,9 @@ class _Round:
         each tied proposal's on other source channels (both confirmed as additive terms; lags
         and bands aside), in turn: the one whose term keeps the larger share of its own
         coefficient on top of the other's (`_kept_on_top`) is named, in its way of the largest
-        shrink. Each rival's term row logs what it kept on top (`kept_on_top`) and what the
-        named kept on top of it (`named_kept_on_top`)."""
+        shrink. Each rival's term row logs what it kept on top (`kept_on_top`), what the
+        named kept on top of it (`named_kept_on_top`) and the named's proposal (`kept_against`:
+        a rival after a change of name is measured against the new one)."""
         if not self.d.encompassing:
             return k
         d, ways = self.d, self.ways
@@ -259,7 +260,7 @@ class _Round:
             seen.add(t.proposal)
             kept_b = _kept_on_top(self.ctx, a.trial, b.trial.terms[-1])
             kept_a = _kept_on_top(self.ctx, b.trial, a.trial.terms[-1])
-            self.rounds[b.row].update(kept_on_top=kept_b, named_kept_on_top=kept_a)
+            self.rounds[b.row].update(kept_on_top=kept_b, named_kept_on_top=kept_a, kept_against=named.proposal)
             won = kept_b > kept_a
             self.log(f"round {self.rnd + 1}: encompassing: {t.candidate.name} keeps {kept_b:.2f} of its coefficient "
                      f"on top of {named.candidate.name}, which keeps {kept_a:.2f} on top of it: "
