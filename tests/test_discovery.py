@@ -525,9 +525,8 @@ def test_a_weak_name_brings_its_runner_up_on_other_channels_which_beyond_its_flo
     assert _rival(1, other, alternatives, channels, taken, 0.05, 0.02) == (1, 0.082)
 
 
-def test_rechoose_replays_a_rounds_choice_from_rounds_csv_and_flags_a_change():
-    # experiments/discovery_rechoose.py: pitch rate 51's round 1 as rounds.csv logged it under
-    # the old rule (the yaw-rate knee named), written before the proposal/source columns.
+def _rechoose_module():
+    """experiments/discovery_rechoose.py, imported (it is a script, not a package module)."""
     import importlib.util
     from pathlib import Path
 
@@ -535,6 +534,13 @@ def test_rechoose_replays_a_rounds_choice_from_rounds_csv_and_flags_a_change():
     spec = importlib.util.spec_from_file_location("discovery_rechoose", path)
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
+    return mod
+
+
+def test_rechoose_replays_a_rounds_choice_from_rounds_csv_and_flags_a_change():
+    # experiments/discovery_rechoose.py: pitch rate 51's round 1 as rounds.csv logged it under
+    # the old rule (the yaw-rate knee named), written before the proposal/source columns.
+    mod = _rechoose_module()
     nan = float("nan")
     rows = [  # candidate, name, operator, augment, shrink, gain, p, control, confirmed, chosen
         ("input:yaw_rate_dps:coefficient=0.002,offset_s=0.6,transform=abs", "yaw rate magnitude", "input", "additive",
@@ -593,13 +599,7 @@ def test_rechoose_replays_encompassing_from_the_shares_a_round_logged():
     # Roll rate 56's round 1 as the workflow logged it with `encompassing` (fresh seeds + 15),
     # before `kept_against`: |ṙ| led on gain; |p| kept 0.33 of its coefficient on top of it
     # (|ṙ| -0.07) and was named, then the roll-angle rate (0.036) lost to |p| (0.037).
-    import importlib.util
-    from pathlib import Path
-
-    path = Path(__file__).parents[1] / "experiments" / "discovery_rechoose.py"
-    spec = importlib.util.spec_from_file_location("discovery_rechoose", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
+    mod = _rechoose_module()
     nan = float("nan")
     p, r, a = ("input:roll_rate_dps:offset_s=0.5,transform=abs", "abs_rate:yaw_rate_dps:offset_s=0.5",
                "abs_rate:roll_angle_deg:offset_s=0.5")
