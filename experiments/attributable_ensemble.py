@@ -140,7 +140,7 @@ def measure(ctx, model: Model, kinds=()) -> dict:
 
 # Settings that change only which tries a round makes or names, not how a named effect is
 # trained: a world run without them rebuilds the same (rounds.csv says what was named).
-_CHOICE_ONLY = frozenset({"resonance_input", "augment_tie"})
+_CHOICE_ONLY = frozenset({"resonance_input", "augment_tie", "encompassing", "encompassing_margin"})
 _WAYS = ("additive", "input")  # the ways `--augment` swaps
 _FITTED = ("coefficient",)  # what an additive try adds to its proposal's candidate
 # Values of a setting that rebuild the same: "named" refits a term as "peaks" does, unless its

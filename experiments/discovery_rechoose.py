@@ -8,7 +8,7 @@ from the one logged: the worlds to re-run, and nothing else.
 
     python experiments/discovery_rechoose.py runs/discovery-benchmark [more folders]
         [--shrink-noise 0.02] [--alpha 0.01] [--min-shrink 0.05]   # over each folder's config
-        [--tie-share 0.5] [--augment-tie additive]
+        [--tie-share 0.5] [--augment-tie additive] [--encompassing on] [--encompassing-margin 0.1]
         [--csv OUT.csv]                                             # every round, recomputed
 
 `--min-shrink=-inf` turns off "beyond the floor first" (every tied candidate kept).
@@ -16,7 +16,8 @@ from the one logged: the worlds to re-run, and nothing else.
 a chosen input gives way to its proposal's term where the term's row logs `p_input_better`
 and the two tie. Folders written before that p was logged for every confirmed input have it
 on the named term only; a choice of another proposal's input keeps the input there.
-`encompassing` is replayed too (`--encompassing on` or `off`; default each folder's) from the
+`encompassing` is replayed too (`--encompassing on` or `off`, `--encompassing-margin`; default
+each folder's, a folder written before a setting existed at its earlier value) from the
 shares its rounds logged (`kept_on_top`, `named_kept_on_top`, `kept_against`). A pair of tied
 terms the log has no shares for needs two retrainings: its round is listed as one to re-run
 (`unmeasured`), the choice left as if the rival lost. Folders written before `kept_against`
@@ -32,7 +33,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from pvvjax.config import load_config
+from pvvjax.config import load_written_config
 from pvvjax.discovery._confirm import _choose, _tied, _ties
 from pvvjax.discovery._model import source_channels
 
@@ -62,10 +63,12 @@ def tries(rows: pd.DataFrame) -> list[tuple]:
     return list(zip(rows.shrink, gain, rows.p_best_better, proposal, control))
 
 
-def encompass(rows: pd.DataFrame, t: list, k: int, tied: list[int], measured) -> tuple[int, list[str]]:
+def encompass(rows: pd.DataFrame, t: list, k: int, tied: list[int], measured,
+              margin: float = 0.0) -> tuple[int, list[str]]:
     """`_round._Round._encompass` on one round's confirmed rows (`tries`' order): the named
     try's index after each tied rival on other source channels, both proposals confirmed as
-    terms (lags and bands aside), is compared by what each term kept on top of the other.
+    terms (lags and bands aside), is compared by what each term kept on top of the other:
+    the rival is named where it kept more by more than `margin`.
 
     Args:
         rows, t: the confirmed rows and their `tries`. k: `_choose`'s pick. tied: `_ties`.
@@ -91,15 +94,15 @@ def encompass(rows: pd.DataFrame, t: list, k: int, tied: list[int], measured) ->
         shares = measured(prop[k], prop[i])
         if shares is None:
             unmeasured.append(str(rows["name"].iloc[i]))
-        elif shares[0] > shares[1]:
+        elif shares[0] > shares[1] + margin:
             k = max(np.flatnonzero(prop == prop[i]), key=lambda j: t[j][0])
     return int(k), unmeasured
 
 
-def logged_shares(rows: pd.DataFrame, t: list, own: tuple) -> dict:
+def logged_shares(rows: pd.DataFrame, t: list, own: tuple, own_margin: float = 0.0) -> dict:
     """The encompassing shares one round logged: {(named proposal, rival proposal): (rival's
     share, named's share)}. Without `kept_against`, the named of each pair is replayed with
-    the folder's `own` settings (noise, alpha, min_shrink, share)."""
+    the folder's `own` settings (noise, alpha, min_shrink, share) and margin."""
     if "kept_on_top" not in rows:
         return {}
     prop = proposals(rows).to_numpy()
@@ -115,25 +118,26 @@ def logged_shares(rows: pd.DataFrame, t: list, own: tuple) -> dict:
             pairs[named, rival] = by_rival[rival]
         return by_rival.get(rival)
 
-    encompass(rows, t, _choose(t, *own), _ties(t, *own), record)
+    encompass(rows, t, _choose(t, *own), _ties(t, *own), record, own_margin)
     return pairs
 
 
 def rechoose(rounds: pd.DataFrame, noise: float, alpha: float, min_shrink: float,
              share: float = 0.0, augment_tie: str = "shrink", encompassing: bool = False,
-             own: tuple | None = None) -> pd.DataFrame:
+             margin: float = 0.0, own: tuple | None = None, own_margin: float | None = None) -> pd.DataFrame:
     """Every round with a confirmed try (round 0, the lag test's, has its own rule): the try
     logged as chosen and the one `_choose` picks with these settings, then, with
     `encompassing`, the tied term that keeps more on top of the other (`encompass`, from the
     shares logged), then, with `augment_tie = "additive"`, its proposal's term where it ties
-    with a chosen input. own: the folder's (noise, alpha, min_shrink, share), for logs
-    without `kept_against` (default: these).
+    with a chosen input. own, own_margin: the folder's (noise, alpha, min_shrink, share) and
+    `encompassing_margin`, for logs without `kept_against` (default: these).
 
     Returns:
         round, logged, recomputed (name (augment)), changed, unmeasured (the rivals whose
         shares the log lacks, "; "-joined).
     """
     own = own or (noise, alpha, min_shrink, share)
+    own_margin = margin if own_margin is None else own_margin
     out = []
     for rnd, g in rounds[rounds["round"] > 0].groupby("round"):
         confirmed = g[g.confirmed.astype(bool)]
@@ -143,9 +147,9 @@ def rechoose(rounds: pd.DataFrame, noise: float, alpha: float, min_shrink: float
         k = _choose(t, noise, alpha, min_shrink, share)
         unmeasured = []
         if encompassing:
-            shares = logged_shares(confirmed, t, own)
+            shares = logged_shares(confirmed, t, own, own_margin)
             k, unmeasured = encompass(confirmed, t, k, _ties(t, noise, alpha, min_shrink, share),
-                                      lambda a, b: shares.get((a, b)))
+                                      lambda a, b: shares.get((a, b)), margin)
         pick = confirmed.index[k]
         if augment_tie == "additive" and g.loc[pick, "augment"] == "input" and "p_input_better" in g:
             terms = g[g.augment.eq("additive") & proposals(g).eq(t[k][3]) & g.p_input_better.notna()]
@@ -170,6 +174,7 @@ def main():
                     help="default: each folder's config (0.5 where it predates tie_share; 0 replays the old rule)")
     ap.add_argument("--augment-tie", choices=["shrink", "additive"], help="default: each folder's config")
     ap.add_argument("--encompassing", choices=["on", "off"], help="default: each folder's config")
+    ap.add_argument("--encompassing-margin", type=float, help="default: each folder's config")
     ap.add_argument("--csv", help="write every round, recomputed, here")
     args = ap.parse_args()
     tables = []
@@ -179,15 +184,16 @@ def main():
                 rounds = pd.read_csv(path)
             except pd.errors.EmptyDataError:  # a discovery with max_effects = 0
                 continue
-            d = load_config(path.with_name("config.toml")).discovery
+            d = load_written_config(path.with_name("config.toml")).discovery
             noise = d.shrink_noise if args.shrink_noise is None else args.shrink_noise
             alpha = d.alpha if args.alpha is None else args.alpha
             min_shrink = d.min_shrink if args.min_shrink is None else args.min_shrink
             share = d.tie_share if args.tie_share is None else args.tie_share
             way = d.augment_tie if args.augment_tie is None else args.augment_tie
             enc = d.encompassing if args.encompassing is None else args.encompassing == "on"
+            margin = d.encompassing_margin if args.encompassing_margin is None else args.encompassing_margin
             own = (d.shrink_noise, d.alpha, d.min_shrink, d.tie_share)
-            table = rechoose(rounds, noise, alpha, min_shrink, share, way, enc, own)
+            table = rechoose(rounds, noise, alpha, min_shrink, share, way, enc, margin, own, d.encompassing_margin)
             tables.append(table.assign(world=str(path.parent)))
     if not tables:
         raise SystemExit(f"no rounds.csv under {args.folders}")

@@ -100,17 +100,31 @@ def test_column_map_refuses_wrong_dimension():
         ColumnMap(to="rotor_rpm", unit="m/s")
 
 
-def test_a_setting_added_later_at_its_earlier_behaviour_leaves_the_hash_of_tables_written_before_it():
-    # A results table written before `encompassing` existed stores a config without it; a
-    # config with it off (the earlier behaviour) is the same run, on (another rule) is not.
-    import dataclasses
-
+def test_a_setting_added_later_at_its_earlier_behaviour_leaves_the_hash_of_tables_written_before_it(tmp_path):
+    # A results table written before `encompassing` existed stores a config without it (and
+    # without its margin); a config with it off, margin 0 (the earlier behaviour) is the same
+    # run; the default (on, margin 0.1) is another rule.
     from pvvjax._strict import to_dict
+    from pvvjax.config import load_written_config
 
     cfg = ExperimentConfig()
-    before = to_dict(cfg)
-    del before["discovery"]["encompassing"]
-    assert config_hash(before) == config_hash(cfg)
-    on = cfg.with_(discovery=dataclasses.replace(cfg.discovery, encompassing=True))
-    assert config_hash(on) != config_hash(cfg)
-    assert config_hash(on.with_(discovery=dataclasses.replace(on.discovery, alpha=0.05))) != config_hash(on)
+    old = cfg.with_(discovery=dataclasses.replace(cfg.discovery, encompassing=False, encompassing_margin=0.0))
+    before = to_dict(old)
+    del before["discovery"]["encompassing"], before["discovery"]["encompassing_margin"]
+    assert config_hash(before) == config_hash(old)
+    assert config_hash(cfg) != config_hash(old)
+    assert config_hash(cfg.with_(discovery=dataclasses.replace(cfg.discovery, alpha=0.05))) != config_hash(cfg)
+    # Read back from such a folder, the missing settings take their earlier values, not
+    # today's defaults; a hand-written config that leaves them out gets the defaults.
+    p = _write(tmp_path, """
+        [discovery]
+        alpha = 0.02
+    """)
+    written = load_written_config(p).discovery
+    assert (written.encompassing, written.encompassing_margin, written.alpha) == (False, 0.0, 0.02)
+    assert (load_config(p).discovery.encompassing, load_config(p).discovery.encompassing_margin) == (True, 0.1)
+    with pytest.raises(ConfigError, match="encompassing_margin"):
+        load_config(_write(tmp_path, """
+            [discovery]
+            encompassing_margin = -0.1
+        """))

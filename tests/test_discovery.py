@@ -636,6 +636,9 @@ def test_rechoose_replays_encompassing_from_the_shares_a_round_logged():
     # The roll-angle rate keeping more on top of |p| than |p| on top of it would be named.
     won = logged.assign(kept_on_top=logged.kept_on_top.where(logged.kept_against != p, 0.05))
     assert again(won).recomputed == "roll angle rate magnitude (additive)" and again(won).changed
+    # ... by more than the margin (0.05 against 0.037 is not by 0.1).
+    kept = mod.rechoose(won, *settings, augment_tie="additive", encompassing=True, margin=0.1).iloc[0]
+    assert kept.recomputed == "roll rate magnitude (additive)" and not kept.changed
     # A folder run without the rule has no shares: the rounds with a tie to measure are listed.
     bare = rounds.drop(columns=["kept_on_top", "named_kept_on_top"])
     row = again(bare)
@@ -1202,9 +1205,6 @@ def test_every_confirmed_inputs_term_logs_the_p_that_rechoose_replays_the_way_fr
     # (confirms): with `augment_tie = "additive"` both terms log `p_input_better`, so that
     # experiments/discovery_rechoose.py replays the way for whichever input a round names,
     # and replaying the run's own settings gives back the logged choice.
-    import importlib.util
-    from pathlib import Path
-
     from pvvjax.config import DiscoveryConfig, ExperimentConfig, TrainConfig
     from pvvjax.discovery import _round, _workflow, discover
     from pvvjax.selection import Selected
@@ -1230,10 +1230,7 @@ def test_every_confirmed_inputs_term_logs_the_p_that_rechoose_replays_the_way_fr
     assert rows.p_input_better.notna().tolist() == [True, False, True, False]
     assert list(rows[rows.chosen].augment) == ["additive"]  # 0.05 against 0.06: within shrink_noise
 
-    path = Path(__file__).parents[1] / "experiments" / "discovery_rechoose.py"
-    spec = importlib.util.spec_from_file_location("discovery_rechoose", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
+    mod = _rechoose_module()
     again = mod.rechoose(res.rounds, d.shrink_noise, d.alpha, d.min_shrink, d.tie_share, d.augment_tie)
     assert len(again) == 1 and not again.changed.any()
     assert mod.rechoose(res.rounds, d.shrink_noise, d.alpha, d.min_shrink, d.tie_share, "shrink").changed.all()
@@ -1263,15 +1260,17 @@ def test_a_term_on_top_of_itself_keeps_little_of_its_coefficient_and_on_top_of_a
     assert _round._kept_on_top(ctx, other, first.terms[-1]) > 0.5
 
 
-@pytest.mark.parametrize("encompassing, kept, named", [
-    (False, None, "proposal"), (True, (0.0, 0.3), "rival"), (True, (0.3, 0.0), "proposal")])
+@pytest.mark.parametrize("encompassing, margin, kept, named", [
+    (False, 0.1, None, "proposal"), (True, 0.1, (0.0, 0.3), "rival"), (True, 0.1, (0.3, 0.0), "proposal"),
+    (True, 0.1, (0.3, 0.35), "proposal"), (True, 0.0, (0.3, 0.35), "rival")])
 def test_with_encompassing_of_two_tied_channels_the_term_that_keeps_more_on_top_of_the_other_is_named(
-        monkeypatch, small_campaign_dir, encompassing, kept, named):
+        monkeypatch, small_campaign_dir, encompassing, margin, kept, named):
     # Two proposals on other channels, both confirmed as terms and tied (shrinks 0.10 and
     # 0.095, forced); the selection credits the first with more gain, which names it. With
     # `encompassing`, each term is fitted on top of the other's model (`_kept_on_top`,
-    # forced: (the proposal's share, the rival's)); the one keeping more is named, and the
-    # rival's row logs both. Training, replay and the choice are the workflow's own.
+    # forced: (the proposal's share, the rival's)); the rival is named where it keeps more
+    # by more than the margin, and its row logs both. Training, replay and the choice are
+    # the workflow's own.
     from pvvjax.config import DiscoveryConfig, ExperimentConfig, TrainConfig
     from pvvjax.discovery import _round, _workflow, discover
     from pvvjax.discovery._model import source_channels
@@ -1304,7 +1303,8 @@ def test_with_encompassing_of_two_tied_channels_the_term_that_keeps_more_on_top_
     monkeypatch.setattr(_round, "_confirm", confirm_forced)
     monkeypatch.setattr(_round, "_kept_on_top", kept_forced)
     d = DiscoveryConfig(seeds=1, folds=3, max_effects=1, floor_control=False, augment="additive",
-                        offset_step_s=0.5, term_refit="peaks", encompassing=encompassing)
+                        offset_step_s=0.5, term_refit="peaks", encompassing=encompassing,
+                        encompassing_margin=margin)
     res = discover(small_campaign_dir, ExperimentConfig(train=TrainConfig(max_steps=100), discovery=d),
                    log=lambda m: None)
     tries = res.rounds[res.rounds["round"] == 1]

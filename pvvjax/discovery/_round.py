@@ -234,11 +234,12 @@ class _Round:
     def _encompass(self, k: int, tries) -> int:
         """With `encompassing`, the named try's index after comparing its proposal's term with
         each tied proposal's on other source channels (both confirmed as additive terms; lags
-        and bands aside), in turn: the one whose term keeps the larger share of its own
-        coefficient on top of the other's (`_kept_on_top`) is named, in its way of the largest
-        shrink. Each rival's term row logs what it kept on top (`kept_on_top`), what the
-        named kept on top of it (`named_kept_on_top`) and the named's proposal (`kept_against`:
-        a rival after a change of name is measured against the new one)."""
+        and bands aside), in turn: the rival is named, in its way of the largest shrink, where
+        its term keeps a larger share of its own coefficient on top of the named's model
+        (`_kept_on_top`) than the named's term keeps on top of its own, by more than
+        `encompassing_margin`. Each rival's term row logs what it kept on top (`kept_on_top`),
+        what the named kept on top of it (`named_kept_on_top`) and the named's proposal
+        (`kept_against`: a rival after a change of name is measured against the new one)."""
         if not self.d.encompassing:
             return k
         d, ways = self.d, self.ways
@@ -261,10 +262,10 @@ class _Round:
             kept_b = _kept_on_top(self.ctx, a.trial, b.trial.terms[-1])
             kept_a = _kept_on_top(self.ctx, b.trial, a.trial.terms[-1])
             self.rounds[b.row].update(kept_on_top=kept_b, named_kept_on_top=kept_a, kept_against=named.proposal)
-            won = kept_b > kept_a
+            won = kept_b > kept_a + d.encompassing_margin
             self.log(f"round {self.rnd + 1}: encompassing: {t.candidate.name} keeps {kept_b:.2f} of its coefficient "
-                     f"on top of {named.candidate.name}, which keeps {kept_a:.2f} on top of it: "
-                     f"{t.candidate.name if won else named.candidate.name} named")
+                     f"on top of {named.candidate.name}, which keeps {kept_a:.2f} on top of it (margin "
+                     f"{d.encompassing_margin:.2f}): {t.candidate.name if won else named.candidate.name} named")
             if won:
                 k = max((j for j, c in enumerate(self.confirmed) if c.proposal == t.proposal),
                         key=lambda j: self.confirmed[j].shrink)
