@@ -924,15 +924,16 @@ def test_a_gains_column_is_its_band_in_units_of_its_gain_unit():
         from_dict(DiscoveryConfig, {"gain_unit": 0.0})
 
 
-@pytest.mark.parametrize("beats_it_alone", [False, True])
-def test_a_try_must_confirm_again_on_top_of_the_floor_control_or_beat_it_alone(monkeypatch, tmp_path,
-                                                                                small_campaign_dir, beats_it_alone):
+@pytest.mark.parametrize("beats_it_alone, control_worse", [(False, False), (True, False), (True, True)])
+def test_a_try_must_confirm_again_on_top_of_the_floor_control_or_beat_it_alone(
+        monkeypatch, tmp_path, small_campaign_dir, beats_it_alone, control_worse):
     # floor_control: a round's floor refinements (the selection's, taken over all windows) are
     # added to the current model as inputs and it is retrained (the control); a try confirmed
     # against the current model is added to the control the same way and must confirm again
-    # there, or its own model must beat the control as a confirmation would. The round's
-    # proposal and refinement are forced here (the selection is tested above); training,
-    # replay and the confirmations are the workflow's own.
+    # there, or its own model must beat the control as a confirmation would, where the
+    # control predicts at least as well as the current model (their ensemble RMS forced
+    # here). The round's proposal and refinement are forced (the selection is tested above);
+    # training, replay and the confirmations are the workflow's own.
     from pvvjax.campaign import load_campaign
     from pvvjax.config import DiscoveryConfig, ExperimentConfig, TrainConfig
     from pvvjax.discovery import _round, _workflow, discover
@@ -955,6 +956,8 @@ def test_a_try_must_confirm_again_on_top_of_the_floor_control_or_beat_it_alone(m
 
     def confirm_on_the_current_model_only(ctx, current, trial, c, where, d, slack=0.0):
         ok, out = confirm(ctx, current, trial, c, where, d, slack)
+        if len(asked) < 2:  # the current model's RMS, then the control's
+            out = {**out, "ensemble": ((0.050, 0.055 if control_worse else 0.045)[len(asked)], out["ensemble"][1])}
         asked.append((current, trial, ok, out))
         if len(asked) == 1 or (len(asked) == 3 and beats_it_alone):
             return True, out
@@ -967,6 +970,13 @@ def test_a_try_must_confirm_again_on_top_of_the_floor_control_or_beat_it_alone(m
     res = discover(load_campaign(small_campaign_dir), cfg, log=lambda m: None)
 
     # the try on the current model, then on top of the control, then alone against the control
+    # (not against a control worse than the current model)
+    if control_worse:
+        assert len(asked) == 2
+        row = res.rounds.iloc[0]
+        assert not row.confirmed and "the control predicts worse than the current model" in row.why_not
+        assert np.isnan(row.over_control_shrink) and res.effects == []
+        return
     (cur, trial, _, _), (control, on_control, _, out), (control_again, trial_again, _, over) = asked
     assert cur.extra == () and [c.key for c in trial.extra] == [res.rounds.candidate[0]]
     assert len(control.extra) == 1 and control.extra[0].channels and control.params is not cur.params

@@ -133,13 +133,20 @@ class _Round:
             if control is not None:  # the same try on top of the floor control
                 ok, on_control = _confirm(ctx, control, _augment(ctx, control, added, mode), added, where, d,
                                           slack=d.shrink_noise)
-                if not ok:  # or the try alone beats the control (`_floor_control`)
+                # Or the try alone beats the control (`_floor_control`), where the control predicts
+                # at least as well as the current model: beating a worse one, the try has shown
+                # nothing its first confirmation had not (on two fresh long-lag worlds, a band).
+                control_worse = on_control["ensemble"][0] > conf["ensemble"][0]
+                if not ok and not control_worse:
                     ok, over_control = _confirm(ctx, control, trial, added, where, d, slack=d.shrink_noise)
                 if not ok:
+                    alone = ("the control predicts worse than the current model (ensemble's RMS "
+                             f"{on_control['ensemble'][0]:.4f} against {conf['ensemble'][0]:.4f} g)" if control_worse
+                             else f"nor better than it alone ({over_control['shrink']:+.1%}, "
+                                  f"{over_control['local']:+.1%})")
                     conf["why"] = (f"not confirmed on top of the floor control: {on_control['why']} (shrink "
                                    f"{on_control['shrink']:+.1%} (all), {on_control['local']:+.1%} "
-                                   f"({on_control['judged_in']})), nor better than it alone "
-                                   f"({over_control['shrink']:+.1%}, {over_control['local']:+.1%})")
+                                   f"({on_control['judged_in']})), {alone}")
                 elif over_control is not unset:
                     self.log(f"  {c.name} ({mode}): not confirmed on top of the floor control (shrink "
                              f"{on_control['shrink']:+.1%} (all), {on_control['local']:+.1%}), but better than it "
