@@ -34,7 +34,7 @@ import numpy as np
 import pandas as pd
 
 from pvvjax.config import load_written_config
-from pvvjax.discovery._confirm import _choose, _tied, _ties
+from pvvjax.discovery._confirm import _choose, _encompassed, _tied, _ties
 from pvvjax.discovery._model import source_channels
 
 # Parameters a try adds to its proposal's candidate (a term's coefficient, a band's gain).
@@ -65,10 +65,8 @@ def tries(rows: pd.DataFrame) -> list[tuple]:
 
 def encompass(rows: pd.DataFrame, t: list, k: int, tied: list[int], measured,
               margin: float = 0.0) -> tuple[int, list[str]]:
-    """`_round._Round._encompass` on one round's confirmed rows (`tries`' order): the named
-    try's index after each tied rival on other source channels, both proposals confirmed as
-    terms (lags and bands aside), is compared by what each term kept on top of the other:
-    the rival is named where it kept more by more than `margin`.
+    """`_confirm._encompassed`, the workflow's rule, on one round's confirmed rows (`tries`'
+    order), with the shares the round logged.
 
     Args:
         rows, t: the confirmed rows and their `tries`. k: `_choose`'s pick. tied: `_ties`.
@@ -78,24 +76,18 @@ def encompass(rows: pd.DataFrame, t: list, k: int, tied: list[int], measured,
     Returns:
         The named try's index, and the rivals without shares (their pair needs a re-run)."""
     prop = proposals(rows).to_numpy()
+    terms = {p for p in prop[rows.augment.eq("additive").to_numpy() & ~rows.operator.isin(["lag", "resonance"])]}
+    unmeasured = []
 
-    def term(p):
-        r = rows[(prop == p) & rows.augment.eq("additive").to_numpy()]
-        return len(r) and not r.operator.isin(["lag", "resonance"]).any()
-
-    def sources(i):
-        return source_channels(str(rows.channels.iloc[i]).split(","))
-
-    seen, unmeasured = {prop[k]}, []
-    for i in tied:
-        if prop[i] in seen or not term(prop[k]) or not term(prop[i]) or sources(i) & sources(k):
-            continue
-        seen.add(prop[i])
+    def measure(k, i):
         shares = measured(prop[k], prop[i])
         if shares is None:
             unmeasured.append(str(rows["name"].iloc[i]))
-        elif shares[0] > shares[1] + margin:
-            k = max(np.flatnonzero(prop == prop[i]), key=lambda j: t[j][0])
+        return shares
+
+    k = _encompassed(k, tied, prop, lambda i: prop[i] in terms,
+                     lambda i: source_channels(str(rows.channels.iloc[i]).split(",")), measure, margin,
+                     lambda j: t[j][0])
     return int(k), unmeasured
 
 

@@ -269,6 +269,34 @@ def _ties(tries, noise: float, alpha: float, min_shrink: float, share: float = 0
     return [i for i in tied if tries[i][3] in beyond] or tied
 
 
+def _encompassed(k: int, tied, proposal, term, sources, measure, margin: float, shrink) -> int:
+    """The encompassing test's choice (`encompassing`): each tied try `i` of another proposal,
+    on other source channels, both proposals confirmed as terms, is compared with the named
+    `k` in turn, and its proposal is named (its try of the largest shrink) where its term kept
+    more of its coefficient on top of the named's than the named's on top of its own, by
+    more than `margin`. Shared by the workflow (which retrains) and discovery_rechoose (which
+    reads what was logged).
+
+    Args:
+        k: the named try's index. tied: `_ties`. proposal: each try's proposal.
+        term, sources: a try's index -> whether its proposal confirmed as a term (lags and
+            bands aside); its source channels.
+        measure: (named index, rival index) -> (rival's share, named's share), or None where
+            not measured. shrink: a try's index -> its shrink.
+
+    Returns:
+        The named try's index."""
+    seen = {proposal[k]}
+    for i in tied:
+        if proposal[i] in seen or not term(k) or not term(i) or sources(i) & sources(k):
+            continue
+        seen.add(proposal[i])
+        shares = measure(k, i)
+        if shares is not None and shares[0] > shares[1] + margin:
+            k = max((j for j, p in enumerate(proposal) if p == proposal[i]), key=shrink)
+    return k
+
+
 def _choose(tries, noise: float, alpha: float, min_shrink: float, share: float = 0.0) -> int:
     """Which confirmed try of a round is named. tries: (shrink, selection gain, p, candidate,
     control shrink) of each: p the one-sided p-value that the try of the largest shrink

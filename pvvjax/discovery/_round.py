@@ -17,6 +17,7 @@ from ._confirm import (
     _choose,
     _confirm,
     _control_refinements,
+    _encompassed,
     _floor_control,
     _paired_sign_flip,
     _refits_on_windows,
@@ -249,23 +250,17 @@ class _Round:
         (`kept_against`: a rival after a change of name is measured against the new one)."""
         if not self.d.encompassing:
             return k
-        d, ways = self.d, self.ways
+        d, ways, conf = self.d, self.ways, self.confirmed
 
-        def term(t: _Confirmed):  # its proposal's additive try, where that confirmed
-            w = ways.get((t.proposal, "additive"))
-            ok = w is not None and t.candidate.operator not in ("lag", "resonance") and any(
-                w is c for c in self.confirmed)
+        def term(i: int):  # its proposal's additive try, where that confirmed
+            w = ways.get((conf[i].proposal, "additive"))
+            ok = w is not None and conf[i].candidate.operator not in ("lag", "resonance") and any(
+                w is c for c in conf)
             return w if ok else None
 
-        tied = _ties(tries, d.shrink_noise, d.alpha, d.min_shrink, d.tie_share)
-        seen = {self.confirmed[k].proposal}
-        for i in tied:
-            named, t = self.confirmed[k], self.confirmed[i]
-            a, b = term(named), term(t)
-            if t.proposal in seen or a is None or b is None or (
-                    source_channels(t.candidate.channels) & source_channels(named.candidate.channels)):
-                continue
-            seen.add(t.proposal)
+        def measure(k: int, i: int):
+            named, t = conf[k], conf[i]
+            a, b = term(k), term(i)
             kept_b = _kept_on_top(self.ctx, a.trial, b.trial.terms[-1])
             kept_a = _kept_on_top(self.ctx, b.trial, a.trial.terms[-1])
             self.rounds[b.row].update(kept_on_top=kept_b, named_kept_on_top=kept_a, kept_against=named.proposal)
@@ -273,10 +268,12 @@ class _Round:
             self.log(f"round {self.rnd + 1}: encompassing: {t.candidate.name} keeps {kept_b:.2f} of its coefficient "
                      f"on top of {named.candidate.name}, which keeps {kept_a:.2f} on top of it (margin "
                      f"{d.encompassing_margin:.2f}): {t.candidate.name if won else named.candidate.name} named")
-            if won:
-                k = max((j for j, c in enumerate(self.confirmed) if c.proposal == t.proposal),
-                        key=lambda j: self.confirmed[j].shrink)
-        return k
+            return kept_b, kept_a
+
+        return _encompassed(k, _ties(tries, d.shrink_noise, d.alpha, d.min_shrink, d.tie_share),
+                            [c.proposal for c in conf], lambda i: term(i) is not None,
+                            lambda i: source_channels(conf[i].candidate.channels), measure, d.encompassing_margin,
+                            lambda j: conf[j].shrink)
 
     def _input_ties(self):
         """With `augment_tie = "additive"`, log on the term row of every proposal whose input
