@@ -650,7 +650,10 @@ def load_config(path: str | Path, cls: type = ExperimentConfig):
     Raises:
         ConfigError: naming the file and the offending key.
     """
-    data = load_toml(path)
+    return _validated(path, load_toml(path), cls)
+
+
+def _validated(path, data: dict, cls: type):
     try:
         return from_dict(cls, data)
     except ConfigError as e:
@@ -671,10 +674,7 @@ def load_written_config(path: str | Path, cls: type = ExperimentConfig):
     for section, added in _ADDED_LATER.items():
         if isinstance(data.get(section), dict):
             data = {**data, section: {**added, **data[section]}}
-    try:
-        return from_dict(cls, data)
-    except ConfigError as e:
-        raise ConfigError(f"{path}: {e}") from None
+    return _validated(path, data, cls)
 
 
 def config_hash(cfg) -> str:
