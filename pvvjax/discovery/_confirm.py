@@ -269,6 +269,12 @@ def _ties(tries, noise: float, alpha: float, min_shrink: float, share: float = 0
     return [i for i in tied if tries[i][3] in beyond] or tied
 
 
+def _rival_encompasses(shares: tuple[float, float], margin: float) -> bool:
+    """Whether a tied rival is named over the named try: it kept more of its coefficient on
+    top of the named's term (shares: (rival's, named's)) by more than `margin`."""
+    return shares[0] > shares[1] + margin
+
+
 def _encompassed(k: int, tied, proposal, term, sources, measure, margin: float, shrink) -> int:
     """The encompassing test's choice (`encompassing`): each tied try `i` of another proposal,
     on other source channels, both proposals confirmed as terms, is compared with the named
@@ -292,7 +298,7 @@ def _encompassed(k: int, tied, proposal, term, sources, measure, margin: float, 
             continue
         seen.add(proposal[i])
         shares = measure(k, i)
-        if shares is not None and shares[0] > shares[1] + margin:
+        if shares is not None and _rival_encompasses(shares, margin):
             k = max((j for j, p in enumerate(proposal) if p == proposal[i]), key=shrink)
     return k
 

@@ -22,6 +22,7 @@ from ._confirm import (
     _paired_sign_flip,
     _refits_on_windows,
     _rival,
+    _rival_encompasses,
     _tied,
     _ties,
 )
@@ -264,7 +265,7 @@ class _Round:
             kept_b = _kept_on_top(self.ctx, a.trial, b.trial.terms[-1])
             kept_a = _kept_on_top(self.ctx, b.trial, a.trial.terms[-1])
             self.rounds[b.row].update(kept_on_top=kept_b, named_kept_on_top=kept_a, kept_against=named.proposal)
-            won = kept_b > kept_a + d.encompassing_margin
+            won = _rival_encompasses((kept_b, kept_a), d.encompassing_margin)
             self.log(f"round {self.rnd + 1}: encompassing: {t.candidate.name} keeps {kept_b:.2f} of its coefficient "
                      f"on top of {named.candidate.name}, which keeps {kept_a:.2f} on top of it (margin "
                      f"{d.encompassing_margin:.2f}): {t.candidate.name if won else named.candidate.name} named")
