@@ -394,6 +394,70 @@ def test_a_probes_band_gets_the_p_value_of_its_retraining_by_condition_where_it_
     assert p(k < 2) == p(k < 2)  # seeded
 
 
+def test_source_tries_add_the_best_candidates_of_the_channels_a_derived_input_hides(monkeypatch):
+    """db1's load factor is computed from the roll angle and pitch rate, which db1 does not
+    take: candidates built only from those are tried beside the proposals, the best by the
+    selection's held-out gain (above 0, one alignment each, not proposed already)."""
+    import pvvjax.discovery._propose as P
+    from pvvjax.candidates import Candidate
+    from pvvjax.config import DiscoveryConfig
+    from pvvjax.databases import DB_INPUTS
+    from pvvjax.selection import Selected, gains
+
+    assert P.hidden_sources(DB_INPUTS["db1"]) == {"roll_angle_deg", "pitch_rate_dps"}  # airspeed: μ·ΩR
+    assert P.hidden_sources(("rotor_rpm", "gross_weight_lb")) == frozenset()
+    q = lambda off: Candidate("input", ("pitch_rate_dps",), {"transform": "abs", "offset_s": off})  # noqa: E731
+    lib = [Candidate("input", ("yaw_rate_dps",), {"offset_s": 0.9}), q(0.9), q(0.5),
+           Candidate("rate", ("roll_angle_deg",), {"offset_s": 0.9}),
+           Candidate("product", ("pitch_rate_dps", "airspeed_kt"), {"offset_s": 0.9}),
+           Candidate("input", ("pitch_angle_deg",), {"offset_s": 0.9})]
+    rng = np.random.default_rng(0)
+    n = 400
+    M, groups = rng.normal(size=(n, len(lib))), np.arange(n) // 4
+    resid = 0.8 * M[:, 2] + 0.4 * M[:, 3] + 0.6 * M[:, 0] + 0.2 * rng.normal(size=n)  # |q| best at 0.5 s
+    designs = {"all": (np.ones(n, bool), np.ones((n, 1)))}
+    first = [("all", 0, Selected(0, 0.3, 0.3, 0.01))]
+    run = lambda k, props=first: P._source_tries(props, lib, M, designs, resid, groups, DB_INPUTS["db1"],  # noqa: E731
+                                                 DiscoveryConfig(source_tries=k), 0, lambda m: None)
+    assert run(0) == first
+    one = run(1)
+    assert one[:1] == first and len(one) == 2
+    where, j, s = one[1]
+    assert (where, j, s.index, s.source) == ("all", 2, 2, "source") and np.isnan(s.p_value)
+    g = gains(resid, M[:, [2]], groups, base=designs["all"][1], folds=5, seed=0)[0]
+    assert s.gain == pytest.approx(g) and g > 0
+    # The next best is the roll angle's rate, not |q| at its other alignment, nor a product
+    # with a channel the model sees, nor a channel no input is computed from.
+    assert [j for _, j, _ in run(3)[1:]] == [2, 3]
+    # A hidden channel's candidate proposed already is not tried again; nor one without gain.
+    assert [j for _, j, _ in run(1, first + [("all", 1, Selected(1, 0.2, 0.2, 0.01))])[2:]] == [3]
+    monkeypatch.setattr(P, "gains", lambda *a, **k: np.array([0.0, -0.1, 0.05]))  # columns 1, 2, 3
+    assert [j for _, j, _ in run(3)[1:]] == [3]  # only column 3's gain is above 0
+
+
+def test_a_source_try_gets_the_p_value_of_its_retraining_by_condition_where_it_acts():
+    import pvvjax.discovery._propose as P
+
+    win = _windows(n_counters=30)  # K0 level flight, the rest pull-ups
+    k = win.table.i.to_numpy()
+    y = win.table.measured_g.to_numpy()
+    rng = np.random.default_rng(3)
+    current = dict(pred=(y + 0.1 * rng.standard_normal(len(y)))[None], win=win)
+
+    def p(better, judged_in="pullup"):  # the current prediction with the error halved on `better`
+        trial = dict(pred=np.where(better, (y + current["pred"][0]) / 2, current["pred"][0])[None], win=win,
+                     judged_in=judged_in)
+        p, explained = P._source_test(trial, current, 0)
+        e2 = lambda t: np.sum((t["pred"][0] - y) ** 2)  # noqa: E731
+        assert explained == pytest.approx(1 - e2(trial) / e2(current))
+        return p
+
+    assert p(k >= 1) < 1e-3  # better on every pull-up
+    assert p(k == 0) == 1.0  # better only in level flight, where it does not act
+    assert p(k == 0, "level") > 0.4  # judged on one condition: no evidence
+    assert p(k < 3) > 0.1 and p(k < 3) == p(k < 3)  # two pull-ups only; seeded
+
+
 def test_the_floor_control_is_the_model_retrained_with_its_refinements_as_inputs(monkeypatch):
     import pvvjax.discovery._confirm as C
     from pvvjax.candidates import Candidate

@@ -14,7 +14,7 @@ from ..selection import forward_select, gains
 from ..selection import gain as _selection_gain
 from ._confirm import _SIGN_FLIPS, _explained, _paired_errors, _sign_flip_p, _train_model
 from ._lag import _lag_candidates
-from ._model import Model, _Ctx, _determined, _selection_column, _Windows
+from ._model import Model, _Ctx, _determined, _selection_column, _Windows, source_channels
 
 
 def _floor_basis(win: _Windows, yhat, rows, floor, knots=(0.25, 0.5, 0.75)) -> np.ndarray:
@@ -212,6 +212,54 @@ def _resonance_probe(ctx: _Ctx, model: Model, proposals, lib: list[Candidate], M
     log("resonance probe: gains by band centre " + ", ".join(
         f"{c.parameters['center']:.1f} {v:+.2f}" for (_, c), v in zip(bands, g)) + f": proposes {lib[j].name}")
     return list(proposals) + [("all", j, _Selected(j, gain, float("nan"), float("nan"), source="probe"))]
+
+
+def hidden_sources(inputs) -> frozenset[str]:
+    """The campaign channels that a model's derived inputs are computed from but that it does
+    not take, nor determine exactly: for db1, the load factor's roll angle and pitch rate."""
+    return source_channels(inputs) - set(_determined(inputs))
+
+
+def _source_tries(proposals, lib: list[Candidate], M, designs, resid, groups, inputs, d, seed: int, log) -> list:
+    """`proposals` and the `d.source_tries` candidates of the best held-out gain (above 0, one
+    alignment each, none proposed already) built only from `hidden_sources`. The nets learn
+    part of such an effect through the derived input, so the residual under-ranks the rest:
+    the selection alone does not propose it. Their `Selected` carries the gain and no p-value:
+    the retraining's confirmation and the floor control decide."""
+    hidden = hidden_sources(inputs)
+    proposed = {_unaligned_key(lib[j]) for _, j, _ in proposals}
+    cols = [j for j, c in enumerate(lib)
+            if c.channels and set(c.channels) <= hidden and _unaligned_key(c) not in proposed]
+    if not d.source_tries or not cols:
+        return proposals
+    rows, floor = designs["all"]
+    g = gains(resid[rows], M[rows][:, cols], groups[rows], base=floor, folds=d.folds, seed=seed)
+    out, seen = list(proposals), set()
+    for k in np.argsort(-g, kind="stable"):
+        key = _unaligned_key(lib[cols[k]])
+        if g[k] <= 0 or len(seen) == d.source_tries:
+            break
+        if key not in seen:
+            seen.add(key)
+            out.append(("all", cols[k], _Selected(cols[k], float(g[k]), float("nan"), float("nan"), source="source")))
+    if seen:
+        log("source tries (" + ", ".join(sorted(hidden)) + "): " + "; ".join(
+            f"{lib[j].name} ({s.gain:.3f})" for _, j, s in out[len(proposals):]))
+    return out
+
+
+def _source_test(conf: dict, current: dict, seed: int) -> tuple[float, float]:
+    """The p-value and explained fraction of a source try (`_source_tries`), which the
+    selection gives none, from its retraining: p that the retrained ensemble predicts better
+    than the current one by condition where it acts (`judged_in`), one-sided sign flips.
+    Reported, not required: the confirmation and the floor control decide.
+
+    Returns:
+        (p, 1 − the trial's squared error / the current model's over all windows).
+    """
+    both = _paired_errors(current, conf)
+    where = both[both.maneuver.isin(conf["judged_in"].split(", "))]
+    return _sign_flip_p(where if len(where) else both, _SIGN_FLIPS, seed), _explained(both)
 
 
 def _probe_test(conf: dict, current: dict, c: Candidate, seed: int, alpha: float) -> tuple[float, float, str]:

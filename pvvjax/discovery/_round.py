@@ -28,7 +28,7 @@ from ._confirm import (
 )
 from ._fits import _fit_offset, _keep_better, _refine
 from ._model import Model, _Ctx, _gain_unit, _Windows, metrics, predictions, source_channels
-from ._propose import _probe_test, _unaligned_key
+from ._propose import _probe_test, _source_test, _unaligned_key
 
 
 class _Confirmed(NamedTuple):
@@ -128,6 +128,8 @@ class _Round:
                                                       d.probe_alpha)
                 if ok and why:
                     ok, conf["why"] = False, why
+            elif s.source == "source":  # no selection p either: its retraining's, reported
+                p_value, explained = _source_test(conf, dict(pred=self.pred, win=win), self.seed)
             unset = dict(shrink=np.nan, local=np.nan)
             on_control, over_control, control, kept = unset, unset, None, ()
             if ok and self.refinements and mode != "lag":

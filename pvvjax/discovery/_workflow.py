@@ -38,6 +38,7 @@ from ._propose import (
     _neighbour_cells,
     _propose,
     _resonance_probe,
+    _source_tries,
     _unaligned_key,
 )
 from ._round import _Round
@@ -276,6 +277,8 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
                                                 is_floor=np.arange(len(both)) >= len(lib))
         lib = both  # proposals and their runners-up index both
         proposals = _neighbour_cells(proposals, lib, M, designs, resid, groups, d, seed=cfg.seed + rnd)
+        proposals = _source_tries(proposals, lib, M, designs, resid, groups, current.inputs, d, cfg.seed + rnd,
+                                  lambda m: log(f"round {rnd + 1}: {m}"))
         if d.resonance_probe:
             proposals = _resonance_probe(ctx, current, proposals, lib, M, designs, resid, groups, d, cfg.seed + rnd,
                                          lambda m: log(f"round {rnd + 1}: {m}"))
