@@ -145,7 +145,9 @@ def write_discovery(res: Discovery, out, cfg=None, worst: int = 4) -> Path:
                   "tries, those that lower the RMS by `min_shrink` on top of their floor control come first, then "
                   "the one with the largest `cv_gain`. A weak name (none of its proposal's confirmed tries does so) "
                   "gets a second opinion: the selection's best runner-up built from other channels than the round's "
-                  "proposals is retrained too (`source` rival) and the round chooses again.", "",
+                  "proposals is retrained too (`source` rival) and the round chooses again. With `source_tries`, "
+                  "the candidates of the best gain built only from channels a derived input hides (db1's load "
+                  "factor: the roll angle and the pitch rate) are tried too (`source` source).", "",
                   "`rms_*`: held-out RMS, median over seeds (as the metrics above); `ensemble_rms_*`: the RMS of "
                   "the ensemble's prediction (the median over seeds), whose change `shrink` (all windows) and "
                   "`region_shrink` (where the effect acts, `judged_in`) decide the confirmation; `why_not`: "

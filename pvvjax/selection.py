@@ -42,7 +42,9 @@ class Selected(NamedTuple):
             resonance probe proposed, with no p-value or explained fraction of the selection's
             (NaN; its retraining gives them); or "rival": a runner-up that discovery retrains
             beside a weak name (`discovery._confirm._rival`), with the gain of its column and
-            the p-value of the step it ran up in.
+            the p-value of the step it ran up in; or "source": a candidate of a channel that a
+            derived input hides (`discovery._propose._source_tries`), with its column's gain
+            and no p-value.
     """
 
     index: int

@@ -224,13 +224,15 @@ def _source_tries(proposals, lib: list[Candidate], M, designs, resid, groups, in
     """`proposals` and the `d.source_tries` candidates of the best held-out gain (above 0, one
     alignment each, none proposed already) built only from `hidden_sources`. The nets learn
     part of such an effect through the derived input, so the residual under-ranks the rest:
-    the selection alone does not propose it. Their `Selected` carries the gain and no p-value:
-    the retraining's confirmation and the floor control decide."""
+    the selection alone does not propose it. Their `Selected` carries the gain and no p-value
+    (`_source_test` gives its retraining's): the confirmation and the floor control decide."""
+    if not d.source_tries:
+        return proposals
     hidden = hidden_sources(inputs)
     proposed = {_unaligned_key(lib[j]) for _, j, _ in proposals}
     cols = [j for j, c in enumerate(lib)
             if c.channels and set(c.channels) <= hidden and _unaligned_key(c) not in proposed]
-    if not d.source_tries or not cols:
+    if not cols:
         return proposals
     rows, floor = designs["all"]
     g = gains(resid[rows], M[rows][:, cols], groups[rows], base=floor, folds=d.folds, seed=seed)
