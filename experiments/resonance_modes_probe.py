@@ -77,10 +77,16 @@ def _null_job(job: str) -> str | None:
     return None if null is None else f"{offset}:{null}"
 
 
-def _reseeded(ctx, shift: int):
-    """The context with its nets initialised from the config's seed plus `shift` (the
-    campaign, folds and replay calibration unchanged)."""
-    return ctx if not shift else dataclasses.replace(ctx, cfg=dataclasses.replace(ctx.cfg, seed=ctx.cfg.seed + shift))
+def _reseeded_baselines(ctx0, base0, shifts):
+    """(context, baseline) per net-seed shift: the baseline's nets initialised from the
+    config's seed plus the shift and retrained (the campaign, folds, offset and replay
+    calibration unchanged; shift 0 is the workflow's own baseline)."""
+    for shift in shifts:
+        if not shift:
+            yield ctx0, base0
+            continue
+        ctx = dataclasses.replace(ctx0, cfg=dataclasses.replace(ctx0.cfg, seed=ctx0.cfg.seed + shift))
+        yield ctx, base0._replace(params=_train_model(ctx, base0))
 
 
 def shrinks(job: str, modes, which: str = "top", shifts=(0,)) -> tuple[np.ndarray, list]:
@@ -93,9 +99,7 @@ def shrinks(job: str, modes, which: str = "top", shifts=(0,)) -> tuple[np.ndarra
     if which == "top":
         bands = bands[-1:]
     before, out = [], {}
-    for shift in shifts:
-        ctx = _reseeded(ctx0, shift)
-        base = base0 if not shift else base0._replace(params=_train_model(ctx, base0))
+    for ctx, base in _reseeded_baselines(ctx0, base0, shifts):
         before.append(metrics(predictions(ctx, base, win), win)["ensemble_rms_g"])
         if "truth" in modes:
             truth = _truth_ensemble(ctx, sc["synth"], base.offset_s, win)
@@ -114,12 +118,8 @@ def null_baseline(job: str, shifts=(0,)) -> np.ndarray:
     """The ensemble RMS of a world's baseline per net-seed shift."""
     campaign, cfg = world(job)
     ctx0, base0, win = baseline(campaign, cfg)
-    out = []
-    for shift in shifts:
-        ctx = _reseeded(ctx0, shift)
-        base = base0 if not shift else base0._replace(params=_train_model(ctx, base0))
-        out.append(metrics(predictions(ctx, base, win), win)["ensemble_rms_g"])
-    return np.array(out)
+    return np.array([metrics(predictions(ctx, base, win), win)["ensemble_rms_g"]
+                     for ctx, base in _reseeded_baselines(ctx0, base0, shifts)])
 
 
 def _where(center) -> str:
@@ -145,7 +145,8 @@ def main():
                                                                          for c, m, s in rows)
                   + f" ({time.perf_counter() - t0:.0f} s)", flush=True)
             continue
-        null = null_baseline(_null_job(job), shifts) if args.null and _null_job(job) else None
+        null_job = _null_job(job) if args.null else None
+        null = null_baseline(null_job, shifts) if null_job else None
         show = lambda v: " ".join(f"{x:.4f}" for x in v) + f" (mean {v.mean():.4f})"  # noqa: E731
         lines = [f"{job}, net seeds + {args.net_seeds}: baseline {show(before)}"]
         if null is not None:
