@@ -277,11 +277,12 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
                                                 is_floor=np.arange(len(both)) >= len(lib))
         lib = both  # proposals and their runners-up index both
         proposals = _neighbour_cells(proposals, lib, M, designs, resid, groups, d, seed=cfg.seed + rnd)
+        round_log = lambda m, r=rnd: log(f"round {r + 1}: {m}")  # noqa: E731
         proposals = _source_tries(proposals, lib, M, designs, resid, groups, current.inputs, d, cfg.seed + rnd,
-                                  lambda m: log(f"round {rnd + 1}: {m}"))
+                                  round_log)
         if d.resonance_probe:
             proposals = _resonance_probe(ctx, current, proposals, lib, M, designs, resid, groups, d, cfg.seed + rnd,
-                                         lambda m: log(f"round {rnd + 1}: {m}"))
+                                         round_log)
         if rnd == 0:  # the selection's design: its floor with the refinements it took over all windows
             taken = [M[sel_rows, j] for where, j, _ in absorbed if where == "all"]
             first = Residual(resid, sel_rows, np.column_stack([floor, *taken]) if taken else floor,
