@@ -14,8 +14,8 @@ import time
 import jax
 import numpy as np
 
-from pvvjax.batch import BLOCK, RecordBatch
-from pvvjax.harmonics import analyze, plan_windows
+from pvvjax.analysis.harmonics import analyze, plan_windows
+from pvvjax.data.batch import BLOCK, RecordBatch
 
 SPR, RPM, SECONDS, COUNTERS, L, K = 64, 257.8, 30.0, 200, 8, 4
 

@@ -31,12 +31,12 @@ import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from pvvjax import realtime as RT  # noqa: E402
-from pvvjax.campaign import load_campaign  # noqa: E402
-from pvvjax.databases import DB_INPUTS  # noqa: E402
-from pvvjax.npnet import NumpyNet  # noqa: E402
-from pvvjax.rtelement import CHANNELS, VibrationElement  # noqa: E402
-from pvvjax.sweep import load_params  # noqa: E402
+from pvvjax.analysis.databases import DB_INPUTS  # noqa: E402
+from pvvjax.data.campaign import load_campaign  # noqa: E402
+from pvvjax.nets.sweep import load_params  # noqa: E402
+from pvvjax.realtime import jax_element as RT  # noqa: E402
+from pvvjax.realtime.element import CHANNELS, VibrationElement  # noqa: E402
+from pvvjax.realtime.npnet import NumpyNet  # noqa: E402
 from pvvjax.synth import cached_campaign  # noqa: E402
 
 SWEEP = Path("runs/paper-networks/sweep")

@@ -34,14 +34,14 @@ import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
-from pvvjax.calibration import Bounds, calibrate, cost_grid, group_members  # noqa: E402
-from pvvjax.campaign import load_campaign  # noqa: E402
+from pvvjax.analysis.databases import DB_INPUTS, build_databases  # noqa: E402
 from pvvjax.config import TRANSIENT_MANEUVERS  # noqa: E402
-from pvvjax.constants import KT_TO_FT_S, RPM_TO_RAD_S, UH60A  # noqa: E402
-from pvvjax.databases import DB_INPUTS, build_databases  # noqa: E402
-from pvvjax.npnet import NumpyNet  # noqa: E402
-from pvvjax.replay import make_settings, replay  # noqa: E402
-from pvvjax.replay_tables import load_replay_set  # noqa: E402
+from pvvjax.data.campaign import load_campaign  # noqa: E402
+from pvvjax.data.constants import KT_TO_FT_S, RPM_TO_RAD_S, UH60A  # noqa: E402
+from pvvjax.realtime.npnet import NumpyNet  # noqa: E402
+from pvvjax.replay.calibration import Bounds, calibrate, cost_grid, group_members  # noqa: E402
+from pvvjax.replay.quasistatic import make_settings, replay  # noqa: E402
+from pvvjax.replay.tables import load_replay_set  # noqa: E402
 from pvvjax.synth import cached_campaign  # noqa: E402
 
 SWEEP = Path("runs/paper-networks/sweep")
@@ -94,11 +94,11 @@ def main():
         info, batch, recs, models = load_replay_set(camp, counters, SWEEP, ["db1"])
         source = "paper networks (held out, 4 seeds)"
     else:  # a stand-in with the same interface: RBF nets fitted to db1
-        from pvvjax.batch import to_batch
-        from pvvjax.databases import STATE_CHANNELS
-        from pvvjax.networks import rbf_fit
-        from pvvjax.replay import input_index, prepare
-        from pvvjax.sweep import stack_data
+        from pvvjax.analysis.databases import STATE_CHANNELS
+        from pvvjax.data.batch import to_batch
+        from pvvjax.nets.networks import rbf_fit
+        from pvvjax.nets.sweep import stack_data
+        from pvvjax.replay.quasistatic import input_index, prepare
 
         x, y, m, _ = stack_data(build_databases(camp), ["db1"], 5, 0)["db1"]
         p = jax.tree.map(lambda *a: jnp.stack(a), *[rbf_fit(jax.random.key(s), x, y, 20, in_mask=m) for s in range(4)])

@@ -29,14 +29,14 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from pvvjax.campaign import load_campaign
+from pvvjax.analysis.databases import DB_INPUTS, build_databases
 from pvvjax.config import ExperimentConfig, SweepConfig, TrainConfig
-from pvvjax.databases import DB_INPUTS, build_databases
-from pvvjax.networks import mlp_apply
-from pvvjax.npnet import NumpyNet
-from pvvjax.sweep import load_params, run_sweep
+from pvvjax.data.campaign import load_campaign
+from pvvjax.nets.networks import mlp_apply
+from pvvjax.nets.sweep import load_params, run_sweep
+from pvvjax.nets.train import condition_folds, split_masks
+from pvvjax.realtime.npnet import NumpyNet
 from pvvjax.synth import cached_campaign
-from pvvjax.train import condition_folds, split_masks
 
 TRAIN = TrainConfig(learning_rate=3e-3, max_steps=6000, eval_every=50, patience=10)
 ARCHS = tuple((w, 5) for w in range(2, 34, 2))

@@ -8,7 +8,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from pvvjax.campaign import load_campaign
+from pvvjax.data.campaign import load_campaign
 from pvvjax.synth import SynthConfig, generate, write_synthetic
 
 

@@ -10,8 +10,8 @@ import shutil
 from pathlib import Path
 
 from pvvjax import plots
-from pvvjax.evaluation import search_architecture
 from pvvjax.experiment import prepare_sweep
+from pvvjax.nets.evaluation import search_architecture
 
 
 def main():

@@ -40,13 +40,13 @@ from discovery_benchmark import _GAP_COLUMNS, _campaign, _closed, scenario_confi
 from term_backfit_probe import baseline  # noqa: E402
 
 from pvvjax._strict import to_dict  # noqa: E402
-from pvvjax.candidates import Candidate, from_key  # noqa: E402
 from pvvjax.config import DiscoveryConfig  # noqa: E402
 from pvvjax.discovery import Model  # noqa: E402
 from pvvjax.discovery._confirm import _augment  # noqa: E402
 from pvvjax.discovery._fits import _fit_offset  # noqa: E402
 from pvvjax.discovery._lag import _through_lag  # noqa: E402
 from pvvjax.discovery._model import _replay, metrics, predictions  # noqa: E402
+from pvvjax.discovery.candidates import Candidate, from_key  # noqa: E402
 from pvvjax.io import read_table  # noqa: E402
 
 CONFIG = Path(__file__).parent / "configs" / "discovery" / "benchmark.toml"

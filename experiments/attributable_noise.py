@@ -27,9 +27,9 @@ sys.path.insert(0, str(Path(__file__).parent))
 from discovery_benchmark import _settings  # noqa: E402
 from term_backfit_probe import baseline, world  # noqa: E402
 
-from pvvjax.candidates import from_key  # noqa: E402
 from pvvjax.discovery._confirm import _train_model  # noqa: E402
 from pvvjax.discovery._model import metrics, predictions  # noqa: E402
+from pvvjax.discovery.candidates import from_key  # noqa: E402
 
 
 def ensemble_rms(campaign, cfg, term=None) -> tuple[float, float]:

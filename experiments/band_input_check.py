@@ -28,8 +28,8 @@ sys.path.insert(0, str(Path(__file__).parent))
 from attributable_ensemble import CONFIG, _save, named_candidate, rebuild  # noqa: E402
 from discovery_benchmark import _campaign, scenario_config, scenario_configs  # noqa: E402
 
-from pvvjax.candidates import Candidate, from_key  # noqa: E402
 from pvvjax.discovery._confirm import _augment, _confirm  # noqa: E402
+from pvvjax.discovery.candidates import Candidate, from_key  # noqa: E402
 from pvvjax.io import read_table  # noqa: E402
 
 

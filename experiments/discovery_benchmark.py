@@ -32,10 +32,10 @@ import numpy as np
 import pandas as pd
 
 from pvvjax._strict import from_dict, to_dict
-from pvvjax.campaign import campaign_from_frames
 from pvvjax.config import DiscoveryConfig, ExperimentConfig, config_hash, load_toml
+from pvvjax.data.campaign import campaign_from_frames
 from pvvjax.discovery import discover, selection_gain, summary
-from pvvjax.discovery_report import write_discovery
+from pvvjax.discovery.report import write_discovery
 from pvvjax.io import markdown_table, read_table, write_table
 from pvvjax.synth import SynthConfig, generate
 

@@ -32,9 +32,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).parent))
 from term_backfit_probe import baseline, world  # noqa: E402
 
-from pvvjax.candidates import from_key  # noqa: E402
 from pvvjax.discovery._confirm import _augment  # noqa: E402
 from pvvjax.discovery._model import metrics, predictions  # noqa: E402
+from pvvjax.discovery.candidates import from_key  # noqa: E402
 
 
 def on_top(before: float, after: float) -> float:

@@ -23,8 +23,8 @@ sys.path.insert(0, str(Path(__file__).parent))
 from discovery_benchmark import _campaign, find_scenario  # noqa: E402
 
 from pvvjax._strict import from_dict  # noqa: E402
+from pvvjax.analysis.databases import DB_INPUTS  # noqa: E402
 from pvvjax.config import DiscoveryConfig, ExperimentConfig  # noqa: E402
-from pvvjax.databases import DB_INPUTS  # noqa: E402
 from pvvjax.discovery import Model  # noqa: E402
 from pvvjax.discovery._confirm import _train_model  # noqa: E402
 from pvvjax.discovery._lag import _learned_lag  # noqa: E402

@@ -14,7 +14,7 @@ import shutil
 from pathlib import Path
 
 from pvvjax.experiment import prepare_sweep
-from pvvjax.paper import networks_results
+from pvvjax.paper.comparison import networks_results
 
 
 def main():

@@ -19,9 +19,9 @@ import numpy as np
 import pandas as pd
 
 from pvvjax import plots
-from pvvjax.batch import to_batch
-from pvvjax.campaign import load_campaign
-from pvvjax.harmonics import analyze
+from pvvjax.analysis.harmonics import analyze
+from pvvjax.data.batch import to_batch
+from pvvjax.data.campaign import load_campaign
 from pvvjax.synth import cached_campaign
 
 OUT = Path("runs/realtime")

@@ -1,6 +1,6 @@
 """The paper's quasi-static replay (Figs 13-14) and the studies it left open: the offset fitted
 by gradient (one for all maneuvers vs one per maneuver kind), the window length, and a
-separate lag for the stick inputs (`pvvjax.studies`).
+separate lag for the stick inputs (`pvvjax.replay.studies`).
 
     python experiments/replay_study.py experiments/configs/replay.toml [--docs]
 
@@ -16,12 +16,12 @@ import shutil
 import time
 from pathlib import Path
 
-from pvvjax import studies
 from pvvjax.config import load_config
 from pvvjax.experiment import enable_compilation_cache, resolve_campaign
 from pvvjax.io import markdown_table, write_table
-from pvvjax.paper import PAPER_REPLAY, PULLUP, pullup_replays
-from pvvjax.replay_tables import load_replay_set, select_counters, take_counters
+from pvvjax.paper.comparison import PAPER_REPLAY, PULLUP, pullup_replays
+from pvvjax.replay.quasistatic import studies
+from pvvjax.replay.tables import load_replay_set, select_counters, take_counters
 
 
 def main():

@@ -38,11 +38,11 @@ sys.path.insert(0, str(Path(__file__).parent))
 from discovery_benchmark import _campaign, scenario_configs  # noqa: E402
 from term_backfit_probe import CONFIG, baseline, world, world_config  # noqa: E402
 
-from pvvjax.candidates import Candidate, library, values  # noqa: E402
-from pvvjax.constants import UH60A  # noqa: E402
-from pvvjax.databases import DB_INPUTS, OUTPUT  # noqa: E402
+from pvvjax.analysis.databases import DB_INPUTS, OUTPUT  # noqa: E402
+from pvvjax.data.constants import UH60A  # noqa: E402
 from pvvjax.discovery._confirm import _augment, _train_model  # noqa: E402
 from pvvjax.discovery._model import _predict, fit_ensemble, metrics, predictions  # noqa: E402
+from pvvjax.discovery.candidates import Candidate, library, values  # noqa: E402
 from pvvjax.synth import EFFECTS  # noqa: E402
 
 

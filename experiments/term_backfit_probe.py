@@ -30,14 +30,14 @@ sys.path.insert(0, str(Path(__file__).parent))
 from discovery_benchmark import _campaign, find_scenario, scenario_config  # noqa: E402
 
 from pvvjax._strict import ConfigError, from_dict, to_dict  # noqa: E402
-from pvvjax.candidates import from_key  # noqa: E402
+from pvvjax.analysis.databases import DB_INPUTS  # noqa: E402
 from pvvjax.config import TrainConfig  # noqa: E402
-from pvvjax.databases import DB_INPUTS  # noqa: E402
 from pvvjax.discovery import Model  # noqa: E402
 from pvvjax.discovery._confirm import _augment, _fit_term, _train_model  # noqa: E402
 from pvvjax.discovery._fits import _fit_offset  # noqa: E402
 from pvvjax.discovery._model import _replay, metrics, predictions  # noqa: E402
 from pvvjax.discovery._workflow import _context  # noqa: E402
+from pvvjax.discovery.candidates import from_key  # noqa: E402
 
 CONFIG = Path(__file__).parent / "configs" / "discovery" / "benchmark.toml"
 

@@ -36,8 +36,8 @@ import matplotlib.pyplot as plt
 
 from pvvjax import plots
 from pvvjax._strict import from_dict
-from pvvjax.campaign import campaign_from_frames
 from pvvjax.config import DiscoveryConfig, ExperimentConfig
+from pvvjax.data.campaign import campaign_from_frames
 from pvvjax.discovery import discover, selection_gain, summary
 from pvvjax.synth import SynthConfig, generate
 
@@ -88,7 +88,7 @@ res.rounds[["round", "name", "augment", "p_value", "cv_gain", "rms_before_g", "r
 # the data contract, `report.md` with its figures, and the tables behind them.
 
 # %%
-from pvvjax.discovery_report import write_discovery  # noqa: E402
+from pvvjax.discovery.report import write_discovery  # noqa: E402
 
 report = write_discovery(res, Path(tempfile.mkdtemp()) / "discovery", cfg)
 print(report.read_text()[:1500])

@@ -33,10 +33,10 @@ import numpy as np
 
 import pvvjax
 from pvvjax import plots
-from pvvjax.calibration import calibrate, cost_grid, group_members
 from pvvjax.config import ExperimentConfig, SweepConfig
-from pvvjax.replay import make_settings, replay, replay_cost
-from pvvjax.replay_tables import load_replay_set, peak_summary, replay_windows
+from pvvjax.replay.calibration import calibrate, cost_grid, group_members
+from pvvjax.replay.quasistatic import make_settings, replay, replay_cost
+from pvvjax.replay.tables import load_replay_set, peak_summary, replay_windows
 from pvvjax.synth import cached_campaign
 
 campaign = pvvjax.load_campaign(cached_campaign())

@@ -32,9 +32,9 @@ import matplotlib.pyplot as plt
 from IPython.display import Image, Markdown, display
 
 import pvvjax
-from pvvjax import paper
+from pvvjax.analysis.databases import peak_table
 from pvvjax.config import ExperimentConfig, SweepConfig, TrainConfig
-from pvvjax.databases import peak_table
+from pvvjax.paper import comparison as paper
 from pvvjax.synth import cached_campaign
 
 FULL = False  # True: the paper's training, as the main job
@@ -88,8 +88,8 @@ display(Markdown(md.split("\n\nPoints outside")[0]))
 # on every transient maneuver (what the paper asked for).
 
 # %%
-from pvvjax.replay_tables import load_replay_set  # noqa: E402
-from pvvjax.studies import one_offset  # noqa: E402
+from pvvjax.replay.studies import one_offset  # noqa: E402
+from pvvjax.replay.tables import load_replay_set  # noqa: E402
 
 kinds = ["pullup", "pushover", "roll", "autorotation", "flare"]
 counters = list(campaign.counters[campaign.counters.maneuver.isin(kinds)].index)

@@ -5,37 +5,32 @@ The pipeline: campaign → windowed harmonic analysis → peak PVV → databases
 effects the static map misses. The numerical core is pure `jax.numpy`; files, CLI and plots
 sit at the edges.
 
-Names are imported lazily, so `pvvjax.npnet` (the NumPy evaluator for a simulator host)
-can be used without importing JAX.
+The subpackages follow the pipeline: `data` (campaigns, batches, features), `analysis`
+(harmonics, databases), `nets` (networks, training, sweeps), `replay` (replay, calibration),
+`realtime` (the simulator element), `discovery`, `paper` and `synth` (the generator); the
+shell is `config`, `experiment`, `io`, `plots` and `cli`. Names are imported lazily, so
+`pvvjax.realtime` (the NumPy element for a simulator host) can be used without importing JAX.
 """
 
 import importlib
 
 _EXPORTS = {
-    "batch": ["RecordBatch", "to_batch"],
-    "calibration": ["calibrate", "cost_grid", "counter_costs", "group_members"],
-    "campaign": ["MANEUVERS", "REQUIRED_CHANNELS", "Campaign", "CampaignError", "Problem", "campaign_from_frames",
-                 "load_campaign", "validate_campaign", "write_campaign"],
-    "candidates": ["Candidate", "library", "window_table"],
+    "analysis": ["DB_INPUTS", "OUTPUT", "Windows", "analyze", "build_databases", "condition_peaks", "harmonic_windows",
+                 "peak_table", "plan_windows"],
     "config": ["AnalysisConfig", "CalibrationConfig", "CampaignConfig", "ColumnMap", "ConfigError", "DiscoveryConfig",
                "ExperimentConfig", "ReplayConfig", "SweepConfig", "TrainConfig", "load_config"],
-    "constants": ["UH60A", "Aircraft"],
-    "databases": ["DB_INPUTS", "OUTPUT", "build_databases", "condition_peaks", "peak_table"],
-    "discovery": ["Discovery", "delag", "discover", "summary"],
-    "discovery_report": ["write_discovery"],
-    "features": ["advance_ratio", "blade_loading", "derive_features", "maneuver_load_factor", "thrust_coefficient"],
-    "harmonics": ["Windows", "analyze", "harmonic_windows", "plan_windows"],
-    "lag_study": ["lag_study"],
-    "networks": ["mlp_apply", "mlp_init", "rbf_apply", "rbf_fit"],
-    "npnet": ["NumpyNet"],
+    "data": ["MANEUVERS", "REQUIRED_CHANNELS", "UH60A", "Aircraft", "Campaign", "CampaignError", "Problem",
+             "RecordBatch", "advance_ratio", "blade_loading", "campaign_from_frames", "derive_features",
+             "load_campaign", "maneuver_load_factor", "thrust_coefficient", "to_batch", "validate_campaign",
+             "write_campaign"],
+    "discovery": ["Candidate", "Discovery", "delag", "discover", "forward_select", "library", "localize",
+                  "residual_windows", "summary", "window_table", "write_discovery"],
+    "nets": ["condition_folds", "fit", "heldout_models", "load_params", "make_data", "mlp_apply", "mlp_init",
+             "rbf_apply", "rbf_fit", "run_sweep"],
+    "realtime": ["NumpyNet", "VibrationElement"],
     # the function itself: pvvjax.replay.replay
-    "replay": ["CostWeights", "Replay", "make_settings", "prepare", "replay_cost"],
-    "replay_tables": ["load_replay_set", "peak_summary", "replay_windows"],
-    "residuals": ["localize", "residual_windows"],
-    "rtelement": ["VibrationElement"],
-    "selection": ["forward_select"],
-    "sweep": ["heldout_models", "load_params", "run_sweep"],
-    "train": ["fit", "make_data", "condition_folds"],
+    "replay": ["CostWeights", "Replay", "calibrate", "cost_grid", "counter_costs", "group_members", "load_replay_set",
+               "make_settings", "peak_summary", "prepare", "replay_cost", "replay_windows"],
 }
 _WHERE = {name: mod for mod, names in _EXPORTS.items() for name in names}
 

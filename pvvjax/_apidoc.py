@@ -6,11 +6,14 @@ import importlib
 import inspect
 import re
 
-# Pipeline order: data, analysis, networks, replay, studies, discovery, real time, shell.
-MODULES = ["campaign", "units", "batch", "constants", "features", "harmonics", "databases", "networks", "train",
-           "sweep", "evaluation", "npnet", "replay", "calibration", "replay_tables", "studies", "residuals",
-           "candidates", "selection", "discovery", "lag_study", "discovery_report", "effects", "realtime", "rtelement",
-           "synth", "config", "io", "plots", "paper", "experiment", "cli"]
+# Pipeline order: data, analysis, networks, replay, discovery, real time, the generator, the shell.
+# A package is listed where it holds names of private modules (discovery, synth).
+MODULES = ["data.campaign", "data.units", "data.batch", "data.constants", "data.features", "analysis.harmonics",
+           "analysis.databases", "nets.networks", "nets.train", "nets.sweep", "nets.evaluation", "replay.quasistatic",
+           "replay.calibration", "replay.tables", "replay.studies", "discovery", "discovery.residuals",
+           "discovery.candidates", "discovery.effects", "discovery.selection", "discovery.report", "realtime.element",
+           "realtime.npnet", "realtime.jax_element", "synth", "paper.comparison", "config", "io", "plots", "experiment",
+           "cli"]
 
 
 def _signature(name: str, obj) -> str:
@@ -27,7 +30,7 @@ def _first_paragraph(doc: str | None) -> str:
 
 
 def _entry(modname: str, name: str, obj) -> list[str]:
-    top = f"; also `pvvjax.{name}`" if _top_level().get(name) == modname else ""
+    top = f"; also `pvvjax.{name}`" if name in _top_level() and getattr(_pvvjax(), name) is obj else ""
     if inspect.isclass(obj) or callable(obj):
         kind = "class" if inspect.isclass(obj) else "function"
         lines = [f"### `{modname}.{name}` ({kind}{top})", "", "```python", _signature(name, obj), "```", ""]
@@ -38,10 +41,14 @@ def _entry(modname: str, name: str, obj) -> list[str]:
     return [f"### `{modname}.{name}` (constant, `{type(obj).__name__}`{top})", ""]
 
 
-def _top_level() -> dict:
+def _pvvjax():
     import pvvjax
 
-    return getattr(pvvjax, "_WHERE")
+    return pvvjax
+
+
+def _top_level() -> dict:
+    return getattr(_pvvjax(), "_WHERE")
 
 
 def api_reference() -> str:
@@ -54,11 +61,17 @@ def api_reference() -> str:
              "the CLI are at the edges. See [concepts](concepts.md) for the pipeline and [the CLI](cli.md) for "
              "the commands.", "", "## Modules", "", "| module | what it holds |", "|---|---|"]
     mods = {m: importlib.import_module(f"pvvjax.{m}") for m in MODULES}
+    listed = {mod.__name__ for mod in mods.values()}
     for m, mod in mods.items():
-        lines.append(f"| [`pvvjax.{m}`](#pvvjax{m.replace('_', '')}) | {_first_paragraph(mod.__doc__)} |")
+        anchor = "pvvjax" + m.replace("_", "").replace(".", "")
+        lines.append(f"| [`pvvjax.{m}`](#{anchor}) | {_first_paragraph(mod.__doc__)} |")
     lines.append("")
     for m, mod in mods.items():
         lines += [f"## pvvjax.{m}", "", (inspect.getdoc(mod) or "").strip(), ""]
         for name in getattr(mod, "__all__", []):
-            lines += _entry(m, name, getattr(mod, name))
+            obj = getattr(mod, name)
+            home = getattr(obj, "__module__", None)
+            if home != mod.__name__ and home in listed:  # documented in its own module
+                continue
+            lines += _entry(m, name, obj)
     return "\n".join(lines).rstrip() + "\n"

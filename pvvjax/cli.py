@@ -34,7 +34,7 @@ def _experiment(args):
 
 
 def cmd_validate(args) -> int:
-    from .campaign import validate_campaign
+    from .data.campaign import validate_campaign
 
     cfg = _experiment(args)
     problems = validate_campaign(args.campaign, cfg.campaign.columns, cfg.analysis.window_revs,
@@ -49,7 +49,7 @@ def cmd_validate(args) -> int:
 
 
 def cmd_build_db(args) -> int:
-    from .databases import build_databases
+    from .analysis.databases import build_databases
 
     cfg = _experiment(args)
     campaign, _ = resolve_campaign(cfg, args.campaign)
@@ -86,7 +86,7 @@ def cmd_plot(args) -> int:
     campaign, _ = resolve_campaign(cfg, args.campaign)
     _, _, rows = campaign_plots(campaign, cfg, Path(args.out), paper=args.paper)
     if rows is not None:
-        from .paper import comparison_markdown
+        from .paper.comparison import comparison_markdown
 
         print(comparison_markdown(rows))
     return 0
@@ -116,9 +116,10 @@ def _export_element(args, res, sweep: Path) -> int:
     import json
     import shutil
 
-    from . import npnet, rtelement
+    from .analysis.databases import DB_INPUTS
     from .config import load_config
-    from .databases import DB_INPUTS
+    from .realtime import element as rtelement
+    from .realtime import npnet
 
     sel = res[res.database == args.database]
     if sel.empty:
@@ -134,15 +135,15 @@ def _export_element(args, res, sweep: Path) -> int:
         shutil.copy(sweep / "params" / f"{r.net_id}.npz", out / names[-1])
     import numpy as np
 
-    from .databases import peak_table
+    from .analysis.databases import peak_table
 
     cfg = load_config(sweep / "config.toml")
     campaign, _ = resolve_campaign(cfg)
     db = peak_table(campaign, cfg.analysis)[0][list(DB_INPUTS[args.database])]
     # The seat shake's 4/rev phase: the flight test's, amplitude-weighted over every window;
     # and its 1P, 2P and 8P content: median ratio to the 4/rev amplitude, weighted phase.
-    from .batch import to_batch
-    from .harmonics import analyze
+    from .analysis.harmonics import analyze
+    from .data.batch import to_batch
 
     batch = to_batch(campaign, [])
     w4 = analyze(batch, cfg.analysis.window_revs, harmonic=4)
@@ -172,8 +173,8 @@ def cmd_export(args) -> int:
 
     import pandas as pd
 
-    from . import npnet
-    from .sweep import load_params
+    from .nets.sweep import load_params
+    from .realtime import npnet
 
     sweep = Path(args.sweep)
     res = pd.read_parquet(sweep / "results.parquet")
@@ -208,7 +209,7 @@ def cmd_export(args) -> int:
 def _replay_inputs(args, cfg):
     """Campaign, counters, held-out models of the config's replay (training the sweep first
     if the config names none)."""
-    from .replay_tables import load_replay_set, select_counters
+    from .replay.tables import load_replay_set, select_counters
 
     enable_compilation_cache()
     if cfg.replay.sweep:
@@ -230,7 +231,7 @@ def cmd_replay(args) -> int:
     from . import plots
     from .config import load_config
     from .io import write_config, write_table
-    from .replay_tables import peak_summary, replay_windows, settings_at
+    from .replay.tables import peak_summary, replay_windows, settings_at
 
     cfg = load_config(args.config)
     rc = cfg.replay
@@ -265,7 +266,7 @@ def cmd_calibrate(args) -> int:
     from . import plots
     from .config import load_config
     from .io import write_config, write_table
-    from .replay_tables import calibration_table, grid_table
+    from .replay.tables import calibration_table, grid_table
 
     cfg = load_config(args.config)
     cc = cfg.calibration
@@ -311,7 +312,7 @@ def cmd_realtime(args) -> int:
     import pandas as pd
 
     from .config import ExperimentConfig
-    from .rtelement import CHANNELS, VibrationElement
+    from .realtime.element import CHANNELS, VibrationElement
 
     el = VibrationElement.load(args.model)
     cfg = ExperimentConfig()
@@ -354,7 +355,7 @@ def cmd_discover(args) -> int:
     """Find, name, add and confirm the effects a static map misses (data-contract §3)."""
     from .config import ExperimentConfig, load_config
     from .discovery import discover
-    from .discovery_report import write_discovery
+    from .discovery.report import write_discovery
 
     cfg = load_config(args.config) if args.config else ExperimentConfig(name="discovery")
     enable_compilation_cache()
@@ -505,7 +506,7 @@ def main(argv=None) -> int:
     """Run the CLI on `argv` (default: the process's arguments); returns the exit status
     (2 for bad input, reported as one clear message rather than a traceback)."""
     from ._strict import ConfigError
-    from .campaign import CampaignError
+    from .data.campaign import CampaignError
 
     args = build_parser().parse_args(argv)
     use_deterministic_gpu()  # before any command starts JAX

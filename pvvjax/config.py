@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Literal
 
 from ._strict import ConfigError, from_dict, to_dict
-from .units import CANONICAL_UNITS, conversion_factor
+from .data.units import CANONICAL_UNITS, ColumnMap
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -39,26 +39,6 @@ __all__ = [
     "load_config",
     "load_toml",
 ]
-
-
-@dataclass(frozen=True)
-class ColumnMap:
-    """How one foreign column becomes a canonical channel.
-
-    canonical value = raw value × (unit conversion, if `unit` is given) × `scale` + `offset`.
-    """
-
-    to: str
-    unit: str | None = None
-    scale: float = 1.0
-    offset: float = 0.0
-
-    def __post_init__(self):
-        if self.unit is not None:
-            conversion_factor(self.unit, self.to)  # raises on an unknown unit or wrong dimension
-
-    def factor(self) -> float:
-        return (conversion_factor(self.unit, self.to) if self.unit else 1.0) * self.scale
 
 
 @dataclass(frozen=True)
@@ -252,7 +232,7 @@ class ReplayConfig:
 
 @dataclass(frozen=True)
 class CalibrationConfig:
-    """Gradient calibration of offset, window length and stick lag (see `pvvjax.calibration`).
+    """Gradient calibration of offset, window length and stick lag (see `pvvjax.replay.calibration`).
 
     Attributes:
         free: parameters fitted: any of offset_s, window_revs, stick_offset_s.
@@ -457,7 +437,7 @@ class DiscoveryConfig:
         lag_learn_steps: Adam steps of the learned lag's training.
         lag_trials_always: run the lag test's trainings through lags even where the learned
             τ confirms no lag: they decide nothing then (their gains are reported in
-            `lag_test.csv`, as `lag_study` reports them for any world), and they are about
+            `lag_test.csv`), and they are about
             half of a discovery's time with `lag_test` (the benchmark runs them on the null
             worlds whose window nets measure its lag worlds' gap).
         candidate_offsets_s: further alignments (input-to-vibration offsets, s, >= 0) of the

@@ -14,7 +14,7 @@ import sys
 import time
 from pathlib import Path
 
-from .paper import PAPER_TABLE1  # the paper's numbers (no JAX, no plotting)
+from .paper.comparison import PAPER_TABLE1  # the paper's numbers (no JAX, no plotting)
 
 __all__ = [
     "campaign_plots",
@@ -42,7 +42,7 @@ def resolve_campaign(cfg, campaign_dir=None, log=print):
     Returns:
         (Campaign, its folder).
     """
-    from .campaign import load_campaign
+    from .data.campaign import load_campaign
 
     folder = campaign_dir or cfg.campaign.path
     if not folder:
@@ -114,7 +114,7 @@ def write_databases(dbs, out: Path, cfg) -> None:
 def database_summary(dbs) -> str:
     """A plain-text summary of the databases: conditions, rows and inputs per database, peak
     PVV by maneuver kind, and the paper's Table 1 conditions beside their peaks here."""
-    from .databases import OUTPUT
+    from .analysis.databases import OUTPUT
 
     pk = dbs["peaks"]
     lines = [f"{len(pk)} conditions; {int((abs(pk.mlf - 1) > 0.05).sum())} with MLF != 1 "
@@ -141,8 +141,8 @@ def campaign_plots(campaign, cfg, out: Path, paper: bool = False):
         (figure paths, [(caption, path)] of Figs 1-9, comparison rows or None).
     """
     from . import plots
-    from .databases import peak_table
-    from .paper import paper_figures
+    from .analysis.databases import peak_table
+    from .paper.comparison import paper_figures
 
     peaks, windows = peak_table(campaign, cfg.analysis)
     paths = [plots.save(plots.pvv_vs_airspeed(peaks), out / "pvv_vs_airspeed.png")]
@@ -178,9 +178,9 @@ def prepare_sweep(config_path, out=None):
     use_deterministic_gpu()
     from tqdm.auto import tqdm
 
-    from .databases import build_databases
+    from .analysis.databases import build_databases
     from .io import write_config
-    from .sweep import run_sweep
+    from .nets.sweep import run_sweep
 
     enable_compilation_cache()
     out = Path(out) if out else Path(cfg.out_dir) / cfg.name / "sweep"
@@ -209,9 +209,9 @@ def run_main_job(cfg, source: str | Path = "") -> Path:
     use_deterministic_gpu()
     import pandas as pd
 
-    from .databases import build_databases
+    from .analysis.databases import build_databases
     from .io import write_table
-    from .paper import database_checks
+    from .paper.comparison import database_checks
 
     out = Path(cfg.out_dir) / cfg.name
     t0 = time.perf_counter()
@@ -265,8 +265,8 @@ def _run_networks(cfg, dbs, out: Path, source) -> tuple:
     """
     from tqdm.auto import tqdm
 
-    from .paper import network_checks, networks_results
-    from .sweep import run_sweep
+    from .nets.sweep import run_sweep
+    from .paper.comparison import network_checks, networks_results
 
     enable_compilation_cache()
     res = run_sweep(cfg, dbs, out / "sweep", progress=lambda **kw: tqdm(desc="nets", unit="net", **kw))
@@ -283,9 +283,9 @@ def _run_replay(cfg, campaign, out: Path) -> tuple:
         (Markdown, figure paths, comparison rows, (replay set, common offset) for the studies).
     """
     from .io import markdown_table, write_table
-    from .paper import PAPER_REPLAY, PULLUP, pullup_replays, replay_checks
-    from .replay_tables import load_replay_set, select_counters
-    from .studies import one_offset
+    from .paper.comparison import PAPER_REPLAY, PULLUP, pullup_replays, replay_checks
+    from .replay.studies import one_offset
+    from .replay.tables import load_replay_set, select_counters
 
     counters = select_counters(campaign, cfg.replay)
     if PULLUP not in counters:
@@ -309,9 +309,9 @@ def _run_replay(cfg, campaign, out: Path) -> tuple:
 
 def _run_studies(cfg, replay_set, out: Path) -> list:
     """The studies the paper left open, on the replay set of the replay stage."""
-    from . import studies
     from .io import write_table
-    from .paper import PULLUP
+    from .paper.comparison import PULLUP
+    from .replay import studies
 
     rset, common = replay_set
     figures, cc = out / "figures", cfg.calibration
@@ -331,9 +331,9 @@ def _run_discovery(cfg, out: Path):
     truth is read only afterwards, to print what was hidden beside what was named."""
     import json as _json
 
-    from .campaign import load_campaign
+    from .data.campaign import load_campaign
     from .discovery import discover
-    from .discovery_report import write_discovery
+    from .discovery.report import write_discovery
     from .synth import cached_campaign, load_synth_config
 
     scfg = load_synth_config(cfg.run.discovery_scenario)
@@ -357,7 +357,7 @@ def _write_report(cfg, out: Path, summary: str, figures, paper_figs, checks, net
                   seconds: float) -> Path:
     """report.md (and report.html) of the main job: every number beside the paper's, the
     paper's figures and tables reproduced, the studies and the discovery scenario."""
-    from .paper import comparison_markdown
+    from .paper.comparison import comparison_markdown
 
     link = lambda p, alt=None: f"![{alt or p.stem}](figures/{p.name})"  # noqa: E731
     lines = [f"# pvvjax main job: {cfg.name}", "",

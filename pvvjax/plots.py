@@ -11,7 +11,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from .campaign import Campaign  # noqa: E402
+from .data.campaign import Campaign  # noqa: E402
 
 __all__ = ["correlation", "cost_map", "offset_bars", "partial_dependence", "pvv_vs_airspeed", "replay", "residual_map",
            "save", "size_search", "time_histories", "window_profile"]

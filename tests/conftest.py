@@ -71,7 +71,7 @@ def lag_loop(u, table, tau):
 
 def write_tiny(folder, counters=None, recs=None, fmt="csv"):
     """Write a tiny campaign folder (optionally from modified tables)."""
-    from pvvjax.campaign import write_campaign
+    from pvvjax.data.campaign import write_campaign
 
     c0, r0 = tiny_records()
     return write_campaign(folder, c0 if counters is None else counters, r0 if recs is None else recs, fmt=fmt)
@@ -91,14 +91,14 @@ def default_campaign_dir():
 
 @pytest.fixture(scope="session")
 def default_campaign(default_campaign_dir):
-    from pvvjax.campaign import load_campaign
+    from pvvjax.data.campaign import load_campaign
 
     return load_campaign(default_campaign_dir)
 
 
 @pytest.fixture(scope="session")
 def default_dbs(default_campaign):
-    from pvvjax.databases import build_databases
+    from pvvjax.analysis.databases import build_databases
 
     return build_databases(default_campaign)
 
@@ -116,8 +116,8 @@ def small_campaign_dir():
 
 @pytest.fixture(scope="session")
 def small_dbs(small_campaign_dir):
-    from pvvjax.campaign import load_campaign
-    from pvvjax.databases import build_databases
+    from pvvjax.analysis.databases import build_databases
+    from pvvjax.data.campaign import load_campaign
 
     return build_databases(load_campaign(small_campaign_dir))
 
@@ -127,9 +127,9 @@ def rbf_nets(dbs, database: str, n: int = 3, centers: int = 16):
     its input envelope (min, max): quick stand-ins for trained nets in element tests."""
     import jax
 
-    from pvvjax.databases import DB_INPUTS
-    from pvvjax.networks import rbf_fit
-    from pvvjax.sweep import stack_data
+    from pvvjax.analysis.databases import DB_INPUTS
+    from pvvjax.nets.networks import rbf_fit
+    from pvvjax.nets.sweep import stack_data
 
     x, y, in_mask, _ = stack_data(dbs, [database], 5, 0)[database]
     params = [jax.tree.map(np.asarray, rbf_fit(jax.random.key(s), x, y, centers, in_mask=in_mask)) for s in range(n)]

@@ -15,11 +15,11 @@ def ae():
 @pytest.mark.parametrize("augment, term_refit", [("additive", "peaks"), ("input", "peaks"), ("additive", "named")])
 def test_a_rebuilt_discovery_reproduces_its_before_and_after(ae, monkeypatch, tmp_path, small_campaign_dir, augment,
                                                              term_refit):
-    from pvvjax.campaign import load_campaign
     from pvvjax.config import DiscoveryConfig, ExperimentConfig, TrainConfig
+    from pvvjax.data.campaign import load_campaign
     from pvvjax.discovery import _round, _workflow, discover
-    from pvvjax.discovery_report import write_discovery
-    from pvvjax.selection import Selected
+    from pvvjax.discovery.report import write_discovery
+    from pvvjax.discovery.selection import Selected
 
     def propose(win, yhat, resid, M, rows, own, floor, d, seed, complexity, keys, is_floor):
         j = next(i for i, k in enumerate(keys) if k.startswith("abs_rate:pitch_rate_dps") and not is_floor[i])

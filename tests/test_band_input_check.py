@@ -25,7 +25,7 @@ def test_each_band_of_each_round_is_checked_once(tmp_path):
 def test_a_band_is_retrained_at_full_precision_where_the_table_keeps_it():
     from types import SimpleNamespace
 
-    from pvvjax.candidates import Candidate
+    from pvvjax.discovery.candidates import Candidate
 
     bic = experiment("band_input_check")
     tried = Candidate("resonance", ("rotor_rpm",), {"center": 247.46321, "width": 3.2219, "gain_unit": 10.0,

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 from test_replay import lagged_campaign, linear_apply, linear_model
 
-from pvvjax import replay as R
-from pvvjax.batch import to_batch
-from pvvjax.calibration import Bounds, calibrate, cost_grid, counter_costs, group_members
-from pvvjax.databases import STATE_CHANNELS
+from pvvjax.analysis.databases import STATE_CHANNELS
+from pvvjax.data.batch import to_batch
+from pvvjax.replay import quasistatic as R
+from pvvjax.replay.calibration import Bounds, calibrate, cost_grid, counter_costs, group_members
 
 
 def _per_counter(model, n):
@@ -74,9 +74,9 @@ def test_the_reference_window_length_is_data_one_program_serves_every_length(lag
 
 @pytest.fixture(scope="module")
 def small_cal(small_campaign_dir, small_dbs):
-    from pvvjax.campaign import load_campaign
-    from pvvjax.networks import rbf_fit
-    from pvvjax.sweep import stack_data
+    from pvvjax.data.campaign import load_campaign
+    from pvvjax.nets.networks import rbf_fit
+    from pvvjax.nets.sweep import stack_data
 
     camp = load_campaign(small_campaign_dir)
     ctr = camp.counters[camp.counters.maneuver.isin(["pullup", "pushover", "roll", "flare", "autorotation"])]
@@ -92,7 +92,7 @@ def small_cal(small_campaign_dir, small_dbs):
 
 @pytest.mark.heavy
 def test_gradient_optimum_agrees_with_a_brute_force_grid(small_cal):
-    from pvvjax.networks import rbf_apply
+    from pvvjax.nets.networks import rbf_apply
 
     recs, settings, models = small_cal
     members, mask = group_members(np.zeros(recs.time.shape[0], int))
@@ -140,7 +140,7 @@ def test_bad_groups_and_parameters_are_errors(lagged):
 def test_levenberg_marquardt_reaches_optimistixs_minimum_and_keeps_a_flat_parameter():
     import optimistix as optx
 
-    from pvvjax.calibration import _levenberg_marquardt
+    from pvvjax.replay.calibration import _levenberg_marquardt
 
     t = jnp.linspace(0.0, 3.0, 40)
     data = 2.0 * jnp.exp(-1.3 * t) + 0.01 * jnp.sin(7.0 * t)  # not exactly the model: a residual remains

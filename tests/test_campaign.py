@@ -5,8 +5,8 @@ import pandas as pd
 import pytest
 from conftest import tiny_records, write_tiny
 
-from pvvjax.campaign import CampaignError, campaign_from_frames, load_campaign, validate_campaign
 from pvvjax.config import ColumnMap
+from pvvjax.data.campaign import CampaignError, campaign_from_frames, load_campaign, validate_campaign
 
 
 def _problems(folder, **kw):

@@ -4,7 +4,7 @@ import textwrap
 import pytest
 
 from pvvjax.config import AnalysisConfig, ColumnMap, ConfigError, ExperimentConfig, config_hash, load_config
-from pvvjax.units import conversion_factor
+from pvvjax.data.units import conversion_factor
 
 
 def _write(tmp_path, text):

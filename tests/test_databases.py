@@ -4,10 +4,10 @@ import pandas as pd
 import pytest
 from conftest import tiny_records, write_tiny
 
-from pvvjax.campaign import campaign_from_frames
+from pvvjax.analysis.databases import DB_INPUTS, META_COLUMNS, OUTPUT, build_databases, condition_peaks, peak_table
 from pvvjax.cli import main
 from pvvjax.config import AnalysisConfig
-from pvvjax.databases import DB_INPUTS, META_COLUMNS, OUTPUT, build_databases, condition_peaks, peak_table
+from pvvjax.data.campaign import campaign_from_frames
 
 
 def test_condition_peaks_against_brute_force():

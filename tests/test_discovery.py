@@ -101,9 +101,9 @@ def test_a_knee_of_the_models_own_inputs_joins_the_floor_and_is_not_named_throug
 
 @pytest.mark.heavy
 def test_refine_recovers_a_knee_and_a_band_and_keeps_a_band_in_its_grid_cell(monkeypatch):
-    from pvvjax.candidates import Candidate
     from pvvjax.discovery import _fits
     from pvvjax.discovery._fits import _refine
+    from pvvjax.discovery.candidates import Candidate
 
     calls, residuals = [], _fits._refine_residuals
     monkeypatch.setattr(_fits, "_refine_residuals", lambda th, args: calls.append(1) or residuals(th, args))
@@ -145,8 +145,8 @@ def test_refine_recovers_a_knee_and_a_band_and_keeps_a_band_in_its_grid_cell(mon
 
 
 def test_a_refined_candidate_is_kept_only_if_the_selections_design_credits_it_with_more_gain():
-    from pvvjax.candidates import Candidate
     from pvvjax.discovery._fits import _keep_better
+    from pvvjax.discovery.candidates import Candidate
 
     # Rotor speed per condition; the residual holds a resonance band at 270 rpm (the effect)
     # and one at 250 rpm that the floor covariates already carry (the map's floor).
@@ -170,10 +170,10 @@ def test_a_refined_candidate_is_kept_only_if_the_selections_design_credits_it_wi
 
 
 def test_a_proposed_band_brings_the_adjacent_cell_the_design_credits_more():
-    from pvvjax.candidates import Candidate
     from pvvjax.config import DiscoveryConfig
     from pvvjax.discovery._propose import _neighbour_cells
-    from pvvjax.selection import Selected, gains
+    from pvvjax.discovery.candidates import Candidate
+    from pvvjax.discovery.selection import Selected, gains
 
     # A mode at 273 rpm between grid centres 3 rpm apart: the band at 267 is proposed; of its
     # neighbours (264, 270) the one at 270 holds more of the mode and is tried after it.
@@ -206,7 +206,7 @@ def test_a_proposed_band_brings_the_adjacent_cell_the_design_credits_more():
 
 def test_selection_gain_scores_a_column_on_the_first_rounds_design():
     from pvvjax.discovery import Discovery, Residual, selection_gain
-    from pvvjax.selection import gain
+    from pvvjax.discovery.selection import gain
 
     rng = np.random.default_rng(3)
     n, groups = 400, np.repeat(np.arange(40), 10)
@@ -223,7 +223,7 @@ def test_selection_gain_scores_a_column_on_the_first_rounds_design():
 
 
 def test_floor_features_are_what_the_inputs_determine():
-    from pvvjax.databases import DB_INPUTS
+    from pvvjax.analysis.databases import DB_INPUTS
 
     assert {"thrust_coefficient", "blade_loading"} <= set(floor_features(DB_INPUTS["db1"]))
     assert "thrust_coefficient" not in floor_features(DB_INPUTS["db3"])  # db3 has no weight
@@ -235,8 +235,8 @@ def test_each_derived_feature_is_computed_from_the_channels_it_is_listed_with():
     # is computed from, and a floor refinement of it meets every effect of those channels (the
     # floor control): the lists against derive_features itself, channel by channel (a moved
     # channel moves exactly the features computed from it, through the MLF and μ as well).
+    from pvvjax.data.features import derive_features
     from pvvjax.discovery._model import _DERIVED_FROM, source_channels
-    from pvvjax.features import derive_features
 
     state = dict(airspeed_kt=120.0, rotor_rpm=258.0, roll_angle_deg=20.0, pitch_rate_dps=5.0, gross_weight_lb=16000.0,
                  density_ratio=0.9)
@@ -251,8 +251,8 @@ def test_each_derived_feature_is_computed_from_the_channels_it_is_listed_with():
 def test_a_tries_floor_control_leaves_out_the_refinements_built_from_its_channels():
     # An effect acting through the model's own inputs is partly a knee of them (the pitch rate
     # inside the load factor, a mode of rotor speed): its control holds the other refinements.
-    from pvvjax.candidates import Candidate
     from pvvjax.discovery._confirm import _control_refinements
+    from pvvjax.discovery.candidates import Candidate
 
     knee = lambda ch: Candidate("threshold", (ch,), {"knee": 1.0, "above": True})  # noqa: E731
     bl, climb, rpm = knee("blade_loading"), knee("climb_rate_fpm"), knee("rotor_rpm")
@@ -268,16 +268,16 @@ def test_a_tries_floor_control_leaves_out_the_refinements_built_from_its_channel
 
 
 def test_airspeed_is_determined_by_advance_ratio_and_rotor_speed():
-    from pvvjax.constants import KT_TO_FT_S, RPM_TO_RAD_S
-    from pvvjax.databases import DB_INPUTS
+    from pvvjax.analysis.databases import DB_INPUTS
+    from pvvjax.data.constants import KT_TO_FT_S, RPM_TO_RAD_S
+    from pvvjax.data.features import advance_ratio
     from pvvjax.discovery._model import _determined
-    from pvvjax.features import advance_ratio
 
     rng = np.random.default_rng(0)
     v, rpm = rng.uniform(0, 160, 50), rng.uniform(240, 275, 50)
     mu = np.asarray(advance_ratio(v, rpm))
     # Airspeed back from (μ, Ω) alone: a knee of airspeed is one of the map's own inputs.
-    from pvvjax.features import UH60A
+    from pvvjax.data.features import UH60A
 
     np.testing.assert_allclose(mu * rpm * RPM_TO_RAD_S * UH60A.rotor_radius_ft / KT_TO_FT_S, v, rtol=1e-5)
     for db in ("db1", "db3"):
@@ -293,7 +293,7 @@ def test_gain_net_learns_a_known_magnification_jointly_with_the_response():
 
     from pvvjax.config import TrainConfig
     from pvvjax.discovery import fit_ensemble, gain_apply
-    from pvvjax.networks import mlp_apply
+    from pvvjax.nets.networks import mlp_apply
 
     rng = np.random.default_rng(0)
     n = 240
@@ -333,10 +333,10 @@ def test_gains_on_every_band_at_once_find_the_mode_the_nets_input_already_carrie
 
 def test_the_resonance_probe_proposes_the_band_of_the_largest_gain_unless_one_is_proposed(monkeypatch):
     import pvvjax.discovery._propose as P
-    from pvvjax.candidates import Candidate
     from pvvjax.config import DiscoveryConfig
     from pvvjax.discovery import Model
-    from pvvjax.selection import Selected
+    from pvvjax.discovery.candidates import Candidate
+    from pvvjax.discovery.selection import Selected
 
     model = Model(params={}, inputs=("rotor_rpm",), offset_s=1.0)
     band = lambda c, off=1.0: Candidate("resonance", ("rotor_rpm",), {"center": c, "width": 3.0, "offset_s": off})  # noqa: E731
@@ -399,10 +399,10 @@ def test_source_tries_add_the_best_candidates_of_the_channels_a_derived_input_hi
     take: candidates built only from those are tried beside the proposals, the best by the
     selection's held-out gain (above 0, one alignment each, not proposed already)."""
     import pvvjax.discovery._propose as P
-    from pvvjax.candidates import Candidate
+    from pvvjax.analysis.databases import DB_INPUTS
     from pvvjax.config import DiscoveryConfig
-    from pvvjax.databases import DB_INPUTS
-    from pvvjax.selection import Selected, gains
+    from pvvjax.discovery.candidates import Candidate
+    from pvvjax.discovery.selection import Selected, gains
 
     assert P.hidden_sources(DB_INPUTS["db1"]) == {"roll_angle_deg", "pitch_rate_dps"}  # airspeed: μ·ΩR
     assert P.hidden_sources(("rotor_rpm", "gross_weight_lb")) == frozenset()
@@ -460,8 +460,8 @@ def test_a_source_try_gets_the_p_value_of_its_retraining_by_condition_where_it_a
 
 def test_the_floor_control_is_the_model_retrained_with_its_refinements_as_inputs(monkeypatch):
     import pvvjax.discovery._confirm as C
-    from pvvjax.candidates import Candidate
     from pvvjax.discovery._model import Model
+    from pvvjax.discovery.candidates import Candidate
 
     trained = []
     monkeypatch.setattr(C, "_train_model", lambda ctx, m: trained.append(m) or {"nets": len(trained)})
@@ -727,8 +727,8 @@ _BASE = dict(maneuvers=("level", "climb", "descent", "turn", "roll", "pushover",
 @pytest.mark.heavy
 def test_cli_on_a_world_without_hidden_effects_names_nothing(tmp_path):
     from pvvjax._strict import from_dict
-    from pvvjax.campaign import write_campaign
     from pvvjax.cli import main
+    from pvvjax.data.campaign import write_campaign
     from pvvjax.synth import SynthConfig, generate
 
     counters, records, _ = generate(from_dict(SynthConfig, {**_BASE, "name": "null", "seed": 51}))
@@ -745,7 +745,7 @@ def test_cli_on_a_world_without_hidden_effects_names_nothing(tmp_path):
 
 
 def test_discovery_json_is_strict_json():
-    from pvvjax.discovery_report import _json_text
+    from pvvjax.discovery.report import _json_text
 
     assert json.loads(_json_text({"p_value": 0.01}, "out/discovery.json")) == {"p_value": 0.01}
     with pytest.raises(ValueError, match="out/discovery.json: a value is not a finite number"):
@@ -753,7 +753,7 @@ def test_discovery_json_is_strict_json():
 
 
 def test_report_lists_the_other_confirmed_tries_of_an_effects_round():
-    from pvvjax.discovery_report import _also_confirmed
+    from pvvjax.discovery.report import _also_confirmed
 
     rounds = pd.DataFrame(dict(round=[1, 1, 1, 1, 2], name=["a", "b", "b", "c", "d"],
                                augment=["additive", "additive", "input", "input", "input"],
@@ -788,8 +788,8 @@ def test_nets_trained_on_the_windows_see_every_strided_window(monkeypatch, small
     # (targets: the measured windows), and the metrics are the window nets'. (That such nets
     # have a lower error floor than the peak nets: the lag study's test on a null world.)
     from pvvjax import discovery as D
-    from pvvjax.campaign import load_campaign
     from pvvjax.config import DiscoveryConfig, ExperimentConfig, TrainConfig
+    from pvvjax.data.campaign import load_campaign
     from pvvjax.discovery import _confirm, _model, _workflow
 
     calls, fit = [], D.fit_ensemble
@@ -834,9 +834,9 @@ def test_a_try_confirms_where_its_candidate_is_active_or_twice_min_shrink_over_a
     # turns and level flight), so twice `min_shrink` over all windows also confirms.
     from dataclasses import replace as dc_replace
 
-    from pvvjax.candidates import Candidate
     from pvvjax.config import DiscoveryConfig
     from pvvjax.discovery import _confirm as C
+    from pvvjax.discovery.candidates import Candidate
 
     win = _windows(n_counters=4, W=40, seed=3)
     pull = (win.table.maneuver == "pullup").to_numpy()
@@ -877,11 +877,11 @@ def test_parameter_free_candidates_are_also_tried_at_the_candidate_offsets():
     from conftest import tiny_records
 
     from pvvjax._strict import from_dict
-    from pvvjax.campaign import campaign_from_frames
-    from pvvjax.candidates import values, window_table
     from pvvjax.config import DiscoveryConfig, ExperimentConfig
+    from pvvjax.data.campaign import campaign_from_frames
     from pvvjax.discovery import Model
     from pvvjax.discovery._propose import _candidate_matrix, _unaligned_key
+    from pvvjax.discovery.candidates import values, window_table
 
     counters, recs = tiny_records(seconds=10.0)
     for j, r in enumerate(recs.values()):
@@ -927,8 +927,8 @@ def test_parameter_free_candidates_are_also_tried_at_the_candidate_offsets():
 def test_a_misspelt_excluded_channel_is_an_error_naming_it_not_a_candidate_left_in():
     from conftest import tiny_records
 
-    from pvvjax.campaign import campaign_from_frames
     from pvvjax.config import DiscoveryConfig, ExperimentConfig
+    from pvvjax.data.campaign import campaign_from_frames
     from pvvjax.discovery import discover
 
     camp = campaign_from_frames(*tiny_records(n_counters=4))
@@ -959,20 +959,16 @@ def test_discover_takes_a_campaign_folder_and_a_bare_discovery_config(tmp_path, 
         D.discover(folder, {"folds": 3})
     with pytest.raises(TypeError, match="campaign must be a Campaign or a campaign folder, got list"):
         D.discover([folder])
-    from pvvjax.lag_study import lag_study  # the same inputs
-
-    with pytest.raises(TypeError, match="lag_study: cfg must be an ExperimentConfig or a DiscoveryConfig, got dict"):
-        lag_study(folder, {"folds": 3})
 
 
 def test_a_gains_column_is_its_band_in_units_of_its_gain_unit():
     # The nets train a gain column of u·band as a gain in steps of 1/u (u = gain_unit): the
     # selection's bands in steps of DiscoveryConfig.gain_unit, the probe's (no unit) in 1.
     from pvvjax._strict import from_dict
-    from pvvjax.candidates import Candidate
     from pvvjax.config import ConfigError, DiscoveryConfig
     from pvvjax.discovery import Model
     from pvvjax.discovery._model import _inputs
+    from pvvjax.discovery.candidates import Candidate
 
     win = _windows()
     rng = np.random.default_rng(2)
@@ -998,12 +994,12 @@ def test_a_try_must_confirm_again_on_top_of_the_floor_control_or_beat_it_alone(
     # control predicts at least as well as the current model (their ensemble RMS forced
     # here). The round's proposal and refinement are forced (the selection is tested above);
     # training, replay and the confirmations are the workflow's own.
-    from pvvjax.campaign import load_campaign
     from pvvjax.config import DiscoveryConfig, ExperimentConfig, TrainConfig
+    from pvvjax.data.campaign import load_campaign
     from pvvjax.discovery import _round, _workflow, discover
     from pvvjax.discovery._model import source_channels
-    from pvvjax.discovery_report import write_discovery
-    from pvvjax.selection import Selected
+    from pvvjax.discovery.report import write_discovery
+    from pvvjax.discovery.selection import Selected
 
     picked = {}
 
@@ -1073,7 +1069,7 @@ def test_a_weak_name_brings_its_runner_up_on_other_channels_which_is_retrained_a
     from pvvjax.discovery import _round, _workflow, discover
     from pvvjax.discovery._model import source_channels
     from pvvjax.discovery._propose import _unaligned_key
-    from pvvjax.selection import Selected
+    from pvvjax.discovery.selection import Selected
 
     who = {}
 
@@ -1131,11 +1127,11 @@ def test_an_additive_term_is_refitted_on_the_residual_of_the_nets_term_refit_nam
     # the nets retrained on the peaks minus it (those nets are the model's); "windows", on
     # that of nets trained on the strided windows minus it, the model's nets then retrained on
     # the peaks minus the refitted term.
-    from pvvjax.campaign import load_campaign
-    from pvvjax.candidates import from_key
+    from pvvjax.analysis.databases import DB_INPUTS
     from pvvjax.config import DiscoveryConfig, ExperimentConfig, TrainConfig
-    from pvvjax.databases import DB_INPUTS
+    from pvvjax.data.campaign import load_campaign
     from pvvjax.discovery import Model, _confirm, _model, _workflow
+    from pvvjax.discovery.candidates import from_key
 
     d = DiscoveryConfig(seeds=1, folds=3, train_stride=16, term_refit=term_refit)
     ctx = _workflow._context(load_campaign(small_campaign_dir),
@@ -1178,8 +1174,8 @@ def test_with_term_refit_named_only_the_named_term_is_refitted_on_window_nets_an
     # forced; the fits, training and replay are the workflow's own.
     from pvvjax.config import DiscoveryConfig, ExperimentConfig, TrainConfig
     from pvvjax.discovery import _round, _workflow, discover
-    from pvvjax.discovery_report import write_discovery
-    from pvvjax.selection import Selected
+    from pvvjax.discovery.report import write_discovery
+    from pvvjax.discovery.selection import Selected
 
     def propose(win, yhat, resid, M, rows, own, floor, d, seed, complexity, keys, is_floor):
         j = next(i for i, k in enumerate(keys) if k.startswith("input:") and not is_floor[i])
@@ -1238,8 +1234,8 @@ def test_with_augment_tie_additive_a_named_input_gives_way_to_its_proposals_term
     # (0.01 against 0.20). The fits, training and replay are the workflow's own.
     from pvvjax.config import DiscoveryConfig, ExperimentConfig, TrainConfig
     from pvvjax.discovery import _round, _workflow, discover
-    from pvvjax.discovery_report import write_discovery
-    from pvvjax.selection import Selected
+    from pvvjax.discovery.report import write_discovery
+    from pvvjax.discovery.selection import Selected
 
     def propose(win, yhat, resid, M, rows, own, floor, d, seed, complexity, keys, is_floor):
         j = next(i for i, k in enumerate(keys) if k.startswith("input:") and not is_floor[i])
@@ -1281,7 +1277,7 @@ def test_every_confirmed_inputs_term_logs_the_p_that_rechoose_replays_the_way_fr
     # and replaying the run's own settings gives back the logged choice.
     from pvvjax.config import DiscoveryConfig, ExperimentConfig, TrainConfig
     from pvvjax.discovery import _round, _workflow, discover
-    from pvvjax.selection import Selected
+    from pvvjax.discovery.selection import Selected
 
     def propose(win, yhat, resid, M, rows, own, floor, d, seed, complexity, keys, is_floor):
         js = [i for i, k in enumerate(keys) if k.startswith("input:") and not is_floor[i]][:2]
@@ -1316,11 +1312,11 @@ def test_a_term_on_top_of_itself_keeps_little_of_its_coefficient_and_on_top_of_a
     # the same term fitted again on top of its model has little left to explain (what it
     # keeps is the nets' retraining noise: 0.19 here, 0.12 with 400 steps), the collective on
     # top of the pedal most of its coefficient (0.76).
-    from pvvjax.campaign import load_campaign
-    from pvvjax.candidates import from_key
+    from pvvjax.analysis.databases import DB_INPUTS
     from pvvjax.config import DiscoveryConfig, ExperimentConfig, TrainConfig
-    from pvvjax.databases import DB_INPUTS
+    from pvvjax.data.campaign import load_campaign
     from pvvjax.discovery import Model, _confirm, _round, _workflow
+    from pvvjax.discovery.candidates import from_key
 
     d = DiscoveryConfig(seeds=1, folds=3, term_refit="peaks")
     ctx = _workflow._context(load_campaign(small_campaign_dir),
@@ -1348,7 +1344,7 @@ def test_with_encompassing_of_two_tied_channels_the_term_that_keeps_more_on_top_
     from pvvjax.config import DiscoveryConfig, ExperimentConfig, TrainConfig
     from pvvjax.discovery import _round, _workflow, discover
     from pvvjax.discovery._model import source_channels
-    from pvvjax.selection import Selected
+    from pvvjax.discovery.selection import Selected
 
     who = {}
 

@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from pvvjax import effects as E
+from pvvjax.discovery import effects as E
 
 
 def _signal(n=2000, seed=0, jitter=0.2):

@@ -5,8 +5,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from pvvjax.constants import UH60A, Aircraft
-from pvvjax.features import advance_ratio, blade_loading, derive_features, maneuver_load_factor, thrust_coefficient
+from pvvjax.data.constants import UH60A, Aircraft
+from pvvjax.data.features import advance_ratio, blade_loading, derive_features, maneuver_load_factor, thrust_coefficient
 
 # The paper's worked example: pull-up 11022 at 255 rpm, mu 0.27, pitch rate 9.6 deg/s, no roll.
 V_PULLUP_KT = 0.27 * 255 * 2 * math.pi / 60 * 26.83 / (6076.12 / 3600)

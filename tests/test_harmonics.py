@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 from conftest import tiny_records
 
-from pvvjax.batch import sample_widths, to_batch
-from pvvjax.campaign import campaign_from_frames
-from pvvjax.harmonics import WindowPlan, analyze, harmonic_windows, plan_windows
+from pvvjax.analysis.harmonics import WindowPlan, analyze, harmonic_windows, plan_windows
+from pvvjax.data.batch import sample_widths, to_batch
+from pvvjax.data.campaign import campaign_from_frames
 
 SPR = 64
 

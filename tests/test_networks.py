@@ -3,7 +3,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from pvvjax.networks import architecture_name, mlp_apply, mlp_init, mlp_pad, n_weights, rbf_apply, rbf_fit, scaling
+from pvvjax.nets.networks import architecture_name, mlp_apply, mlp_init, mlp_pad, n_weights, rbf_apply, rbf_fit, scaling
 
 
 def _numpy_mlp(params, x):

@@ -4,9 +4,9 @@ import sys
 import jax
 import numpy as np
 
-from pvvjax.networks import mlp_apply, mlp_init, mlp_pad, rbf_apply, rbf_fit, scaling
-from pvvjax.npnet import NumpyNet
-from pvvjax.sweep import save_params
+from pvvjax.nets.networks import mlp_apply, mlp_init, mlp_pad, rbf_apply, rbf_fit, scaling
+from pvvjax.nets.sweep import save_params
+from pvvjax.realtime.npnet import NumpyNet
 
 
 def test_numpy_evaluator_equals_jax_net(tmp_path):
@@ -27,6 +27,6 @@ def test_numpy_evaluator_equals_jax_net(tmp_path):
 
 
 def test_numpy_evaluator_imports_no_jax():
-    code = "import sys, pvvjax.npnet; assert 'jax' not in sys.modules, 'jax imported'; print('ok')"
+    code = "import sys, pvvjax.realtime.npnet; assert 'jax' not in sys.modules, 'jax imported'; print('ok')"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr

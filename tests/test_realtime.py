@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 from conftest import rbf_nets
 
-from pvvjax import realtime as RT
-from pvvjax.campaign import load_campaign
-from pvvjax.databases import DB_INPUTS
-from pvvjax.npnet import NumpyNet
-from pvvjax.rtelement import CHANNELS, VibrationElement
+from pvvjax.analysis.databases import DB_INPUTS
+from pvvjax.data.campaign import load_campaign
+from pvvjax.realtime import jax_element as RT
+from pvvjax.realtime.element import CHANNELS, VibrationElement
+from pvvjax.realtime.npnet import NumpyNet
 
 F = 13312  # every record padded to this many frames (rejected NaN frames), one compiled scan
 

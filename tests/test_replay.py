@@ -9,12 +9,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pvvjax import replay as R
 from pvvjax._lookup import make_lookup, search
-from pvvjax.batch import to_batch
-from pvvjax.campaign import campaign_from_frames, load_campaign
-from pvvjax.databases import STATE_CHANNELS
-from pvvjax.harmonics import plan_windows, record_columns, stack_columns, window_sums, with_prefix
+from pvvjax.analysis.databases import STATE_CHANNELS
+from pvvjax.analysis.harmonics import plan_windows, record_columns, stack_columns, window_sums, with_prefix
+from pvvjax.data.batch import to_batch
+from pvvjax.data.campaign import campaign_from_frames, load_campaign
+from pvvjax.replay import quasistatic as R
 
 SPR, RPM = 64, 257.8
 
@@ -138,8 +138,8 @@ def test_prefix_sums_are_float64_cumulative_sums_per_record():
 @pytest.fixture(scope="module")
 def small_replay(small_campaign_dir, small_dbs):
     """float64 records of the small campaign's maneuvers and an RBF db1 model."""
-    from pvvjax.networks import rbf_fit
-    from pvvjax.sweep import stack_data
+    from pvvjax.nets.networks import rbf_fit
+    from pvvjax.nets.sweep import stack_data
 
     camp = load_campaign(small_campaign_dir)
     ctr = camp.counters[camp.counters.maneuver.isin(["pullup", "pushover", "roll", "flare", "autorotation"])]
@@ -159,7 +159,7 @@ def _one(tree, i):
 
 
 def test_replay_at_zero_offset_matches_the_database_at_the_peak_window(small_replay, small_dbs):
-    from pvvjax.networks import rbf_apply
+    from pvvjax.nets.networks import rbf_apply
 
     camp, ctr, batch, recs, _, model = small_replay
     peaks = small_dbs["peaks"].set_index("condition")
@@ -185,7 +185,7 @@ def test_replay_at_zero_offset_matches_the_database_at_the_peak_window(small_rep
 @pytest.mark.parametrize("tau0", [0.0, 3 / (SPR * RPM / 60), 0.4123])  # zero, a whole number of samples, fractional
 @pytest.mark.parametrize("L0", [8.0, 7.37])
 def test_gradients_match_finite_differences(small_replay, tau0, L0):
-    from pvvjax.networks import rbf_apply
+    from pvvjax.nets.networks import rbf_apply
 
     *_, recs, settings, model = small_replay
     rec = _one(recs, 0)
@@ -239,7 +239,7 @@ def test_prepare_rejects_other_channels(small_campaign_dir):
 
 
 def test_stick_lag_moves_only_the_stick_inputs(small_replay):
-    from pvvjax.networks import rbf_apply
+    from pvvjax.nets.networks import rbf_apply
 
     _, _, batch, recs, _, model = small_replay
     replay = jax.jit(R.replay, static_argnames=("settings", "apply"))  # one compilation per settings
@@ -261,8 +261,8 @@ def test_replays_at_other_offsets_share_one_program_and_equal_replays_that_bake_
     # The offset bounds (how far the input windows may reach) and the reference length enter
     # the compiled replay as data (`jit_settings`): replaying at another offset reuses the
     # program, and gives what a replay with the settings as static constants gives.
-    from pvvjax.networks import mlp_init
-    from pvvjax.replay_tables import _replay_all, replay_windows, settings_at
+    from pvvjax.nets.networks import mlp_init
+    from pvvjax.replay.tables import replay_all, replay_windows, settings_at
 
     camp = lagged_campaign(0.5, n=2, seconds=20.0)
     batch = to_batch(camp, STATE_CHANNELS)
@@ -271,7 +271,7 @@ def test_replays_at_other_offsets_share_one_program_and_equal_replays_that_bake_
     net = dict(params=jax.tree.map(lambda *a: jnp.stack(a), *seeds), idx=jnp.asarray(R.input_index("db1")))
     model = jax.tree.map(lambda a: jnp.broadcast_to(a, (2, *jnp.shape(a))), net)
     info = camp.counters[["maneuver", "condition"]]
-    n0 = _replay_all.jitted._cache_size()
+    n0 = replay_all.jitted._cache_size()
     for tau in (0.0, 0.5, 1.25):
         s = settings_at(batch, (tau, 8.0, 0.0))
         w = replay_windows(info, recs, {"db1": model}, (tau, 8.0, 0.0), s)
@@ -281,4 +281,4 @@ def test_replays_at_other_offsets_share_one_program_and_equal_replays_that_bake_
             np.testing.assert_allclose(w[col].to_numpy(), np.asarray(ref).ravel()[keep], rtol=1e-6, atol=1e-7)
         # Inputs τ > 0 before the first windows reach before the record: weighted out (the bound is data).
         assert ((~keep).sum() + (w.weight < 0.999).sum() > 0) == (tau > 0)
-    assert _replay_all.jitted._cache_size() - n0 <= 1
+    assert replay_all.jitted._cache_size() - n0 <= 1

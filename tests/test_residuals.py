@@ -8,12 +8,12 @@ import pandas as pd
 import pytest
 from conftest import rbf_nets
 
-from pvvjax.batch import to_batch
-from pvvjax.campaign import load_campaign
-from pvvjax.databases import STATE_CHANNELS
-from pvvjax.replay import input_index, make_settings, prepare
-from pvvjax.replay_tables import replay_windows
-from pvvjax.residuals import by_group, localize, residual_windows
+from pvvjax.analysis.databases import STATE_CHANNELS
+from pvvjax.data.batch import to_batch
+from pvvjax.data.campaign import load_campaign
+from pvvjax.discovery.residuals import by_group, localize, residual_windows
+from pvvjax.replay.quasistatic import input_index, make_settings, prepare
+from pvvjax.replay.tables import replay_windows
 
 
 def _windows(seed=0):

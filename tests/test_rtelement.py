@@ -11,12 +11,12 @@ import numpy as np
 import pytest
 from conftest import rbf_nets
 
-from pvvjax import replay as R
-from pvvjax.batch import to_batch
-from pvvjax.campaign import load_campaign
-from pvvjax.databases import DB_INPUTS, STATE_CHANNELS
-from pvvjax.npnet import NumpyNet
-from pvvjax.rtelement import CHANNELS, VibrationElement
+from pvvjax.analysis.databases import DB_INPUTS, STATE_CHANNELS
+from pvvjax.data.batch import to_batch
+from pvvjax.data.campaign import load_campaign
+from pvvjax.realtime.element import CHANNELS, VibrationElement
+from pvvjax.realtime.npnet import NumpyNet
+from pvvjax.replay import quasistatic as R
 
 KINDS = ["pullup", "pushover", "roll", "autorotation", "flare", "level", "turn", "climb", "descent"]
 
@@ -146,7 +146,7 @@ def test_rotor_speed_only_frames_follow_the_azimuth(setup):
 
 
 def test_element_imports_no_jax():
-    code = ("import sys, numpy as np; from pvvjax.rtelement import VibrationElement, CHANNELS; "
+    code = ("import sys, numpy as np; from pvvjax.realtime.element import VibrationElement, CHANNELS; "
             "print('jax' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"

@@ -13,11 +13,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from pvvjax.analysis.databases import DB_INPUTS
 from pvvjax.config import ExperimentConfig, SweepConfig, TrainConfig
-from pvvjax.databases import DB_INPUTS
-from pvvjax.networks import mlp_apply
-from pvvjax.sweep import load_params, net_table, run_sweep
-from pvvjax.train import TrainingError
+from pvvjax.nets.networks import mlp_apply
+from pvvjax.nets.sweep import load_params, net_table, run_sweep
+from pvvjax.nets.train import TrainingError
 
 FAST = TrainConfig(learning_rate=1e-2, max_steps=600, eval_every=50, patience=4)
 
@@ -134,9 +134,9 @@ SHARDING_SCRIPT = """
 import os, sys, json
 import jax, numpy as np
 from pvvjax.config import ExperimentConfig, SweepConfig, TrainConfig
-from pvvjax.campaign import load_campaign
-from pvvjax.databases import build_databases
-from pvvjax.sweep import run_sweep
+from pvvjax.data.campaign import load_campaign
+from pvvjax.analysis.databases import build_databases
+from pvvjax.nets.sweep import run_sweep
 assert jax.device_count() == 2, jax.devices()
 dbs = build_databases(load_campaign(sys.argv[1]))
 cfg = ExperimentConfig(sweep=SweepConfig(databases=("db1",), hidden=((4,), (6,), (8,)), seeds=2, folds=3,
@@ -170,9 +170,9 @@ def test_sweep_axis_is_sharded_over_devices_in_a_separate_process(tmp_path, smal
 def test_a_groups_nets_are_not_padded_beyond_its_size_up_to_8(monkeypatch, per_group, widths):
     # Padded nets are computed and thrown away: a group of 3 (discovery's seeds) trains as 3,
     # not 4; above 8 the widths are powers of two (few shapes to compile as nets finish).
-    from pvvjax import sweep
-    from pvvjax.networks import mlp_init
-    from pvvjax.train import make_data
+    from pvvjax.nets import sweep
+    from pvvjax.nets.networks import mlp_init
+    from pvvjax.nets.train import make_data
 
     rng = np.random.default_rng(0)
     x = rng.normal(size=(40, 2)).astype(np.float32)

@@ -8,10 +8,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pvvjax.campaign import load_campaign, validate_campaign
+from pvvjax.analysis.databases import OUTPUT
 from pvvjax.cli import main
 from pvvjax.config import ConfigError
-from pvvjax.databases import OUTPUT
+from pvvjax.data.campaign import load_campaign, validate_campaign
 from pvvjax.synth import EFFECTS, EffectConfig, SynthConfig, generate, load_synth_config, write_synthetic
 
 PAPER = {"T1-level-135": 0.10, "T1-descent-160": 0.25, "T1-climb-62": 0.12, "T1-turn45-145": 0.13}

@@ -3,8 +3,8 @@ import numpy as np
 import pytest
 
 from pvvjax.config import TrainConfig
-from pvvjax.networks import mlp_apply, mlp_init, scaling
-from pvvjax.train import condition_folds, fit, make_data, masked_metrics, split_masks
+from pvvjax.nets.networks import mlp_apply, mlp_init, scaling
+from pvvjax.nets.train import condition_folds, fit, make_data, masked_metrics, split_masks
 
 
 def test_folds_split_by_condition_never_by_row():

@@ -29,7 +29,10 @@ it to the model and show the gap shrink (data-contract §3).
 
 The workflow reads the campaign only (never a generator's ground truth).
 
-The package's private modules, one concept each: `_model` (the nets, the replay windows, the
+Its public modules: `candidates` (the candidate library: channels × operators, as window
+means like the replay), `effects` (the operators), `selection` (forward selection with a
+block-permutation test), `residuals` (where the residual concentrates) and `report`
+(discovery.json, report.md, figures). Its private modules, one concept each: `_model` (the nets, the replay windows, the
 predictions and metrics), `_fits` (least-squares fits of a lag, a knee or band, the offset),
 `_propose` (the candidate matrix, the floor covariates and the selection's proposals),
 `_confirm` (add a candidate, retrain, compare by condition, name), `_round` (one round's
@@ -37,21 +40,38 @@ tries, each way, judged and one named), `_lag` (the lag test) and `_workflow` (`
 `summary`).
 """
 
+from . import effects
 from ._model import Model, delag, fit_ensemble, floor_features, gain_apply, metrics
 from ._propose import knn_floor
 from ._workflow import Discovery, Residual, discover, selection_gain, summary
+from .candidates import Candidate, describe, from_key, library, window_table, window_tables
+from .report import write_discovery
+from .residuals import localize, residual_windows
+from .selection import Selected, forward_select
 
 __all__ = [
+    "Candidate",
     "Discovery",
     "Model",
     "Residual",
+    "Selected",
     "delag",
+    "describe",
     "discover",
+    "effects",
     "fit_ensemble",
     "floor_features",
+    "forward_select",
+    "from_key",
     "gain_apply",
     "knn_floor",
+    "library",
+    "localize",
     "metrics",
+    "residual_windows",
     "selection_gain",
     "summary",
+    "window_table",
+    "window_tables",
+    "write_discovery",
 ]

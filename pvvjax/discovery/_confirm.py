@@ -6,8 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from ..candidates import Candidate, values
-from ..databases import OUTPUT
+from ..analysis.databases import OUTPUT
 from ._fits import _lag_identified
 from ._model import (
     Model,
@@ -25,6 +24,7 @@ from ._model import (
     predictions,
     source_channels,
 )
+from .candidates import Candidate, values
 
 
 def _train_model(ctx: _Ctx, model: Model, rows: str = "") -> dict:

@@ -11,10 +11,10 @@ import numpy as np
 import optimistix as optx
 import pandas as pd
 
-from ..candidates import Candidate
-from ..effects import band
-from ..selection import _standardise, gains
 from ._model import Model, _Ctx, _grid, _lag_grid, _lag_windows, _replay, _selection_column, _Windows, predictions
+from .candidates import Candidate
+from .effects import band
+from .selection import _standardise, gains
 
 
 # The least-squares residuals are module functions with their data in `args` (optimistix's

@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from ..candidates import Candidate
-from ..databases import DB_INPUTS
+from ..analysis.databases import DB_INPUTS
 from ._confirm import _SIGN_FLIPS, _active_kinds, _paired_errors, _paired_sign_flip, _region, _train_model
 from ._fits import _fit_offset
 from ._learned import fit_learned_lag
 from ._model import Model, _Ctx, _inputs, _lag_windows, _replay, _Windows, metrics, predictions, window_layout
+from .candidates import Candidate
 
 
 def _through_lag(ctx: _Ctx, tau_s: float, train_offset_s: float) -> Model:
@@ -132,7 +132,7 @@ def _lag_test(ctx: _Ctx, delta: float, log) -> dict:
     initialization, and a null world's nets trained through a 2 s lag gained as much as a
     lag world's (docs/discovery-studies.md), where the learned τ separates them. So where the
     learned τ confirms no lag the trainings, which would decide nothing, are skipped unless
-    `lag_trials_always` (`lag_study` runs them on any world).
+    `lag_trials_always`.
 
     Returns:
         dict: table (one row per ensemble, the learned lag's first), learned

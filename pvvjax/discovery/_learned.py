@@ -12,7 +12,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from ..networks import mlp_apply, mlp_init, scaling
+from ..nets.networks import mlp_apply, mlp_init, scaling
 from ._model import lagged_windows
 
 

@@ -11,16 +11,16 @@ import jax.numpy as jnp
 import numpy as np
 import pandas as pd
 
-from .. import train as _train
-from ..campaign import Campaign
-from ..candidates import Candidate, values, window_table, window_tables
+from ..analysis.databases import DB_INPUTS
 from ..config import ExperimentConfig
-from ..databases import DB_INPUTS
-from ..effects import lag as _first_order_lag
-from ..networks import mlp_apply, mlp_init, scaling
-from ..replay import FEATURES, input_index
-from ..replay_tables import _replay_all
-from ..sweep import _stack, train_nets
+from ..data.campaign import Campaign
+from ..nets import train as _train
+from ..nets.networks import mlp_apply, mlp_init, scaling
+from ..nets.sweep import stack_trees, train_nets
+from ..replay.quasistatic import FEATURES, input_index
+from ..replay.tables import replay_all
+from .candidates import Candidate, values, window_table, window_tables
+from .effects import lag as _first_order_lag
 
 TRANSIENT = ("pullup", "pushover", "roll", "autorotation", "flare")
 # The canonical inputs each derived feature is computed from (`features`): a derived feature
@@ -103,7 +103,7 @@ def fit_ensemble(x, y, folds, *, k: int, seeds: int, hidden, train_cfg, seed: in
     for f, (w, _, _) in enumerate(splits):
         sc = scaling(x[w > 0][:, :n_in], y[f][w > 0])
         params += [{**mlp_init(jax.random.key(seed + s), n_in, tuple(hidden), scale=sc), **gain} for s in range(seeds)]
-    fits = train_nets(_stack(params), _stack(data), np.repeat(np.arange(k), seeds), train_cfg,
+    fits = train_nets(stack_trees(params), stack_trees(data), np.repeat(np.arange(k), seeds), train_cfg,
                       apply=gain_apply if n_gain else mlp_apply)
     if np.any(np.asarray(fits.failed_step) >= 0):
         raise _train.TrainingError("discovery: a net diverged; lower train.learning_rate")
@@ -242,7 +242,7 @@ def _replay(ctx: _Ctx, offset: float) -> _Windows:
     theta = jnp.asarray(np.tile([offset, L, 0.0], (N, 1)), jnp.float32)
     model = dict(params=jax.tree.map(lambda a: jnp.asarray(a[ctx.counter_fold]), ctx.replay_params),
                  idx=jnp.asarray(np.tile(input_index(d.database, len(DB_INPUTS[d.database])), (N, 1))))
-    rep = jax.device_get(_replay_all(model, ctx.recs, theta, settings=ctx.settings))
+    rep = jax.device_get(replay_all(model, ctx.recs, theta, settings=ctx.settings))
     W = rep.time.shape[1]
     # Input windows in record time: measured window edges (revolutions) -> time -> − offset.
     a = np.asarray(ctx.recs.rev_start)[:, None] + d.hop_revs * np.arange(W)[None, :]

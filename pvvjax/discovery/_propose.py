@@ -8,13 +8,13 @@ from dataclasses import replace
 import numpy as np
 import pandas as pd
 
-from ..candidates import Candidate, library, values
-from ..selection import Selected as _Selected
-from ..selection import forward_select, gains
-from ..selection import gain as _selection_gain
 from ._confirm import _SIGN_FLIPS, _explained, _paired_errors, _sign_flip_p, _train_model
 from ._lag import _lag_candidates
 from ._model import Model, _Ctx, _determined, _selection_column, _Windows, source_channels
+from .candidates import Candidate, library, values
+from .selection import Selected as _Selected
+from .selection import forward_select, gains
+from .selection import gain as _selection_gain
 
 
 def _floor_basis(win: _Windows, yhat, rows, floor, knots=(0.25, 0.5, 0.75)) -> np.ndarray:

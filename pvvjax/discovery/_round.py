@@ -9,8 +9,6 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..candidates import Candidate
-from ..selection import Selected
 from ._confirm import (
     _SIGN_FLIPS,
     _augment,
@@ -29,6 +27,8 @@ from ._confirm import (
 from ._fits import _fit_offset, _keep_better, _refine
 from ._model import Model, _Ctx, _gain_unit, _Windows, metrics, predictions, source_channels
 from ._propose import _probe_test, _source_test, _unaligned_key
+from .candidates import Candidate
+from .selection import Selected
 
 
 class _Confirmed(NamedTuple):

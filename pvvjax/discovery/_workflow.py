@@ -10,15 +10,12 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
-from .. import train as _train
-from ..batch import to_batch
-from ..campaign import Campaign, load_campaign
-from ..candidates import Candidate, sample_series, window_table
+from ..analysis.databases import DB_INPUTS, STATE_CHANNELS, build_databases
 from ..config import DiscoveryConfig, ExperimentConfig
-from ..databases import DB_INPUTS, STATE_CHANNELS, build_databases
-from ..replay import make_settings, prepare
-from ..residuals import localize
-from ..selection import gain as _selection_gain
+from ..data.batch import to_batch
+from ..data.campaign import Campaign, load_campaign
+from ..nets import train as _train
+from ..replay.quasistatic import make_settings, prepare
 from ._confirm import _train_model
 from ._fits import _fit_offset
 from ._lag import _lag_round, _lag_test, _table_row
@@ -42,6 +39,9 @@ from ._propose import (
     _unaligned_key,
 )
 from ._round import _Round
+from .candidates import Candidate, sample_series, window_table
+from .residuals import localize
+from .selection import gain as _selection_gain
 
 
 class Residual(NamedTuple):

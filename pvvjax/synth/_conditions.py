@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..constants import UH60A
+from ..data.constants import UH60A
 
 
 @dataclass(frozen=True)

@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..constants import KT_TO_FT_S, UH60A
+from ..data.constants import KT_TO_FT_S, UH60A
 
 RHO0 = UH60A.rho0_slug_ft3
 AREA = UH60A.disk_area_ft2

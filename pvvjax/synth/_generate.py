@@ -15,9 +15,9 @@ import numpy as np
 import pandas as pd
 
 from .._strict import to_dict
-from ..campaign import write_campaign
 from ..config import config_hash, load_config
-from ..constants import UH60A
+from ..data.campaign import write_campaign
+from ..data.constants import UH60A
 from . import _flight
 from ._conditions import DEFAULT_COUNTS, NAMED, Condition, catalogue, condition_rng, pilot_plan
 from ._vibration import EFFECTS, amplitude_4p, vibration_state

@@ -139,7 +139,7 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in [
 
 def vibration_state(states: dict, aircraft) -> dict:
     """The quantities effects use, from simulated (K, N) state arrays."""
-    from ..constants import KT_TO_FT_S, RPM_TO_RAD_S
+    from ..data.constants import KT_TO_FT_S, RPM_TO_RAD_S
 
     vt = states["rotor_rpm"] * RPM_TO_RAD_S * aircraft.rotor_radius_ft
     mu = states["airspeed_kt"] * KT_TO_FT_S / vt

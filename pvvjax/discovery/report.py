@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from . import plots
-from .discovery import Discovery, summary
-from .io import markdown_table, write_config, write_table
+from .. import plots
+from ..io import markdown_table, write_config, write_table
+from . import Discovery, summary
 
 __all__ = ["write_discovery"]
 
@@ -128,7 +128,7 @@ def write_discovery(res: Discovery, out, cfg=None, worst: int = 4) -> Path:
                   "reference is the best without a lag or with one of at most `lag_fast_s`, the slow lag the "
                   "best above it (round 0 below; its gain and a sign-flip test by condition are reported, not "
                   "required). Where no lag is confirmed those trainings decide nothing and are skipped, unless "
-                  "`lag_trials_always` (`pvvjax.lag_study` runs them on any campaign).", "", _md(res.lag_test), ""]
+                  "`lag_trials_always`.", "", _md(res.lag_test), ""]
     if not res.rounds.empty:
         controlled = "control_shrink" in res.rounds and bool(res.rounds.control_shrink.notna().any())
         refit = "window_refit_kept" in res.rounds

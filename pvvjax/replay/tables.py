@@ -15,13 +15,13 @@ import jax.numpy as jnp
 import numpy as np
 import pandas as pd
 
-from .batch import to_batch
+from ..analysis.databases import STATE_CHANNELS
+from ..config import CalibrationConfig, ReplayConfig
+from ..data.batch import to_batch
+from ..data.campaign import Campaign
+from ..nets.sweep import heldout_models
 from .calibration import PARAMS, Bounds, calibrate, cost_grid, counter_costs, group_members
-from .campaign import Campaign
-from .config import CalibrationConfig, ReplayConfig
-from .databases import STATE_CHANNELS
-from .replay import FEATURES, CostWeights, ReplayRecord, Settings, jit_settings, make_settings, prepare, replay
-from .sweep import heldout_models
+from .quasistatic import FEATURES, CostWeights, ReplayRecord, Settings, jit_settings, make_settings, prepare, replay
 
 __all__ = [
     "calibration_settings",
@@ -84,7 +84,7 @@ def _bounds(cfg: CalibrationConfig) -> Bounds:
 
 
 @jit_settings
-def _replay_all(m, r, th, *, settings):
+def replay_all(m, r, th, *, settings):
     """Every counter's replay (leading axis N) at its θ (N, 3)."""
     return jax.vmap(lambda m, r, th: replay(m, r, th[0], th[1], th[2], settings=settings))(m, r, th)
 
@@ -105,7 +105,7 @@ def replay_windows(info: pd.DataFrame, recs: ReplayRecord, models: dict, theta, 
     for db, model in models.items():
         th = theta[db] if isinstance(theta, dict) else theta
         th = np.broadcast_to(np.asarray(th, np.float32), (n, 3))
-        rep = _replay_all(model, recs, jnp.asarray(th), settings=settings)
+        rep = replay_all(model, recs, jnp.asarray(th), settings=settings)
         W = rep.time.shape[1]
         parts.append(pd.DataFrame({
             "database": db,

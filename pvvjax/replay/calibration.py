@@ -20,7 +20,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .replay import CostWeights, ReplayRecord, Settings, cost_terms, jit_settings, replay, residuals
+from .quasistatic import CostWeights, ReplayRecord, Settings, cost_terms, jit_settings, replay, residuals
 
 __all__ = ["PARAMS", "Bounds", "Calibration", "calibrate", "cost_grid", "counter_costs", "group_members"]
 

@@ -8,6 +8,7 @@ different dimensions (a speed given as an angle) is refused.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 # unit -> (dimension, factor to SI)
 _UNITS: dict[str, tuple[str, float]] = {
@@ -67,3 +68,23 @@ def conversion_factor(unit: str, canonical: str) -> float:
     if dim != tdim:
         raise ValueError(f"unit {unit!r} ({dim}) cannot be converted to {canonical!r} ({target}, {tdim})")
     return factor / tfactor
+
+
+@dataclass(frozen=True)
+class ColumnMap:
+    """How one foreign column becomes a canonical channel.
+
+    canonical value = raw value × (unit conversion, if `unit` is given) × `scale` + `offset`.
+    """
+
+    to: str
+    unit: str | None = None
+    scale: float = 1.0
+    offset: float = 0.0
+
+    def __post_init__(self):
+        if self.unit is not None:
+            conversion_factor(self.unit, self.to)  # raises on an unknown unit or wrong dimension
+
+    def factor(self) -> float:
+        return (conversion_factor(self.unit, self.to) if self.unit else 1.0) * self.scale

@@ -29,17 +29,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._lookup import Lookup, make_lookup, search
-from .batch import RecordBatch
-from .constants import UH60A, Aircraft
-from .databases import DB_INPUTS, STATE_CHANNELS
-from .features import derive_features
-from .harmonics import (
+from .._lookup import Lookup, make_lookup, search
+from ..analysis.databases import DB_INPUTS, STATE_CHANNELS
+from ..analysis.harmonics import (
     N_HARMONIC_COLS,
     Columns,
     WindowPlan,
-    _means,
     harmonic_from_means,
+    means_from_sums,
     plan_windows,
     record_bounds,
     record_columns,
@@ -47,7 +44,10 @@ from .harmonics import (
     window_sums,
     with_prefix,
 )
-from .networks import apply_for
+from ..data.batch import RecordBatch
+from ..data.constants import UH60A, Aircraft
+from ..data.features import derive_features
+from ..nets.networks import apply_for
 
 __all__ = [
     "FEATURES",
@@ -273,7 +273,7 @@ def replay(model: dict, rec: ReplayRecord, offset_s, window_revs, stick_offset_s
     n_sets = 1 + len(taus)
     starts = jnp.concatenate([a] + [r_in[2 * W * k: 2 * W * k + W] for k in range(len(taus))])
     ends = jnp.concatenate([b] + [r_in[2 * W * k + W: 2 * W * (k + 1)] for k in range(len(taus))])
-    mean, _ = _means(window_sums(c, starts, ends, kind="linear", taper_revs=0.0, plan=settings.plan))
+    mean, _ = means_from_sums(window_sums(c, starts, ends, kind="linear", taper_revs=0.0, plan=settings.plan))
     mean = mean.reshape(n_sets, W, -1)
     measured, _, t_mid = harmonic_from_means(mean[0])
     x = mean[1, :, N_HARMONIC_COLS:] + c.x_ref

@@ -32,24 +32,25 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._lookup import Lookup, make_lookup, search
-from .batch import RecordBatch
+from .._lookup import Lookup, make_lookup, search
+from ..data.batch import RecordBatch
 
 __all__ = [
-    "EDGES",
     "Columns",
+    "EDGES",
     "WindowPlan",
     "Windows",
     "analyze",
+    "edge_weight",
     "harmonic_from_means",
     "harmonic_windows",
+    "means_from_sums",
     "plan_windows",
     "record_bounds",
     "record_columns",
     "stack_columns",
     "window_sums",
     "with_prefix",
-    "window_sums",
 ]
 
 _EPS_REVS = 1e-4  # float tolerance on window bounds, revolutions
@@ -96,7 +97,7 @@ class WindowPlan(NamedTuple):
 EDGES = ("cell", "linear")
 
 
-def _edge(u, kind: str):
+def edge_weight(u, kind: str):
     """Fraction of a sample's weight inside a window edge, rising from 0 to 1 as the sample
     moves inwards; u is the sample's distance inside the edge in ramp widths h.
 
@@ -244,7 +245,7 @@ def _prefix_window_sums(c: Columns, a, b, reach, kind, taper_revs, plan, select,
     idx = jnp.minimum(idx, T - 1)
     r, wd = rev[idx], width[idx]
     h = jnp.maximum(taper_revs, wd) if kind == "taper" else jnp.where(wd > 0, wd, 1.0)
-    w = wd * inside * _edge((r - a[:, None]) / h, kind) * _edge((b[:, None] - r) / h, kind)
+    w = wd * inside * edge_weight((r - a[:, None]) / h, kind) * edge_weight((b[:, None] - r) / h, kind)
     rows = c.cols[idx]
     edges = jnp.einsum("wn,wnv->wv", w, rows if every else rows[..., list(select)])
     return interior + jnp.concatenate([edges, jnp.sum(w, axis=1, keepdims=True)], axis=1)
@@ -260,7 +261,7 @@ def window_sums(c: Columns, a, b, *, kind: str, taper_revs: float, plan: WindowP
         c: `record_columns` of the record.
         a, b: (W,) window starts and ends, revolutions (any positions, b - a ≤ the plan's
             longest window).
-        kind: edge kind ("cell", "linear" or "taper", see `_edge`).
+        kind: edge kind ("cell", "linear" or "taper", see `edge_weight`).
         taper_revs: ramp width for "taper".
         plan: static sizes (`plan_windows`).
         select: indices of the columns wanted (default all).
@@ -299,7 +300,7 @@ def window_sums(c: Columns, a, b, *, kind: str, taper_revs: float, plan: WindowP
     eb = jnp.clip(eb, 0, nb - 1)
     r, wd = rev.reshape(nb, B)[eb].reshape(W, -1), width.reshape(nb, B)[eb].reshape(W, -1)
     h = jnp.maximum(taper_revs, wd) if kind == "taper" else jnp.where(wd > 0, wd, 1.0)
-    w = wd * inside * _edge((r - a[:, None]) / h, kind) * _edge((b[:, None] - r) / h, kind)
+    w = wd * inside * edge_weight((r - a[:, None]) / h, kind) * edge_weight((b[:, None] - r) / h, kind)
     if stacked:  # one gather of all columns (cheap when the record was stacked once, `stack_columns`)
         rows = c.cols.reshape(nb, B, n_cols)[eb].reshape(W, 2 * nE * B, n_cols)
         edges = jnp.einsum("wn,wnv->wv", w, rows if every else rows[..., list(select)])
@@ -310,7 +311,7 @@ def window_sums(c: Columns, a, b, *, kind: str, taper_revs: float, plan: WindowP
     return interior + edges
 
 
-def _means(sums):
+def means_from_sums(sums):
     wsum = sums[..., -1]
     return sums[..., :-1] / jnp.where(wsum > 0, wsum, 1.0)[..., None], wsum
 
@@ -365,7 +366,7 @@ def harmonic_windows(az, cos_psi, sin_psi, rev, width, time, x, mask, window_rev
     rec_start, rec_end = record_bounds(rev, width, mask)
     a = rec_start + 0.5 * taper_revs + start_revs + hop_revs * jnp.arange(W, dtype=dt)
     b = a + window_revs
-    mean, wsum = _means(window_sums(cols, a, b, kind=kind, taper_revs=taper_revs, plan=plan))
+    mean, wsum = means_from_sums(window_sums(cols, a, b, kind=kind, taper_revs=taper_revs, plan=plan))
     amplitude, phase, t_mid = harmonic_from_means(mean)
     center = jax.vmap(lambda col: jnp.interp(t_mid, time[:T], col), in_axes=1, out_axes=1)(x[:T])
     inside_record = (a - 0.5 * taper_revs >= rec_start - _EPS_REVS) & (b + 0.5 * taper_revs <= rec_end + _EPS_REVS)

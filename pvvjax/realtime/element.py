@@ -60,7 +60,7 @@ class ElementOutput(NamedTuple):
     rejected: bool
 
 
-def _edge(u):
+def edge_weight(u):
     """Part of a sample's hat function inside a window edge (u in hat half-widths); the
     same quadratic ramp as the offline replay's "linear" windows."""
     v = np.clip(u, -1.0, 1.0)
@@ -235,7 +235,7 @@ class VibrationElement:
         means = []
         for lo, hi in edges:
             h = width
-            w = h * _edge((r - lo) / h) * _edge((hi - r) / h)
+            w = h * edge_weight((r - lo) / h) * edge_weight((hi - r) / h)
             w = np.where(np.isfinite(w), w, 0.0)
             means.append(w @ self._x[:n] / w.sum())
         x = means[0]

@@ -28,9 +28,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from .campaign import Campaign
+from ..data.campaign import Campaign
+from ..data.features import derive_features
 from .effects import band
-from .features import derive_features
 
 __all__ = [
     "Candidate",

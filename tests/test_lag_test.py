@@ -1,7 +1,6 @@
-"""The lag study: de-lagging against the exact lag recursion, and the study's nets on a
-world without a hidden lag."""
+"""The lag test: de-lagging against the exact lag recursion, the sign-flip test, and the test
+inside the workflow."""
 
-import importlib
 
 import numpy as np
 import pandas as pd
@@ -9,7 +8,6 @@ import pytest
 
 from pvvjax.discovery import delag
 from pvvjax.discovery._model import _lag_windows, _Windows
-from pvvjax.lag_study import lag_study
 
 
 def _slow_windows(n_counters=4, W=160, dt=0.25):
@@ -31,58 +29,6 @@ def test_delag_undoes_the_exact_lag_recursion():
     perm = np.random.default_rng(0).permutation(len(u))
     np.testing.assert_allclose(delag(y[perm], t[perm], i[perm], 2.0), got[perm], rtol=1e-12)
     np.testing.assert_array_equal(delag(y, t, i, 0.0), y)
-
-
-@pytest.mark.heavy
-def test_a_world_without_a_hidden_lag_gains_nothing_from_nets_trained_through_one(monkeypatch):
-    # The nets train on the de-lagged strided windows (recorded), their offset is refitted,
-    # and on a world with nothing hidden a 2 s lag does not lower the held-out RMS by 5 %.
-    # Nets trained on the windows without a lag (τ = 0: a map of the whole maneuvers, not
-    # only their peaks) have a lower error floor than the peak nets on the same windows.
-    from test_discovery import _BASE, _FAST
-
-    from pvvjax import discovery as D
-    from pvvjax._strict import from_dict
-    from pvvjax.campaign import campaign_from_frames
-    from pvvjax.config import DiscoveryConfig, ExperimentConfig
-    from pvvjax.databases import DB_INPUTS
-    from pvvjax.discovery import _confirm, _fits, _lag, _model
-    from pvvjax.synth import SynthConfig, generate
-
-    lag_study_module = importlib.import_module("pvvjax.lag_study")  # the module (the package exports its function)
-    camp = campaign_from_frames(*generate(from_dict(SynthConfig, {**_BASE, "name": "null", "seed": 51}))[:2])
-    calls, fit = [], D.fit_ensemble
-
-    def recorded(x, y, folds, **kw):
-        calls.append(y)
-        return fit(x, y, folds, **kw)
-
-    monkeypatch.setattr(_confirm, "fit_ensemble", recorded)
-    replays, replay = {}, _model._replay
-    for module in (_confirm, _fits, _lag):  # every caller of lag_study's replays
-        monkeypatch.setattr(module, "_replay", lambda ctx, off: replays.setdefault(off, replay(ctx, off)))
-    cfg = ExperimentConfig(discovery=from_dict(DiscoveryConfig, {**_FAST, "train_stride": 32}))
-    with pytest.raises(ValueError, match="reference_offsets inside discovery.offset_bounds"):
-        lag_study(camp, cfg, reference_offsets=(5.0,))
-    contexts, context = [], lag_study_module._context
-    monkeypatch.setattr(lag_study_module, "_context", lambda *a: contexts.append(context(*a)) or contexts[-1])
-    t = lag_study(camp, cfg, taus=(2.0,), reference_offsets=(), log=lambda m: None)
-    assert list(t.tau_s) == [0.0, 2.0] and len(calls) == 3  # the peak nets, then τ = 0 and 2 s
-    lo, hi = cfg.discovery.offset_bounds
-    assert t.train_offset_s[1] == max(lo, round(t.train_offset_s[0] - 2.0, 6))
-    assert t.offset_s.between(lo, hi).all() and t["drop"][0] == 0.0
-    win = replays[t.train_offset_s[1]].table
-    rows = (win.weight.to_numpy() >= 0.999) & (win.k.to_numpy() % 32 == 0)
-    want = delag(win.measured_g.to_numpy(), win.time_s.to_numpy(), win.i.to_numpy(), 2.0)[rows]
-    np.testing.assert_allclose(calls[2], want, rtol=1e-5)
-    assert t["drop"][1] < 0.05, t
-    win = replays[t.train_offset_s[0]].table
-    rows = (win.weight.to_numpy() >= 0.999) & (win.k.to_numpy() % 32 == 0)
-    np.testing.assert_allclose(calls[1], win.measured_g.to_numpy()[rows], rtol=1e-6)  # τ = 0: as measured
-    peak_nets = D.Model(contexts[0].replay_params, tuple(DB_INPUTS["db1"]))  # the nets that calibrated the offset
-    at = replays[t.offset_s[0]]  # the window nets' refitted offset
-    floor = D.metrics(_model.predictions(contexts[0], peak_nets, at), at)["rms_g"]
-    assert t.rms_g[0] < 0.9 * floor, (t.rms_g[0], floor)
 
 
 def test_sign_flip_test_against_exact_enumeration():
@@ -206,10 +152,10 @@ def test_discover_names_a_long_lag_first_with_nets_trained_through_it(monkeypatc
 
     from pvvjax import discovery as D
     from pvvjax._strict import from_dict
-    from pvvjax.campaign import campaign_from_frames
     from pvvjax.config import DiscoveryConfig, ExperimentConfig
+    from pvvjax.data.campaign import campaign_from_frames
     from pvvjax.discovery import _lag
-    from pvvjax.discovery_report import write_discovery
+    from pvvjax.discovery.report import write_discovery
     from pvvjax.synth import SynthConfig, generate
 
     effects = {**_BASE["effects"], "dynamic_lag": {"params": {"tau_s": 2.0}}}

@@ -30,12 +30,12 @@ import jax.numpy as jnp
 import numpy as np
 import pandas as pd
 
+from .._strict import to_dict
+from ..analysis.databases import DB_INPUTS, OUTPUT
+from ..config import ExperimentConfig, config_hash
+from ..realtime.npnet import read_npz
 from . import train as _train
-from ._strict import to_dict
-from .config import ExperimentConfig, config_hash
-from .databases import DB_INPUTS, OUTPUT
 from .networks import architecture_name, mlp_apply, mlp_init, n_weights, rbf_apply, rbf_fit, scaling
-from .npnet import read_npz
 
 __all__ = [
     "N_INPUTS",
@@ -96,7 +96,8 @@ def stack_data(dbs: dict, databases, folds: int, split_seed: int):
 # --------------------------------------------------------------------------- core
 
 
-def _stack(trees):
+def stack_trees(trees):
+    """One PyTree whose leaves are the given trees' leaves stacked on a new leading axis (NumPy)."""
     return jax.tree.map(lambda *a: np.stack([np.asarray(v) for v in a]), *trees)
 
 
@@ -311,7 +312,7 @@ def run_sweep(cfg: ExperimentConfig, dbs: dict, out: Path, *, progress=None, log
             if bar is not None:
                 bar.update(len(idx))
 
-        train_nets(_stack(params), _stack(gdata), gid, cfg.train, chunk_evals=sw.chunk_evals, on_done=on_done)
+        train_nets(stack_trees(params), stack_trees(gdata), gid, cfg.train, chunk_evals=sw.chunk_evals, on_done=on_done)
     if bar is not None:
         bar.close()
     results = collect(out)
@@ -394,7 +395,7 @@ def heldout_models(out: Path, database: str, conditions, architecture: str | Non
         dict(params=(N, seeds, ...) stacked parameters, idx=(N, inputs) input indices
         (`replay.input_index`)), a per-counter model batch for `calibration`.
     """
-    from .replay import input_index
+    from ..replay.quasistatic import input_index
 
     res = collect(out)
     if res.empty:
@@ -418,7 +419,7 @@ def heldout_models(out: Path, database: str, conditions, architecture: str | Non
         raise ValueError(f"{out}: conditions {missing[:5]} are not held out by any {database} net of the sweep")
     by_fold = {}
     for fold, g in sel.sort_values("seed").groupby("test_fold"):
-        by_fold[int(fold)] = _stack([load_params(Path(out) / "params" / f"{nid}.npz")[0] for nid in g.net_id])
-    params = _stack([by_fold[fold_of[c]] for c in conditions])
+        by_fold[int(fold)] = stack_trees([load_params(Path(out) / "params" / f"{nid}.npz")[0] for nid in g.net_id])
+    params = stack_trees([by_fold[fold_of[c]] for c in conditions])
     idx = np.broadcast_to(input_index(database, N_INPUTS), (len(conditions), N_INPUTS))
     return dict(params=jax.tree.map(jnp.asarray, params), idx=jnp.asarray(idx))

@@ -36,9 +36,9 @@ def networks_results(res: pd.DataFrame, dbs: dict, figures: Path, source: str
     Returns:
         (Markdown, figure paths, held-out predictions).
     """
-    from . import plots
-    from .evaluation import attach_measured, heldout_predictions, table1
-    from .io import markdown_table
+    from .. import plots
+    from ..io import markdown_table
+    from ..nets.evaluation import attach_measured, heldout_predictions, table1
 
     pred = attach_measured(heldout_predictions(res), dbs)
     figs = []
@@ -98,8 +98,8 @@ def pullup_replays(campaign, info, batch, recs, models: dict, tau_all: dict, fig
     Returns:
         (peak summary per offset and database, figure paths).
     """
-    from . import plots
-    from .replay_tables import peak_summary, replay_windows, settings_at, take_counters
+    from .. import plots
+    from ..replay.tables import peak_summary, replay_windows, settings_at, take_counters
 
     i = [list(info.index).index(PULLUP)]
     one, rec1, models1 = info.loc[[PULLUP]], take_counters(recs, i), take_counters(models, i)
@@ -208,7 +208,7 @@ def paper_figures(campaign, windows: pd.DataFrame, peaks: pd.DataFrame, figures:
     Returns:
         ([(caption, path)], comparison rows (`check`)). Cases the campaign lacks are skipped.
     """
-    from . import plots
+    from .. import plots
 
     figures = Path(figures)
     figs, rows = [], []
@@ -355,7 +355,7 @@ def replay_checks(tab: pd.DataFrame) -> pd.DataFrame:
 
 def comparison_markdown(rows: pd.DataFrame) -> str:
     """The comparison rows as Markdown, one table per section, with a count of agreements."""
-    from .io import markdown_table
+    from ..io import markdown_table
 
     checked = rows[rows.agrees != "—"]
     lines = [f"{(checked.agrees == 'yes').sum()} of {len(checked)} checked numbers agree with the paper within the "

@@ -19,10 +19,10 @@ import jax.numpy as jnp
 import numpy as np
 import pandas as pd
 
-from .batch import to_batch
-from .campaign import Campaign
-from .config import AnalysisConfig
-from .features import derive_features
+from ..config import AnalysisConfig
+from ..data.batch import to_batch
+from ..data.campaign import Campaign
+from ..data.features import derive_features
 from .harmonics import Windows, analyze
 
 __all__ = [

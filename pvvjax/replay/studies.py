@@ -17,9 +17,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .config import CalibrationConfig
-from .io import markdown_table
-from .replay_tables import (
+from ..config import CalibrationConfig
+from ..io import markdown_table
+from .tables import (
     calibration_settings,
     calibration_table,
     cost_weights,
@@ -72,7 +72,7 @@ def offset_per_kind(info, batch, recs, models: dict, cc: CalibrationConfig, comm
         common: the common offset per database (`one_offset`).
         figures: folder for the bar chart.
     """
-    from . import plots
+    from .. import plots
 
     tau_all = common.offset_s
     off_cfg = dataclasses.replace(cc, free=("offset_s",), groups="all")
@@ -123,7 +123,7 @@ def window_length(info, batch, recs, models: dict, cc: CalibrationConfig, figure
     Args:
         bounds: the window lengths studied, revolutions.
     """
-    from . import plots
+    from .. import plots
 
     flat, profiles, grids, figs, t_grid = [], {}, {}, [], 0.0
     for label, ref in (("shared windows", 0.0), ("8-rev reference, input window varies", 8.0)):
@@ -167,7 +167,7 @@ def stick_lag(info, batch, recs, models: dict, cc: CalibrationConfig, common: pd
     """A separate lag for the stick inputs (db2, db3): offset and stick lag fitted together
     over all counters, then `counter` replayed with and without it (consecutive 8-rev
     windows). None when the set has no stick database."""
-    from . import plots
+    from .. import plots
 
     stick_dbs = {db: models[db] for db in ("db2", "db3") if db in models}
     if not stick_dbs:

@@ -1,6 +1,6 @@
 """The real-time vibration element as a pure JAX step: (state, frame) -> (state, outputs).
 
-The same element as the NumPy one (`pvvjax.rtelement`, the one to embed in a simulator
+The same element as the NumPy one (`pvvjax.realtime.element`, the one to embed in a simulator
 host), written as a pure function so that it jits, runs a whole record in one
 `lax.scan` (`stream`), and vmaps over records or models. Frames are kept in a ring buffer of
 fixed capacity; a window is computed (by `lax.while_loop`, so a long frame gap catches up)
@@ -18,11 +18,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .constants import UH60A
-from .features import advance_ratio, maneuver_load_factor
-from .harmonics import _edge
-from .networks import apply_for
-from .rtelement import CHANNELS
+from ..analysis.harmonics import edge_weight
+from ..data.constants import UH60A
+from ..data.features import advance_ratio, maneuver_load_factor
+from ..nets.networks import apply_for
+from .element import CHANNELS
 
 __all__ = ["ElementSpec", "ElementState", "StepOutput", "capacity_for", "init", "make_spec", "step", "stream"]
 
@@ -192,7 +192,7 @@ def _window(spec, s: ElementState) -> ElementState:
     h = jnp.where(ok, width, 1.0)
 
     def mean(lo, hi):
-        w = jnp.where(ok, h * _edge((r - lo) / h, "linear") * _edge((hi - r) / h, "linear"), 0.0)
+        w = jnp.where(ok, h * edge_weight((r - lo) / h, "linear") * edge_weight((hi - r) / h, "linear"), 0.0)
         return w @ x / jnp.sum(w)
 
     m_state, m_stick = mean(a_in[0], b_in[0]), mean(a_in[1], b_in[1])

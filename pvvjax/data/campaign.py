@@ -18,9 +18,9 @@ from typing import Mapping
 import numpy as np
 import pandas as pd
 
-from ._strict import ConfigError, from_dict
-from .config import ColumnMap
+from .._strict import ConfigError, from_dict
 from .constants import UH60A, Aircraft
+from .units import ColumnMap
 
 if sys.version_info >= (3, 11):
     import tomllib

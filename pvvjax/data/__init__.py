@@ -1,0 +1,63 @@
+"""Flight-test campaigns and what is derived from them at load time.
+
+`campaign` reads, validates and writes a campaign folder (data-contract §1); `batch` pads
+its records into arrays with a mask; `features` derives μ, MLF, C_W and C_W/σ·n; `units`
+converts foreign columns; `constants` holds the aircraft's rotor constants.
+"""
+
+from .batch import BLOCK, RecordBatch, sample_widths, to_batch
+from .campaign import (
+    MANEUVERS,
+    REQUIRED_CHANNELS,
+    Campaign,
+    CampaignError,
+    Problem,
+    campaign_from_frames,
+    load_campaign,
+    validate_campaign,
+    write_campaign,
+)
+from .constants import DEG_TO_RAD, FPM_TO_FT_S, KT_TO_FT_S, RPM_TO_RAD_S, UH60A, Aircraft
+from .features import (
+    DERIVED_FEATURES,
+    advance_ratio,
+    blade_loading,
+    derive_features,
+    maneuver_load_factor,
+    thrust_coefficient,
+    tip_speed_ft_s,
+)
+from .units import CANONICAL_UNITS, KNOWN_UNITS, ColumnMap, conversion_factor
+
+__all__ = [
+    "Aircraft",
+    "BLOCK",
+    "CANONICAL_UNITS",
+    "Campaign",
+    "CampaignError",
+    "ColumnMap",
+    "DEG_TO_RAD",
+    "DERIVED_FEATURES",
+    "FPM_TO_FT_S",
+    "KNOWN_UNITS",
+    "KT_TO_FT_S",
+    "MANEUVERS",
+    "Problem",
+    "REQUIRED_CHANNELS",
+    "RPM_TO_RAD_S",
+    "RecordBatch",
+    "UH60A",
+    "advance_ratio",
+    "blade_loading",
+    "campaign_from_frames",
+    "conversion_factor",
+    "derive_features",
+    "load_campaign",
+    "maneuver_load_factor",
+    "sample_widths",
+    "thrust_coefficient",
+    "tip_speed_ft_s",
+    "to_batch",
+    "validate_campaign",
+    "write_campaign",
+]
