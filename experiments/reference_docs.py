@@ -10,8 +10,7 @@ Prints both; with --docs writes them (tests check that the files are current).
 import argparse
 from pathlib import Path
 
-from pvvjax._apidoc import api_reference
-from pvvjax.cli import cli_reference
+from pvvjax.cli import api_reference, cli_reference
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 

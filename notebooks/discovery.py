@@ -20,7 +20,7 @@
 # the map's own error floor, and significantly), and whether adding it to the model and
 # retraining closes the gap.
 #
-# The world is the base world of the hidden-effect benchmark (`experiments/discovery_benchmark.py`):
+# The world is the base world of the hidden-effect benchmark (`research/discovery_benchmark.py`):
 # the default physics without the two transients no database carries and without
 # autorotations, plus a hidden sideslip effect. The settings are light (3 seeds, one round)
 # so that the notebook runs in a couple of minutes. The generator's ground truth stays in a
@@ -35,8 +35,7 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 
 from pvvjax import plots
-from pvvjax._strict import from_dict
-from pvvjax.config import DiscoveryConfig, ExperimentConfig
+from pvvjax.config import DiscoveryConfig, ExperimentConfig, from_dict
 from pvvjax.data.campaign import campaign_from_frames
 from pvvjax.discovery import discover, selection_gain, summary
 from pvvjax.synth import SynthConfig, generate

@@ -12,6 +12,7 @@ import sys
 import time
 from pathlib import Path
 
+from ._apidoc import api_reference
 from .experiment import (
     _progress,
     campaign_plots,
@@ -24,7 +25,7 @@ from .experiment import (
     write_databases,
 )
 
-__all__ = ["main"]
+__all__ = ["api_reference", "cli_reference", "main"]
 
 
 def _experiment(args):

@@ -36,8 +36,10 @@ __all__ = [
     "SweepConfig",
     "TrainConfig",
     "config_hash",
+    "from_dict",
     "load_config",
     "load_toml",
+    "to_dict",
 ]
 
 

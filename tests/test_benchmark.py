@@ -1,4 +1,4 @@
-"""Scoring of the hidden-effect benchmark (experiments/discovery_benchmark.py): the
+"""Scoring of the hidden-effect benchmark (research/discovery_benchmark.py): the
 attributable shrink against the right reference. The discovery runs themselves are tested
 in test_discovery.py and the discovery notebook."""
 
@@ -17,7 +17,7 @@ ROOT = Path(__file__).parents[1]
 
 @pytest.fixture(scope="module")
 def bench():
-    path = ROOT / "experiments" / "discovery_benchmark.py"
+    path = ROOT / "research" / "discovery_benchmark.py"
     spec = importlib.util.spec_from_file_location("discovery_benchmark", path)
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
@@ -82,7 +82,7 @@ def test_a_null_whose_lag_test_confirmed_is_measured_by_the_nets_of_the_scenario
 def test_the_nulls_of_the_lag_scenarios_seeds_run_the_trainings_through_lags(bench, monkeypatch):
     # A lag scenario's gap is measured by its null's window nets (the lag test's reference
     # row, above), which discover trains only where it confirms a lag, unless told to.
-    scenarios, overrides = bench.scenario_configs(ROOT / "experiments" / "configs" / "discovery" / "benchmark.toml", 3)
+    scenarios, overrides = bench.scenario_configs(ROOT / "research" / "configs" / "benchmark.toml", 3)
     by = {s["name"]: s for s in scenarios}
     assert [s["name"] for s in scenarios if s["discovery"]] == ["null-31"]
     assert by["null-31"]["seed"] == by["long-lag"]["seed"] == 34
@@ -96,7 +96,7 @@ def test_the_nulls_of_the_lag_scenarios_seeds_run_the_trainings_through_lags(ben
 
 
 def test_the_weight_scenarios_reference_is_its_world_without_the_weights_effect(bench):
-    scenarios, _ = bench.scenario_configs(ROOT / "experiments" / "configs" / "discovery" / "benchmark.toml", 2)
+    scenarios, _ = bench.scenario_configs(ROOT / "research" / "configs" / "benchmark.toml", 2)
     (weight,) = [s for s in scenarios if s["reference_world"] is not None]
     # its world is the null world of its seed: nothing hidden in the generator, db3 lacks the weight
     (null,) = [s for s in scenarios if s["truth"] is None and s["seed"] == weight["seed"]]
@@ -127,7 +127,7 @@ def test_an_update_replaces_its_scenarios_rows_and_keeps_the_others(bench, tmp_p
     with pytest.raises(SystemExit, match="no results to update"):
         bench._previous(tmp_path / "none.parquet", cfg)
     # a hidden scenario measured against a null needs that null beside it
-    scenarios, _ = bench.scenario_configs(ROOT / "experiments" / "configs" / "discovery" / "benchmark.toml")
+    scenarios, _ = bench.scenario_configs(ROOT / "research" / "configs" / "benchmark.toml")
     by = {s["name"]: s for s in scenarios}
     bench._check_update([by["weight-missing-db3"]])  # its own reference world
     bench._check_update([by["null-41"], by["roll-rate"]])
@@ -218,7 +218,7 @@ def test_by_scenario_counts_each_scenarios_worlds_over_the_seed_offsets(bench):
 
 
 def test_find_scenario_shifts_the_seed_and_names_the_scenarios_of_an_unknown_one(bench):
-    config = ROOT / "experiments" / "configs" / "discovery" / "benchmark.toml"
+    config = ROOT / "research" / "configs" / "benchmark.toml"
     base, _ = bench.find_scenario(config, 0, "long-lag")
     shifted, overrides = bench.find_scenario(config, 3, "long-lag")
     assert shifted["seed"] == base["seed"] + 3 and overrides == bench.scenario_configs(config, 3)[1]

@@ -1,6 +1,6 @@
 """Discovery workflow: its numerical pieces against brute-force references, and end to end
 on a small synthetic world with a hidden effect and the same world without it (the fast
-subset of the hidden-effect benchmark, experiments/discovery_benchmark.py)."""
+subset of the hidden-effect benchmark, research/discovery_benchmark.py)."""
 
 import json
 from dataclasses import replace
@@ -589,134 +589,10 @@ def test_a_weak_name_brings_its_runner_up_on_other_channels_which_beyond_its_flo
     assert _rival(1, other, alternatives, channels, taken, 0.05, 0.02) == (1, 0.082)
 
 
-def _rechoose_module():
-    """experiments/discovery_rechoose.py, imported (it is a script, not a package module)."""
-    import importlib.util
-    from pathlib import Path
-
-    path = Path(__file__).parents[1] / "experiments" / "discovery_rechoose.py"
-    spec = importlib.util.spec_from_file_location("discovery_rechoose", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
-def test_rechoose_replays_a_rounds_choice_from_rounds_csv_and_flags_a_change():
-    # experiments/discovery_rechoose.py: pitch rate 51's round 1 as rounds.csv logged it under
-    # the old rule (the yaw-rate knee named), written before the proposal/source columns.
-    mod = _rechoose_module()
-    nan = float("nan")
-    rows = [  # candidate, name, operator, augment, shrink, gain, p, control, confirmed, chosen
-        ("input:yaw_rate_dps:coefficient=0.002,offset_s=0.6,transform=abs", "yaw rate magnitude", "input", "additive",
-         0.078, 0.0722, 1.0, 0.020, True, False),
-        ("input:yaw_rate_dps:offset_s=0.6,transform=abs", "yaw rate magnitude", "input", "input",
-         0.071, 0.0722, nan, nan, False, False),
-        ("threshold:yaw_rate_dps:above=True,coefficient=0.01,knee=0.0257,offset_s=0.6", "yaw rate knee", "threshold",
-         "additive", 0.054, 0.0725, 0.17, 0.028, True, True),
-        ("input:pitch_rate_dps:offset_s=0.6,transform=abs", "pitch rate magnitude", "input", "input",
-         0.061, 0.0634, 0.33, 0.094, True, False),
-        ("resonance:rotor_rpm:center=244.9,gain=0.3,offset_s=0.6,width=3.2", "rotor speed resonance", "resonance",
-         "gain", -0.058, -0.058, nan, nan, False, False),
-    ]
-    cols = ["candidate", "name", "operator", "augment", "shrink", "cv_gain", "p_best_better", "control_shrink",
-            "confirmed", "chosen"]
-    rounds = pd.DataFrame(rows, columns=cols).assign(round=1)
-    rounds = pd.concat([pd.DataFrame([dict(round=0, name="input-to-vibration lag", confirmed=False,
-                                           chosen=False)]), rounds], ignore_index=True)
-    now = mod.rechoose(rounds, 0.02, 0.01, 0.05)
-    assert now.to_dict("records") == [dict(round=1, logged="yaw rate knee (additive)",
-                                           recomputed="pitch rate magnitude (input)", changed=True, unmeasured="")]
-    assert not mod.rechoose(rounds, 0.02, 0.01, -np.inf).changed.any()  # the rule it was logged under
-    # A term and an input of one proposal share it (the term's coefficient is not part of it);
-    # a band without a gain_unit is the probe's, which the selection did not rank.
-    t = mod.tries(rounds[rounds.confirmed.astype(bool)])
-    assert [x[3] for x in t] == ["input:yaw_rate_dps:offset_s=0.6,transform=abs",
-                                 "threshold:yaw_rate_dps:above=True,knee=0.0257,offset_s=0.6",
-                                 "input:pitch_rate_dps:offset_s=0.6,transform=abs"]
-    band = rounds.iloc[[5]].assign(confirmed=True)
-    assert np.isnan(mod.tries(band)[0][1])
-    assert mod.tries(band.assign(candidate=band.candidate + ",gain_unit=10"))[0][1] == -0.058
-    # With the columns a discovery now writes, those are used as they are.
-    new = rounds.assign(proposal="p", source="selection")
-    assert {x[3] for x in mod.tries(new[new.confirmed.astype(bool)])} == {"p"}
-    assert not mod.rechoose(new, 0.02, 0.01, 0.05).changed.any()  # one proposal: all beyond or none
-    # `augment_tie = "additive"`: the pitch-rate term (not confirmed alone) named in place of its
-    # input, as the term's logged p and shrink tie it; the old rule or no tie names the input,
-    # and the yaw-rate knee's choice (no floor first) is another proposal.
-    term = dict(round=1, candidate="input:pitch_rate_dps:coefficient=0.01,offset_s=0.6,transform=abs",
-                name="pitch rate magnitude", operator="input", augment="additive", shrink=0.054, cv_gain=0.0634,
-                confirmed=False, chosen=True, p_input_better=0.4)
-    tie = pd.concat([rounds.assign(chosen=False), pd.DataFrame([term])], ignore_index=True)
-    assert mod.rechoose(tie, 0.02, 0.01, 0.05, augment_tie="additive").to_dict("records") == [dict(
-        round=1, logged="pitch rate magnitude (additive)", recomputed="pitch rate magnitude (additive)",
-        changed=False, unmeasured="")]
-    assert mod.rechoose(tie, 0.02, 0.01, 0.05, augment_tie="shrink").recomputed.tolist() == [
-        "pitch rate magnitude (input)"]
-    beaten = tie.assign(shrink=tie.shrink.where(tie.index != tie.index[-1], 0.030),
-                        p_input_better=tie.p_input_better.where(tie.index != tie.index[-1], 0.001))
-    assert mod.rechoose(beaten, 0.02, 0.01, 0.05, augment_tie="additive").changed.all()  # not tied: the input
-    assert mod.rechoose(tie, 0.02, 0.01, -np.inf, augment_tie="additive").changed.all()
-
-
-
-def test_rechoose_replays_encompassing_from_the_shares_a_round_logged():
-    # Roll rate 56's round 1 as the workflow logged it with `encompassing` (fresh seeds + 15),
-    # before `kept_against`: |ṙ| led on gain; |p| kept 0.33 of its coefficient on top of it
-    # (|ṙ| -0.07) and was named, then the roll-angle rate (0.036) lost to |p| (0.037).
-    mod = _rechoose_module()
-    nan = float("nan")
-    p, r, a = ("input:roll_rate_dps:offset_s=0.5,transform=abs", "abs_rate:yaw_rate_dps:offset_s=0.5",
-               "abs_rate:roll_angle_deg:offset_s=0.5")
-    rows = [  # proposal, name, operator, channels, augment, shrink, gain, p, control, p_input_better, shares, chosen
-        (p, "roll rate magnitude", "input", "roll_rate_dps", "additive", 0.2229, 0.2820, 0.3282, 0.267, 0.9558,
-         0.3295, -0.0710, True),
-        (p, "roll rate magnitude", "input", "roll_rate_dps", "input", 0.1487, 0.2820, 0.0028, 0.293, nan, nan, nan,
-         False),
-        (r, "yaw acceleration magnitude", "abs_rate", "yaw_rate_dps", "additive", 0.2158, 0.3132, 0.2551, 0.291,
-         0.2551, nan, nan, False),
-        (r, "yaw acceleration magnitude", "abs_rate", "yaw_rate_dps", "input", 0.2390, 0.3132, 1.0, 0.307, nan, nan,
-         nan, False),
-        (a, "roll angle rate magnitude", "abs_rate", "roll_angle_deg", "additive", 0.2227, 0.2821, 0.3258, 0.304,
-         0.9004, 0.0361, 0.0374, False),
-        (a, "roll angle rate magnitude", "abs_rate", "roll_angle_deg", "input", 0.1631, 0.2821, 0.0163, 0.321, nan,
-         nan, nan, False),
-    ]
-    cols = ["proposal", "name", "operator", "channels", "augment", "shrink", "cv_gain", "p_best_better",
-            "control_shrink", "p_input_better", "kept_on_top", "named_kept_on_top", "chosen"]
-    rounds = pd.DataFrame(rows, columns=cols).assign(round=1, confirmed=True, source="selection")
-    settings = (0.02, 0.01, 0.05, 0.5)
-
-    def again(df, encompassing=True):
-        return mod.rechoose(df, *settings, augment_tie="additive", encompassing=encompassing).iloc[0]
-
-    assert not again(rounds).changed and again(rounds).unmeasured == ""  # the folder's own run
-    assert again(rounds, False).recomputed == "yaw acceleration magnitude (additive)"  # the rule off: the gain
-    # Without `kept_against`, each pair's named is the one the folder's settings had at its step.
-    shares = mod.logged_shares(rounds, mod.tries(rounds), settings)
-    assert shares == {(r, p): (0.3295, -0.0710), (p, a): (0.0361, 0.0374)}
-    logged = rounds.assign(kept_against=[r, None, None, None, p, None])
-    assert mod.logged_shares(logged, mod.tries(logged), settings) == shares
-    assert again(logged).recomputed == "roll rate magnitude (additive)"
-    # The roll-angle rate keeping more on top of |p| than |p| on top of it would be named.
-    won = logged.assign(kept_on_top=logged.kept_on_top.where(logged.kept_against != p, 0.05))
-    assert again(won).recomputed == "roll angle rate magnitude (additive)" and again(won).changed
-    # ... by more than the margin (0.05 against 0.037 is not by 0.1).
-    kept = mod.rechoose(won, *settings, augment_tie="additive", encompassing=True, margin=0.1).iloc[0]
-    assert kept.recomputed == "roll rate magnitude (additive)" and not kept.changed
-    # A folder run without the rule has no shares: the rounds with a tie to measure are listed.
-    bare = rounds.drop(columns=["kept_on_top", "named_kept_on_top"])
-    row = again(bare)
-    assert row.unmeasured == "roll rate magnitude; roll angle rate magnitude"
-    assert row.recomputed == "yaw acceleration magnitude (additive)"
-    # Ties on one source channel, or a rival whose term did not confirm, are not compared.
-    assert again(bare.assign(channels="roll_rate_dps")).unmeasured == ""
-    alone = bare[~((bare.proposal == p) & (bare.augment == "additive"))]
-    assert again(alone.assign(chosen=alone.proposal.eq(p))).unmeasured == "roll angle rate magnitude"
-
 # --------------------------------------------------------------------------- end to end
 # The hidden-effect case runs in notebooks/discovery.py (a hidden sideslip effect named
 # first, attributable shrink >= 0.5, asserted there); the null case here, through the CLI.
-# Both use the base world of experiments/configs/discovery/benchmark.toml.
+# Both use the base world of research/configs/benchmark.toml.
 
 _FAST = dict(seeds=3, proposals=2, max_effects=1, offset_step_s=0.25)
 _BASE = dict(maneuvers=("level", "climb", "descent", "turn", "roll", "pushover", "pullup", "flare"),
@@ -1270,11 +1146,10 @@ def test_with_augment_tie_additive_a_named_input_gives_way_to_its_proposals_term
     assert ("p_input_better" in write_discovery(res, tmp_path / "out", cfg).read_text()) == (augment_tie == "additive")
 
 
-def test_every_confirmed_inputs_term_logs_the_p_that_rechoose_replays_the_way_from(monkeypatch, small_campaign_dir):
+def test_every_confirmed_inputs_term_logs_the_p_of_the_way_it_was_chosen(monkeypatch, small_campaign_dir):
     # Two proposals, each retrained as a term (forced not to confirm) and as an input
-    # (confirms): with `augment_tie = "additive"` both terms log `p_input_better`, so that
-    # experiments/discovery_rechoose.py replays the way for whichever input a round names,
-    # and replaying the run's own settings gives back the logged choice.
+    # (confirms): with `augment_tie = "additive"` both terms log `p_input_better`, the p of
+    # the way chosen for whichever input a round names.
     from pvvjax.config import DiscoveryConfig, ExperimentConfig, TrainConfig
     from pvvjax.discovery import _round, _workflow, discover
     from pvvjax.discovery.selection import Selected
@@ -1299,11 +1174,6 @@ def test_every_confirmed_inputs_term_logs_the_p_that_rechoose_replays_the_way_fr
     assert list(rows.augment) == ["additive", "input"] * 2 and rows.proposal.nunique() == 2
     assert rows.p_input_better.notna().tolist() == [True, False, True, False]
     assert list(rows[rows.chosen].augment) == ["additive"]  # 0.05 against 0.06: within shrink_noise
-
-    mod = _rechoose_module()
-    again = mod.rechoose(res.rounds, d.shrink_noise, d.alpha, d.min_shrink, d.tie_share, d.augment_tie)
-    assert len(again) == 1 and not again.changed.any()
-    assert mod.rechoose(res.rounds, d.shrink_noise, d.alpha, d.min_shrink, d.tie_share, "shrink").changed.all()
 
 
 def test_a_term_on_top_of_itself_keeps_little_of_its_coefficient_and_on_top_of_another_channel_most(

@@ -113,15 +113,13 @@ def _confirm(ctx: _Ctx, current: Model, trial: Model, c: Candidate, where: str, 
     for a lag, the kinds that hold most of the change it makes), so that an effect of a few
     maneuver kinds is not diluted among all windows.
 
-    The ensemble, not each seed: one net retrained on ~200 peaks moves its held-out RMS by
-    ±8 % by itself (a seed's RMS is 0.045–0.052 g on the same world), so a median of per-seed
-    shrinks still swings by a few percent, where the median prediction averages that out
-    (a retrained placebo input moves it by < 2 %).
+    The ensemble, not each seed: one net retrained on a few hundred peaks moves its held-out
+    RMS by several percent by itself, so a median of per-seed shrinks still swings, where the
+    median prediction averages that noise out.
 
     A lag must also have a time constant inside `lag_taus`: at the largest the fit wants ever
     more smoothing, which damps the nets' over-response in transients whether or not the
-    vibration lags (on benchmark worlds a 4 s lag lowers the window RMS 4–5 % without a lag
-    or with the default 0.6 s one, 6–7 % with a 2 s one): a smoother, not a measured lag.
+    vibration lags: a smoother, not a measured lag.
 
     Returns:
         (confirmed, dict of the trial's predictions and windows, metrics, shrinks, region,
@@ -158,8 +156,7 @@ def _control_refinements(refinements, c: Candidate) -> tuple:
     """The floor refinements a try of `c` is controlled by: those not built from any channel
     `c` is built from (`source_channels`). An effect that acts through the model's own inputs
     (a mode of rotor speed; the pitch rate, which the load factor carries) is partly a knee
-    of them: a control holding that knee would test the effect against a piece of itself
-    (measured: the right first name lost on two benchmark worlds, docs/discovery-studies.md)."""
+    of them: a control holding that knee would test the effect against a piece of itself."""
     mine = source_channels(c.channels)
     return tuple(r for r in refinements if not source_channels(r.channels) & mine)
 
@@ -176,19 +173,11 @@ def _floor_control(ctx: _Ctx, current: Model, refinements) -> Model | None:
     the same way), where only an effect still lowers it; or, failing that, against the
     control with the try alone (`_confirm` of the try's model against the control's), where
     the control predicts at least as well as the current model (a try that beat the current
-    model beats a worse control too: on two fresh long-lag worlds, whose controls were 12 %
-    and 17 % worse, a band passed that way and nothing else in 99 logged worlds did). A floor
-    proxy predicts no better than the refinements it stands for, but the control's extra
-    inputs can cost an effect more than they explain: on a rotor-resonance world two
-    climb-rate knees, uncorrelated with the band (r = -0.01), left it +4.8 % on top of them,
-    where alone it beat them by 13.3 % (docs/discovery-studies.md). On the benchmark's worlds
-    measured, no try rejected on top of a control beat it alone except the truth's. On a
-    control, the RMS over all windows may rise by `shrink_noise` (the retraining's noise)
-    where the try gains twice `min_shrink` where it acts (the bar of a gain over all windows
-    alone): the control's inputs move every window (on pitch acceleration 40 they lower the
-    RMS 23 %), and |q̇| on top of them gained 19.6 % in the pull-ups, pushovers and flares and
-    lost 1.2 % over all windows. With `min_shrink` where it acts, a load factor (+6.8 % there,
-    −0.4 % over all windows) became a second name on collective stall 55, a floor proxy."""
+    model beats a worse control too). A floor proxy predicts no better than the refinements it
+    stands for, while an effect still lowers the RMS on top of them. On a control, the RMS
+    over all windows may rise by `shrink_noise` (the retraining's noise) where the try gains
+    twice `min_shrink` where it acts: the control's inputs move every window, so an effect of
+    a few maneuver kinds can gain where it acts and lose a little elsewhere."""
     if not refinements:
         return None
     control = current._replace(extra=current.extra + tuple(refinements))
@@ -338,9 +327,7 @@ def _choose(tries, noise: float, alpha: float, min_shrink: float, share: float =
     A tied try without a selection gain competes with the selection's pick on the shrink
     alone: a probe's band is a column the selection cannot credit (a mode the nets learned as
     a mean per rotor-speed level leaves no prediction × band residual), so its gain, ~0, says
-    nothing. Measured on a held-out resonance world (seed 35): the mode lowers the RMS 16.5 %,
-    a collective knee 4.3 %, p = 0.011 by condition; by the gains (−0.026 against 0.071) the
-    knee was named.
+    nothing about it.
     """
     tied = _ties(tries, noise, alpha, min_shrink, share)
     ranked = [i for i in tied if np.isfinite(tries[i][1])]

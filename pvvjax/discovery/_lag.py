@@ -58,8 +58,7 @@ _LAG_REFERENCE_OFFSETS = (0.0, 0.5)
 
 # The flight state a lag is learned from, whatever the model's database: the controls of
 # db2 and db3 lead the state by the airframe's response, which a lag learned from them would
-# measure (weight missing from db3, seed 41: τ 2.80 s from db3's inputs, 2.02 s on the same
-# world without the weight's effect, 1.37 s from these).
+# measure as well.
 _STATE_INPUTS = DB_INPUTS["db1"]
 
 
@@ -118,9 +117,8 @@ def _lag_test(ctx: _Ctx, delta: float, log) -> dict:
     """Is there a lag slower than the fast dynamics the offset stands for? Judged by a lag
     learned inside one training (`_learned_lag`): confirmed if its τ, the median over folds
     × seeds, is at least `lag_slow_s`. At the lowest offset the learned τ takes the delay
-    and the fast dynamics too (rotor inflow and wake settle within about a second): on the
-    benchmark's worlds without a slow lag it is 0.9-1.9 s, with a 2 s lag 2.6-3.2 s, and it
-    moves by tenths of a second over folds and seeds (docs/discovery-studies.md).
+    and the fast dynamics too (rotor inflow and wake settle within about a second), so the
+    threshold sits above them; it moves by tenths of a second over folds and seeds.
 
     The lag is then added as window nets trained through it (`_lag_trials` at
     `lag_test_taus`): the reference is the best ensemble without a lag or with one of at
@@ -128,11 +126,10 @@ def _lag_test(ctx: _Ctx, delta: float, log) -> dict:
     reference is reported, over all windows and where it acts (the maneuver kinds where
     lagging the reference's prediction by the slow τ changes it, `_active_kinds`), with the
     p-value of a sign-flip test by condition (`_paired_sign_flip`). It is not required: the
-    difference of two window trainings moves by up to 18 points with the nets'
-    initialization, and a null world's nets trained through a 2 s lag gained as much as a
-    lag world's (docs/discovery-studies.md), where the learned τ separates them. So where the
-    learned τ confirms no lag the trainings, which would decide nothing, are skipped unless
-    `lag_trials_always`.
+    difference of two window trainings moves with the nets' initialization, and nets trained
+    through a slow lag can gain without one, where the learned τ separates the two. So where
+    the learned τ confirms no lag the trainings, which would decide nothing, are skipped
+    unless `lag_trials_always`.
 
     Returns:
         dict: table (one row per ensemble, the learned lag's first), learned

@@ -195,10 +195,9 @@ def _resonance_probe(ctx: _Ctx, model: Model, proposals, lib: list[Candidate], M
     if any(lib[j].operator == "resonance" for _, j, _ in proposals):
         return proposals
     if model.through_lag or d.train_rows == "windows":
-        # Measured on peak nets only: on null worlds the forced band of the largest gain makes
-        # their prediction worse. Nets trained on the windows under-predict the lowest rotor
-        # speed, where the fewest conditions are, and a gain there corrects them out of
-        # sample although the world has no mode (the long-lag worlds, after the lag test).
+        # The probe is for peak nets: nets trained on the windows under-predict the lowest
+        # rotor speed, where the fewest conditions are, and a gain there corrects them out of
+        # sample although the campaign has no mode.
         log("resonance probe: skipped, the nets train on the windows (the probe is calibrated on peak nets)")
         return proposals
     bands = [(j, c) for j, c in enumerate(lib)
@@ -268,10 +267,9 @@ def _probe_test(conf: dict, current: dict, c: Candidate, seed: int, alpha: float
     """The p-value and explained fraction of a probe's band (`_resonance_probe`), which the
     selection gives none, from its retraining. p: that the retrained ensemble predicts better
     than the current one by condition where the band acts (its value ≥ 0.5: a mode magnifies
-    the conditions at its rotor speeds), one-sided sign flips. Required at `probe_alpha`, not
-    `alpha`: measured, the modes of two resonance worlds score 0.018 (seeds + 2; 0.013 over
-    all conditions) and 0.029 (seeds + 4), bands that confirmed on their shrink without a
-    mode 0.802 (beside a sideslip effect; 0.021 over all) and 0.41 (a null world, seeds + 3).
+    the conditions at its rotor speeds), one-sided sign flips. Required at `probe_alpha`, a
+    looser level than `alpha`: a real mode acts on few conditions, so its p-value by condition
+    stays above `alpha`, while a band without a mode scores far above either.
 
     Args:
         conf: `_confirm`'s (the trial's predictions and windows). current: the current

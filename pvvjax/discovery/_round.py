@@ -139,7 +139,7 @@ class _Round:
                                           slack=d.shrink_noise)
                 # Or the try alone beats the control (`_floor_control`), where the control predicts
                 # at least as well as the current model: beating a worse one, the try has shown
-                # nothing its first confirmation had not (on two fresh long-lag worlds, a band).
+                # nothing its first confirmation had not.
                 control_worse = on_control["ensemble"][0] > conf["ensemble"][0]
                 if not ok and not control_worse:
                     ok, over_control = _confirm(ctx, control, trial, added, where, d, slack=d.shrink_noise)
@@ -316,7 +316,7 @@ class _Round:
             return named
         # The tries were refitted on the peak nets, whose residual holds a term short; the
         # named one alone is refitted on window nets, so floor structure that no try
-        # confirmed on the peaks cannot be named through it (docs/discovery-studies.md).
+        # confirmed on the peaks cannot be named through it.
         term = named.trial.terms[-1][0]
         w_trial = _augment(self.ctx, self.current, term, "additive", refit="windows")
         kept, w_conf = _confirm(self.ctx, self.current, w_trial, term, named.where, d)

@@ -100,9 +100,9 @@ class Discovery:
 
 def _with_baseline_row(table: pd.DataFrame, offset_s: float, m: dict, reference_rms: float) -> pd.DataFrame:
     """The lag test's table with a first row for the nets the test started from (role
-    "baseline": the peak nets at their offset, no lag; `m` their `metrics`), so that a world
-    whose lag test confirmed still reports the plain baseline that worlds without a lag are
-    measured by (e.g. a null world as the reference of its seed's hidden worlds)."""
+    "baseline": the peak nets at their offset, no lag; `m` their `metrics`), so that a
+    campaign whose lag test confirmed still reports the plain baseline that campaigns without
+    a lag are measured by."""
     row = _table_row(np.nan, np.nan, offset_s, m) | dict(
         role="baseline", drop=1.0 - m["ensemble_rms_g"] / reference_rms, chosen=False)
     return pd.concat([pd.DataFrame([row]), table], ignore_index=True)
@@ -264,7 +264,7 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
         resid = win.table.measured_g.to_numpy() - yhat
         # A lag test that ran is the lag's judge: its trainings through the lag are the finer
         # test, and a lag of the prediction that a round confirms after it rejected one is a
-        # smoother of the nets' transients (measured on a null world: τ 2.1 s, −2.9 %).
+        # smoother of the nets' transients.
         lib, C, flib, F = _candidate_matrix(ctx, current, win, yhat, used, lags=lag is None)
         sel_rows = full & (win.table.k.to_numpy() % d.selection_stride == 0)
         own = floor_features(current.inputs)

@@ -53,8 +53,8 @@ class SynthConfig:
         vibration_weight_lb: the gross weight the vibration sees, lb. `None`: each condition's
             own. A number holds it fixed in the blade loading of every effect, while the flight
             (trim, controls, the `gross_weight_lb` column) keeps each condition's own: the same
-            campaign with a 4P level that does not depend on weight (the reference world of
-            a study of weight missing from a database).
+            campaign with a 4P level that does not depend on weight (a reference for a study
+            of weight missing from a database).
     """
 
     name: str = "uh60a-synthetic"

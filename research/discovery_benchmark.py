@@ -8,7 +8,7 @@ the effect ranked first, its fitted parameter, and the attributable shrink
 taken away from the model, before on the same campaign generated without the input's
 effect: the scenario's `reference_world`).
 
-    python experiments/discovery_benchmark.py experiments/configs/discovery/benchmark.toml [--only a,b] [--docs]
+    python research/discovery_benchmark.py research/configs/benchmark.toml [--only a,b] [--docs]
         [--seed-offsets 0,1]   # and again with every seed shifted by 1 (a replication)
         [--set KEY=VALUE ...]  # [discovery] settings over the config's (a sensitivity run)
         [--reuse]              # read OUT's results instead of running (--docs after parallel runs)
@@ -17,7 +17,7 @@ effect: the scenario's `reference_world`).
 
 Writes runs/discovery-benchmark/ (results table, each scenario's discovery.json and
 report; seed offset N in runs/discovery-benchmark/seed+N/); with --docs also
-docs/discovery-benchmark.md.
+research/discovery-benchmark.md.
 """
 
 from __future__ import annotations
@@ -31,8 +31,7 @@ from types import SimpleNamespace
 import numpy as np
 import pandas as pd
 
-from pvvjax._strict import from_dict, to_dict
-from pvvjax.config import DiscoveryConfig, ExperimentConfig, config_hash, load_toml
+from pvvjax.config import DiscoveryConfig, ExperimentConfig, config_hash, from_dict, load_toml, to_dict
 from pvvjax.data.campaign import campaign_from_frames
 from pvvjax.discovery import discover, selection_gain, summary
 from pvvjax.discovery.report import write_discovery
@@ -391,7 +390,7 @@ def main():
     ap.add_argument("config")
     ap.add_argument("--only", default="", help="comma-separated scenario names")
     ap.add_argument("--out", default="runs/discovery-benchmark")
-    ap.add_argument("--docs", action="store_true", help="also write docs/discovery-benchmark.md")
+    ap.add_argument("--docs", action="store_true", help="also write research/discovery-benchmark.md")
     ap.add_argument("--exclude", nargs="+", default=[], metavar="CHANNEL",
                     help="channels left out of the candidates (added to [discovery] exclude_channels)")
     ap.add_argument("--set", nargs="+", action="extend", default=[], metavar="KEY=VALUE", dest="settings",
@@ -578,7 +577,7 @@ Worlds on the other side of 0.5 ({len(flipped)}):
 
 
 def write_docs(tables: dict, config: str, offsets: str, found: dict | None = None, settings=()):
-    """docs/discovery-benchmark.md from the offsets' tables; `settings`: the run's `--set`
+    """research/discovery-benchmark.md from the offsets' tables; `settings`: the run's `--set`
     items, which its command line repeats."""
     tables = {off: _blank(t) for off, t in tables.items()}
     sets = "".join(f" --set {v}" for v in settings)
@@ -609,7 +608,7 @@ def write_docs(tables: dict, config: str, offsets: str, found: dict | None = Non
 """ for off, t in reps.items())
     text = f"""# Discovery: hidden-effect benchmark
 
-Command: `python experiments/discovery_benchmark.py {config} --seed-offsets {offsets}{sets} --docs`
+Command: `python research/discovery_benchmark.py {config} --seed-offsets {offsets}{sets} --docs`
 (2-core VM, {time.strftime('%Y-%m-%d')}; `seconds` is the wall time of each scenario:
 generation, training, offset, selection, retraining and replays).
 
@@ -639,7 +638,7 @@ On the config's seeds:
   baseline (a gap to attribute); the others count as below 0.5. Before, after and the
   null's before come from three trainings: on a world whose gap is a few times the
   training noise, one world's value moves with the training seed alone (the same term on
-  pitch acceleration 31: 0.18–1.15 with four nets per fold; docs/discovery-studies.md, "How noisy
+  pitch acceleration 31: 0.18–1.15 with four nets per fold; research/notes/discovery-studies.md, "How noisy
   is one world's attributable shrink").
 - `peak_*`: mean abs peak error over counters (g); `phase_*`: mean abs peak-time error over
   the transient counters (s; 3–5 s already on the null worlds, where a flat counter's
@@ -669,8 +668,8 @@ null scenario, "right first" counts the worlds where nothing was named).
 The same scenarios, every seed shifted (other conditions, pilot inputs and scatter; the
 same physics and discovery settings).
 {replication}""" if reps else "") + _remeasured_section(found or {}) + _FAST_SUBSET
-    (ROOT / "docs" / "discovery-benchmark.md").write_text(text)
-    print(f"wrote {ROOT / 'docs' / 'discovery-benchmark.md'}")
+    (ROOT / "research" / "discovery-benchmark.md").write_text(text)
+    print(f"wrote {ROOT / 'research' / 'discovery-benchmark.md'}")
 
 
 if __name__ == "__main__":
