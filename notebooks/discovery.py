@@ -35,7 +35,14 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 
 from pvvjax import plots
-from pvvjax.config import DiscoveryConfig, ExperimentConfig, from_dict
+from pvvjax.config import (
+    DiscoveryConfig,
+    EnsembleConfig,
+    ExperimentConfig,
+    OffsetConfig,
+    SelectionConfig,
+    from_dict,
+)
 from pvvjax.data.campaign import campaign_from_frames
 from pvvjax.discovery import discover, selection_gain, summary
 from pvvjax.synth import SynthConfig, generate
@@ -60,7 +67,8 @@ len(campaign), len(campaign.conditions())
 # refitted on nets trained on the replay windows).
 
 # %%
-cfg = ExperimentConfig(discovery=DiscoveryConfig(seeds=3, proposals=2, max_effects=1, offset_step_s=0.25))
+fast = dict(ensemble=EnsembleConfig(seeds=3), offset=OffsetConfig(step_s=0.25))
+cfg = ExperimentConfig(discovery=DiscoveryConfig(max_effects=1, selection=SelectionConfig(proposals=2), **fast))
 res = discover(campaign, cfg, name="notebook-world")
 
 # %% [markdown]
@@ -124,7 +132,7 @@ fig = plots.replay({"baseline": g.assign(predicted_g=g.predicted_before_g),
 plain = from_dict(SynthConfig, {**base, "name": "notebook-world-without"})
 c2, r2, _ = generate(plain)
 without = discover(campaign_from_frames(c2, r2, source="without"),
-                   cfg.with_(discovery=DiscoveryConfig(seeds=3, max_effects=0, offset_step_s=0.25)), log=lambda m: None)
+                   cfg.with_(discovery=DiscoveryConfig(max_effects=0, **fast)), log=lambda m: None)
 attributable = (res.before["rms_g"] - res.after["rms_g"]) / (res.before["rms_g"] - without.before["rms_g"])
 print(f"held-out RMS: without the effect {without.before['rms_g']:.4f} g; with it {res.before['rms_g']:.4f} g "
       f"before discovery, {res.after['rms_g']:.4f} g after; attributable shrink {attributable:.0%}")

@@ -69,7 +69,7 @@ def scenario_configs(path, seed_offset: int = 0) -> tuple[list[dict], dict]:
     # `attributable`), which discover trains only where it confirms a lag unless told to.
     lagged = {s["seed"] for s in out if s["truth"] and "lag" in s["truth"]["accept"]}
     for s in out:
-        s["discovery"] = {"lag_trials_always": True} if s["truth"] is None and s["seed"] in lagged else {}
+        s["lag_trials"] = s["truth"] is None and s["seed"] in lagged
     return out, raw.get("discovery", {})
 
 
@@ -94,7 +94,7 @@ def find_scenario(path, seed_offset: int, name: str) -> tuple[dict, dict]:
 
 def scenario_config(sc: dict, overrides: dict) -> ExperimentConfig:
     """The config a scenario's discovery runs with (stored beside its results)."""
-    dcfg = from_dict(DiscoveryConfig, {**overrides, **sc.get("discovery", {}), "database": sc["database"]})
+    dcfg = from_dict(DiscoveryConfig, {**overrides, "database": sc["database"]})
     return ExperimentConfig(name=sc["name"], discovery=dcfg)
 
 
@@ -103,7 +103,8 @@ def run_scenario(sc: dict, overrides: dict, out: Path, log=print):
     campaign = _campaign(sc["synth"])
     t_gen = time.perf_counter() - t0
     cfg = scenario_config(sc, overrides)
-    res = discover(campaign, cfg, name=sc["synth"].name, log=lambda m: log(f"  [{sc['name']}] {m}"))
+    res = discover(campaign, cfg, name=sc["synth"].name, log=lambda m: log(f"  [{sc['name']}] {m}"),
+                   lag_trials=sc.get("lag_trials", False))
     seconds = time.perf_counter() - t0
     js = summary(res)
     folder = out / sc["name"]
@@ -395,7 +396,7 @@ def main():
                     help="channels left out of the candidates (added to [discovery] exclude_channels)")
     ap.add_argument("--set", nargs="+", action="extend", default=[], metavar="KEY=VALUE", dest="settings",
                     help="[discovery] settings over the config's (a TOML value; a bare word is a string), "
-                         "e.g. --set train_rows=windows: a sensitivity run (use another --out)")
+                         "e.g. --set selection.alpha=0.02: a sensitivity run (use another --out)")
     ap.add_argument("--seed-offsets", default="0",
                     help="comma-separated: the benchmark once per offset, every scenario's seed shifted by it (a "
                          "replication on other worlds; offset N writes to OUT/seed+N)")
@@ -419,7 +420,7 @@ def main():
         scenarios, overrides = scenario_configs(args.config, off)
         if args.exclude:
             overrides = {**overrides, "exclude_channels": [*overrides.get("exclude_channels", []), *args.exclude]}
-        overrides = {**overrides, **_settings(args.settings)}
+        overrides = _merged(overrides, _settings(args.settings))
         if args.only:
             keep = set(args.only.split(","))
             scenarios = [s for s in scenarios if s["name"] in keep]
@@ -464,16 +465,29 @@ def remeasured_by_scenario(frames: dict) -> pd.DataFrame:
 
 
 def _settings(items) -> dict:
-    """KEY=VALUE strings as [discovery] overrides: VALUE read as TOML, else as a string."""
+    """KEY=VALUE strings as [discovery] overrides: VALUE read as TOML, else as a string; a
+    dotted KEY (`selection.alpha`) sets a key of a section."""
     out = {}
     for item in items:
         key, sep, value = item.partition("=")
         if not sep or not key:
             raise SystemExit(f"--set: expected KEY=VALUE, got {item!r}")
         try:
-            out[key] = tomllib.loads(f"v = {value}")["v"]
+            v = tomllib.loads(f"v = {value}")["v"]
         except tomllib.TOMLDecodeError:
-            out[key] = value
+            v = value
+        *sections, leaf = key.split(".")
+        for s in reversed(sections):
+            v, leaf = {leaf: v}, s
+        out = _merged(out, {leaf: v})
+    return out
+
+
+def _merged(a: dict, b: dict) -> dict:
+    """`a` with `b`'s keys, sections merged key by key."""
+    out = dict(a)
+    for k, v in b.items():
+        out[k] = _merged(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else v
     return out
 
 

@@ -150,3 +150,27 @@ def experiment(name: str):
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
+
+
+_SECTION_OF = {"hidden": ("ensemble", "hidden"), "seeds": ("ensemble", "seeds"), "folds": ("ensemble", "folds"),
+               "split_seed": ("ensemble", "split_seed"), "offset_step_s": ("offset", "step_s"),
+               "calibrate_offset": ("offset", "calibrate"), "offset_s": ("offset", "fixed_s"),
+               "proposals": ("selection", "proposals"), "alpha": ("selection", "alpha"),
+               "permutations": ("selection", "permutations"), "source_tries": ("selection", "source_tries"),
+               "lag_test": ("lag_test", "enabled"), "lag_slow_s": ("lag_test", "slow_s"),
+               "resonance_probe": ("resonance", "probe"), "resonance_input": ("resonance", "as_input")}
+
+
+def discovery_config(**settings):
+    """A `DiscoveryConfig` from flat keyword settings (`seeds=1, folds=3, offset_step_s=0.5`),
+    each put in its section: the tests' short form of the nested config."""
+    from pvvjax.config import DiscoveryConfig, from_dict
+
+    data: dict = {}
+    for key, value in settings.items():
+        if key in _SECTION_OF:
+            section, name = _SECTION_OF[key]
+            data.setdefault(section, {})[name] = value
+        else:
+            data[key] = value
+    return from_dict(DiscoveryConfig, data)

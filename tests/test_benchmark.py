@@ -84,15 +84,15 @@ def test_the_nulls_of_the_lag_scenarios_seeds_run_the_trainings_through_lags(ben
     # row, above), which discover trains only where it confirms a lag, unless told to.
     scenarios, overrides = bench.scenario_configs(ROOT / "research" / "configs" / "benchmark.toml", 3)
     by = {s["name"]: s for s in scenarios}
-    assert [s["name"] for s in scenarios if s["discovery"]] == ["null-31"]
+    assert [s["name"] for s in scenarios if s["lag_trials"]] == ["null-31"]
     assert by["null-31"]["seed"] == by["long-lag"]["seed"] == 34
     seen = []
     monkeypatch.setattr(bench, "_campaign", lambda synth: None)
-    monkeypatch.setattr(bench, "discover", lambda campaign, cfg, **kw: seen.append(cfg.discovery) or 1 / 0)
+    monkeypatch.setattr(bench, "discover", lambda campaign, cfg, **kw: seen.append((cfg.discovery, kw)) or 1 / 0)
     for name in ("null-31", "null-41"):
         with pytest.raises(ZeroDivisionError):
             bench.run_scenario(by[name], overrides, None)
-    assert [d.lag_trials_always for d in seen] == [True, False] and all(d.lag_test for d in seen)
+    assert [kw["lag_trials"] for _, kw in seen] == [True, False] and all(d.lag_test.enabled for d, _ in seen)
 
 
 def test_the_weight_scenarios_reference_is_its_world_without_the_weights_effect(bench):
@@ -110,7 +110,9 @@ def test_the_weight_scenarios_reference_is_its_world_without_the_weights_effect(
 
 
 def test_an_update_replaces_its_scenarios_rows_and_keeps_the_others(bench, tmp_path):
-    from pvvjax.config import DiscoveryConfig, ExperimentConfig
+    from conftest import discovery_config
+
+    from pvvjax.config import ExperimentConfig
     from pvvjax.io import write_table
 
     old = pd.DataFrame(dict(scenario=["null-1", "a", "b"], seed=[1, 1, 2], x=[1.0, 2.0, 3.0]))
@@ -119,11 +121,11 @@ def test_an_update_replaces_its_scenarios_rows_and_keeps_the_others(bench, tmp_p
     assert list(got.scenario) == ["null-1", "a", "b", "c"] and list(got.x) == [1.0, 8.0, 3.0, 9.0]
     assert np.isnan(got.y[0]) and got.y[1] == 0.6
     # only into results of the same settings
-    cfg = ExperimentConfig(discovery=DiscoveryConfig(lag_test=True))
+    cfg = ExperimentConfig(discovery=discovery_config(lag_test=True))
     write_table(old, tmp_path / "results", cfg)
     pd.testing.assert_frame_equal(bench._previous(tmp_path / "results.parquet", cfg), old)
     with pytest.raises(SystemExit, match="other settings"):
-        bench._previous(tmp_path / "results.parquet", ExperimentConfig(discovery=DiscoveryConfig(lag_test=False)))
+        bench._previous(tmp_path / "results.parquet", ExperimentConfig(discovery=discovery_config(lag_test=False)))
     with pytest.raises(SystemExit, match="no results to update"):
         bench._previous(tmp_path / "none.parquet", cfg)
     # a hidden scenario measured against a null needs that null beside it
@@ -139,8 +141,8 @@ def test_a_resumed_run_reads_back_the_finished_scenarios_and_scores_as_an_uninte
                                                                                              monkeypatch):
     from pvvjax.io import write_table
 
-    overrides = dict(lag_test=False)
-    scenarios = [dict(name=n, seed=1, database="db1", truth=t, reference_world=None, discovery={})
+    overrides = dict(lag_test=dict(enabled=False))
+    scenarios = [dict(name=n, seed=1, database="db1", truth=t, reference_world=None)
                  for n, t in [("null-1", None), ("a", dict(effect="x")), ("b", dict(effect="y"))]]
     values = {"null-1": (0.040, 0.040), "a": (0.050, 0.042), "b": (0.060, 0.045)}
     ran = []
@@ -171,7 +173,7 @@ def test_a_resumed_run_reads_back_the_finished_scenarios_and_scores_as_an_uninte
     assert again.set_index("scenario").loc["a", "attributable_shrink"] == pytest.approx(0.8)  # against null-1
     # only a run of the same settings goes on
     with pytest.raises(SystemExit, match="other settings"):
-        bench.run_all(scenarios, dict(lag_test=True), tmp_path / "cut", resume=True)
+        bench.run_all(scenarios, dict(lag_test=dict(enabled=True)), tmp_path / "cut", resume=True)
 
 
 def test_a_saved_reference_baseline_reads_back_as_the_scoring_needs_it(bench, tmp_path, monkeypatch):

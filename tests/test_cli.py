@@ -53,7 +53,7 @@ def test_discover_on_fewer_conditions_than_folds_names_the_setting_and_the_campa
     folder = write_tiny(tmp_path / "two")  # 2 conditions, 5 folds by default
     assert main(["discover", "--campaign", str(folder), "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
-    assert f"discovery.folds (campaign {folder}, db1) = 5" in err and "number of conditions (2)" in err
+    assert f"discovery.ensemble.folds (campaign {folder}, db1) = 5" in err and "number of conditions (2)" in err
 
 
 @pytest.mark.heavy

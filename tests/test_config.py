@@ -45,21 +45,19 @@ def test_full_config_round_trip(tmp_path):
     ("[campaign.columns.V]\nto = 'airspeed_kt'\nunit = 'deg'", "cannot be converted"),
     ("[campaign.columns.V]\nto = 'airspeed_kt'\nunit = 'furlong/fortnight'", "unknown unit"),
     ("seed = true", "seed: expected an integer"),
-    ("[discovery]\ntrain_rows = 'window'", "discovery.train_rows: 'window' is not one of 'peaks', 'windows'"),
-    ("[discovery]\nband_shape = 'cauchy'", "discovery.band_shape: 'cauchy' is not one of 'gaussian', 'lorentzian'"),
-    ("[discovery]\ntrain_stride = 0", "discovery.train_stride must be >= 1"),
-    ("[discovery]\nlag_test_taus = [0.5, 1.0]", "discovery.lag_test_taus must be > 0 with at least one above "
-                                               "discovery.lag_fast_s (1.0), got [0.5, 1.0]"),
-    ("[discovery]\nlag_test = 'yes'", "discovery.lag_test: expected"),
-    ("[discovery]\nlag_slow_s = 0.0", "discovery.lag_slow_s must be > 0 s, got 0.0"),
-    ("[discovery]\nlag_learn_steps = 0", "discovery.lag_learn_steps must be >= 1, got 0"),
-    ("[discovery]\nshrink_noise = 1.5", "discovery.shrink_noise must lie in [0, 1), got 1.5"),
-    ("[discovery]\ntie_share = -0.1", "discovery.tie_share must lie in [0, 1], got -0.1"),
-    ("[discovery]\nfloor_refinements = -1", "discovery.floor_refinements must be >= 0, got -1"),
-    ("[discovery]\nalpha = 1.5", "discovery.alpha must lie in (0, 1), got 1.5"),
-    ("[discovery]\nprobe_alpha = 0", "discovery.probe_alpha must lie in (0, 1), got 0"),
+    ("[discovery]\ntrain_rows = 'windows'", "discovery.train_rows: unknown key; allowed: database, ensemble"),
+    ("[discovery]\nseeds = 4", "discovery.seeds: unknown key"),
+    ("[discovery.ensemble]\nseed = 4", "discovery.ensemble.seed: unknown key (did you mean 'seeds'?)"),
+    ("[discovery.ensemble]\nfolds = 2", "discovery.ensemble.folds must be >= 3, got 2"),
+    ("[discovery.ensemble]\nhidden = [10, 0]", "discovery.ensemble.hidden needs widths >= 1"),
+    ("[discovery.lag_test]\nenabled = 'yes'", "discovery.lag_test.enabled: expected"),
+    ("[discovery.lag_test]\nslow_s = 0.0", "discovery.lag_test.slow_s must be > 0 s, got 0.0"),
+    ("[discovery.selection]\nalpha = 1.5", "discovery.selection.alpha must lie in (0, 1), got 1.5"),
+    ("[discovery.selection]\nsource_tries = -1", "discovery.selection.source_tries must be >= 0, got -1"),
+    ("[discovery.offset]\nbounds = [2.0, 1.0]", "discovery.offset.bounds must be [lo, hi] with lo < hi"),
+    ("[discovery.resonance]\nprobes = true", "discovery.resonance.probes: unknown key (did you mean 'probe'?)"),
+    ("[discovery]\nmin_shrink = 1.5", "discovery.min_shrink must lie in [0, 1), got 1.5"),
     ("[discovery]\ndatabase = 'db4'", "discovery.database: unknown ['db4']; use db1, db2, db3"),
-    ("[discovery]\ncandidate_offsets_s = [0.5, -1.0]", "discovery.candidate_offsets_s must be >= 0 s, got [0.5, -1.0]"),
     ("name = ", "not valid TOML"),
 ])
 def test_config_errors_name_file_and_key(tmp_path, text, needle):
@@ -100,31 +98,14 @@ def test_column_map_refuses_wrong_dimension():
         ColumnMap(to="rotor_rpm", unit="m/s")
 
 
-def test_a_setting_added_later_at_its_earlier_behaviour_leaves_the_hash_of_tables_written_before_it(tmp_path):
-    # A results table written before `encompassing` existed stores a config without it (and
-    # without its margin); a config with it off, margin 0 (the earlier behaviour) is the same
-    # run; the default (on, margin 0.1) is another rule.
-    from pvvjax._strict import to_dict
-    from pvvjax.config import load_written_config
-
+def test_config_hash_is_the_hash_of_every_setting_nested_sections_included(tmp_path):
     cfg = ExperimentConfig()
-    old = cfg.with_(discovery=dataclasses.replace(cfg.discovery, encompassing=False, encompassing_margin=0.0))
-    before = to_dict(old)
-    del before["discovery"]["encompassing"], before["discovery"]["encompassing_margin"]
-    assert config_hash(before) == config_hash(old)
-    assert config_hash(cfg) != config_hash(old)
-    assert config_hash(cfg.with_(discovery=dataclasses.replace(cfg.discovery, alpha=0.05))) != config_hash(cfg)
-    # Read back from such a folder, the missing settings take their earlier values, not
-    # today's defaults; a hand-written config that leaves them out gets the defaults.
+    assert config_hash(cfg) == config_hash(load_config(_write(tmp_path, "")))
+    alpha = cfg.with_(discovery=dataclasses.replace(
+        cfg.discovery, selection=dataclasses.replace(cfg.discovery.selection, alpha=0.05)))
+    assert config_hash(alpha) != config_hash(cfg)
     p = _write(tmp_path, """
-        [discovery]
-        alpha = 0.02
+        [discovery.selection]
+        alpha = 0.05
     """)
-    written = load_written_config(p).discovery
-    assert (written.encompassing, written.encompassing_margin, written.alpha) == (False, 0.0, 0.02)
-    assert (load_config(p).discovery.encompassing, load_config(p).discovery.encompassing_margin) == (True, 0.1)
-    with pytest.raises(ConfigError, match="encompassing_margin"):
-        load_config(_write(tmp_path, """
-            [discovery]
-            encompassing_margin = -0.1
-        """))
+    assert load_config(p) == alpha and config_hash(load_config(p)) == config_hash(alpha)

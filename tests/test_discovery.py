@@ -8,6 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pandas as pd
 import pytest
+from conftest import discovery_config
 
 from pvvjax.discovery import floor_features, knn_floor, metrics
 from pvvjax.discovery._fits import _fit_tau, _lag_identified
@@ -65,8 +66,9 @@ def test_knn_floor_against_brute_force():
         assert got[j] == pytest.approx(r[np.argsort(d)[:4]].mean())
 
 
-def test_a_knee_of_the_models_own_inputs_joins_the_floor_and_is_not_named_through_a_channel_that_follows_it():
-    from pvvjax.config import DiscoveryConfig
+def test_a_knee_of_the_models_own_inputs_joins_the_floor_and_is_not_named_through_a_channel_that_follows_it(
+        monkeypatch):
+    from pvvjax.discovery import _rules
     from pvvjax.discovery._propose import _propose
 
     # Own input x per condition; the map misses a knee of it (the floor). A measured channel
@@ -87,8 +89,10 @@ def test_a_knee_of_the_models_own_inputs_joins_the_floor_and_is_not_named_throug
                    (n_cond, W), (), None)
     rows = np.ones(len(cond), bool)
     kw = dict(complexity=np.full(C.shape[1], 2), keys=[f"c{j}" for j in range(C.shape[1])], is_floor=is_floor)
-    run = lambda resid, refine: _propose(win, None, resid, C, rows, (), x[:, None], DiscoveryConfig(  # noqa: E731
-        floor_refinements=refine, proposals=1), seed=0, **kw)
+
+    def run(resid, refine):
+        monkeypatch.setattr(_rules, "FLOOR_REFINEMENTS", refine)
+        return _propose(win, None, resid, C, rows, (), x[:, None], discovery_config(proposals=1), seed=0, **kw)
 
     floor_only = 0.3 * own_knees[:, 0] + noise
     proposals, absorbed, _ = run(floor_only, 0)
@@ -196,7 +200,7 @@ def test_a_proposed_band_brings_the_adjacent_cell_the_design_credits_more():
     assert run([("all", 2, s)]) == [("all", 2), ("all", 3)]
     out = _neighbour_cells([("all", 2, s)], lib, M, designs, resid, cond, d, 0)
     # Its own gain, on the proposal's design (rows, floor, folds).
-    assert out[1][2].gain == pytest.approx(gains(resid, M[:, [3]], cond, base=yhat[:, None], folds=d.folds)[0])
+    assert out[1][2].gain == pytest.approx(gains(resid, M[:, [3]], cond, base=yhat[:, None], folds=d.ensemble.folds)[0])
     # 270 and 267 proposed: 270 brings none (276 is 6 rpm away, the band at 0.5 s another
     # alignment), 267 brings 264, the next one.
     assert run([("all", 3, s), ("all", 2, s)]) == [("all", 3), ("all", 2), ("all", 1)]
@@ -363,9 +367,9 @@ def test_the_resonance_probe_proposes_the_band_of_the_largest_gain_unless_one_is
     assert s.source == "probe" and first[0][2].source == "selection"
     with_band = [("all", 2, Selected(2, 0.3, 0.3, 0.01))]
     assert P._resonance_probe(None, model, with_band, lib, M, designs, resid, groups, d, 0, print) == with_band
-    # Window nets (through a lag, or trained on the windows): no probe.
-    for m, dd in ((model._replace(through_lag=True, lag_tau_s=2.0), d), (model, DiscoveryConfig(train_rows="windows"))):
-        assert P._resonance_probe(None, m, first, lib, M, designs, resid, groups, dd, 0, lambda m: None) == first
+    # Window nets (through a lag): no probe.
+    lagged = model._replace(through_lag=True, lag_tau_s=2.0)
+    assert P._resonance_probe(None, lagged, first, lib, M, designs, resid, groups, d, 0, lambda m: None) == first
     assert len(seen) == 1
 
 
@@ -400,7 +404,6 @@ def test_source_tries_add_the_best_candidates_of_the_channels_a_derived_input_hi
     selection's held-out gain (above 0, one alignment each, not proposed already)."""
     import pvvjax.discovery._propose as P
     from pvvjax.analysis.databases import DB_INPUTS
-    from pvvjax.config import DiscoveryConfig
     from pvvjax.discovery.candidates import Candidate
     from pvvjax.discovery.selection import Selected, gains
 
@@ -418,7 +421,7 @@ def test_source_tries_add_the_best_candidates_of_the_channels_a_derived_input_hi
     designs = {"all": (np.ones(n, bool), np.ones((n, 1)))}
     first = [("all", 0, Selected(0, 0.3, 0.3, 0.01))]
     run = lambda k, props=first: P._source_tries(props, lib, M, designs, resid, groups, DB_INPUTS["db1"],  # noqa: E731
-                                                 DiscoveryConfig(source_tries=k), 0, lambda m: None)
+                                                 discovery_config(source_tries=k), 0, lambda m: None)
     assert run(0) == first
     one = run(1)
     assert one[:1] == first and len(one) == 2
@@ -609,7 +612,8 @@ def test_cli_on_a_world_without_hidden_effects_names_nothing(tmp_path):
 
     counters, records, _ = generate(from_dict(SynthConfig, {**_BASE, "name": "null", "seed": 51}))
     folder = write_campaign(tmp_path / "campaign", counters, records)
-    (tmp_path / "cfg.toml").write_text("[discovery]\n" + "\n".join(f"{k} = {v}" for k, v in _FAST.items()) + "\n")
+    (tmp_path / "cfg.toml").write_text("[discovery]\nmax_effects = 1\n[discovery.ensemble]\nseeds = 3\n"
+                                       "[discovery.selection]\nproposals = 2\n[discovery.offset]\nstep_s = 0.25\n")
     assert main(["discover", "--campaign", str(folder), "--out", str(tmp_path / "out"),
                  "--config", str(tmp_path / "cfg.toml")]) == 0
     js = json.loads((tmp_path / "out" / "discovery.json").read_text())
@@ -659,14 +663,13 @@ def test_a_lag_fit_measures_a_lag_and_runs_to_the_grid_end_on_prediction_noise()
 
 
 def test_nets_trained_on_the_windows_see_every_strided_window(monkeypatch, small_campaign_dir):
-    # train_rows = "windows": after the peak nets calibrate the offset, the baseline is
-    # retrained on every train_stride-th fully weighted window of the replay at that offset
-    # (targets: the measured windows), and the metrics are the window nets'. (That such nets
-    # have a lower error floor than the peak nets: the lag study's test on a null world.)
+    # Window nets (the lag test's, a named term's refit) train on every TRAIN_STRIDE-th fully
+    # weighted window of the replay at the model's offset, with the measured windows as
+    # targets and each window in the fold of its counter's condition.
     from pvvjax import discovery as D
-    from pvvjax.config import DiscoveryConfig, ExperimentConfig, TrainConfig
+    from pvvjax.config import ExperimentConfig, TrainConfig
     from pvvjax.data.campaign import load_campaign
-    from pvvjax.discovery import _confirm, _model, _workflow
+    from pvvjax.discovery import _confirm, _model, _rules, _workflow
 
     calls, fit = [], D.fit_ensemble
 
@@ -674,24 +677,24 @@ def test_nets_trained_on_the_windows_see_every_strided_window(monkeypatch, small
         calls.append((x, y, folds))
         return fit(x, y, folds, **kw)
 
-    monkeypatch.setattr(_confirm, "fit_ensemble", recorded)
+    monkeypatch.setattr(_rules, "TRAIN_STRIDE", 16)
     contexts, context = [], _workflow._context
     monkeypatch.setattr(_workflow, "_context", lambda *a: contexts.append(context(*a)) or contexts[-1])
-    d = DiscoveryConfig(seeds=1, folds=3, max_effects=0, train_rows="windows", train_stride=16, offset_step_s=0.5)
+    d = discovery_config(seeds=1, folds=3, max_effects=0, offset_step_s=0.5)
     res = D.discover(load_campaign(small_campaign_dir), ExperimentConfig(train=TrainConfig(max_steps=100),
                                                                          discovery=d), log=lambda m: None)
-    assert len(calls) == 2  # the peaks (to calibrate the offset), then the windows
-    (_, y_peaks, _), (x, y, folds) = calls
     ctx = contexts[0]
+    monkeypatch.setattr(_confirm, "fit_ensemble", recorded)
+    params = _confirm._train_model(ctx, res.baseline, rows="windows")
+    (x, y, folds), = calls
     win = _model._replay(ctx, res.baseline.offset_s)  # the windows do not depend on the nets
     rows = (win.table.weight.to_numpy() >= 0.999) & (win.table.k.to_numpy() % 16 == 0)
-    assert len(y) == rows.sum() > 5 * len(y_peaks)
+    assert len(y) == rows.sum() > 5 * len(ctx.db)
     np.testing.assert_allclose(y, win.table.measured_g.to_numpy()[rows], rtol=1e-6)
     np.testing.assert_allclose(x, win.table.loc[rows, list(res.baseline.inputs)].to_numpy(), rtol=1e-5)
     np.testing.assert_array_equal(folds, ctx.counter_fold[win.table.i.to_numpy()[rows]])
-    assert res.before["rms_g"] == D.metrics(_model.predictions(ctx, res.baseline, win), win)["rms_g"]
-    peak_nets = res.baseline._replace(params=ctx.replay_params)  # the nets that calibrated the replay
-    assert res.before["rms_g"] != D.metrics(_model.predictions(ctx, peak_nets, win), win)["rms_g"]
+    window_nets = res.baseline._replace(params=params)
+    assert D.metrics(_model.predictions(ctx, window_nets, win), win)["rms_g"] != res.before["rms_g"]
 
 
 @pytest.mark.parametrize("level_gain, pullup_gain, slack, confirmed", [
@@ -743,19 +746,18 @@ def test_a_try_confirms_where_its_candidate_is_active_or_twice_min_shrink_over_a
                   or (out["local"] >= 2 * d.min_shrink and out["shrink"] > -slack))
 
 
-def test_parameter_free_candidates_are_also_tried_at_the_candidate_offsets():
+def test_parameter_free_candidates_are_also_tried_at_the_candidate_offsets(monkeypatch):
     # A transient effect reaches the vibration through the rotor's fast response, not at the
     # static map's offset: channels, rates and spreads are also offered at each of
-    # `candidate_offsets_s` (their windows that much before the measured ones), knees only
+    # `CANDIDATE_OFFSETS_S` (their windows that much before the measured ones), knees only
     # at the model's offset; an effect named at one alignment is not offered again at another.
     from types import SimpleNamespace
 
     from conftest import tiny_records
 
-    from pvvjax._strict import from_dict
     from pvvjax.config import DiscoveryConfig, ExperimentConfig
     from pvvjax.data.campaign import campaign_from_frames
-    from pvvjax.discovery import Model
+    from pvvjax.discovery import Model, _rules
     from pvvjax.discovery._propose import _candidate_matrix, _unaligned_key
     from pvvjax.discovery.candidates import values, window_table
 
@@ -769,8 +771,8 @@ def test_parameter_free_candidates_are_also_tried_at_the_candidate_offsets():
     win.table["t0"], win.table["t1"] = 3.0 + 0.5 * win.table.k, 4.0 + 0.5 * win.table.k
     win.table["counter"] = [f"C{i + 1}" for i in win.table.i]
     win.campaign, win.offset = camp, 1.3
-    d = from_dict(DiscoveryConfig, {"candidate_offsets_s": [0.5, 1.3]})
-    ctx = SimpleNamespace(cfg=ExperimentConfig(discovery=d))
+    monkeypatch.setattr(_rules, "CANDIDATE_OFFSETS_S", (0.5, 1.3))
+    ctx = SimpleNamespace(cfg=ExperimentConfig(discovery=DiscoveryConfig()))
     model = Model({}, ("advance_ratio",), offset_s=1.3)
     yhat = np.linspace(0.05, 0.1, len(win.table))
     lib, C, flib, F = _candidate_matrix(ctx, model, win, yhat, set())
@@ -794,7 +796,7 @@ def test_parameter_free_candidates_are_also_tried_at_the_candidate_offsets():
     assert not any(c.operator == "abs_rate" and c.channels == ("longitudinal_pct",) for c in lib2)
     assert len(lib2) == len(lib) - 2 and [c.key for c in flib2] == [c.key for c in flib]
     # The lags of the prediction are candidates unless a lag test ran (lags=False).
-    assert {c.parameters["tau_s"] for c in lib if c.operator == "lag"} == set(d.lag_taus)
+    assert {c.parameters["tau_s"] for c in lib if c.operator == "lag"} == set(_rules.LAG_TAUS)
     lib3, C3, _, _ = _candidate_matrix(ctx, model, win, yhat, set(), lags=False)
     assert [c.key for c in lib3] == [c.key for c in lib if c.operator != "lag"]
     np.testing.assert_array_equal(C3, C[:, [j for j, c in enumerate(lib) if c.operator != "lag"]])
@@ -803,12 +805,13 @@ def test_parameter_free_candidates_are_also_tried_at_the_candidate_offsets():
 def test_a_misspelt_excluded_channel_is_an_error_naming_it_not_a_candidate_left_in():
     from conftest import tiny_records
 
-    from pvvjax.config import DiscoveryConfig, ExperimentConfig
+    from pvvjax.config import ExperimentConfig
     from pvvjax.data.campaign import campaign_from_frames
     from pvvjax.discovery import discover
 
     camp = campaign_from_frames(*tiny_records(n_counters=4))
-    cfg = ExperimentConfig(discovery=DiscoveryConfig(folds=3, exclude_channels=("longitudinal_pct", "longitudnal_pct")))
+    excluded = ("longitudinal_pct", "longitudnal_pct")
+    cfg = ExperimentConfig(discovery=discovery_config(folds=3, exclude_channels=excluded))
     with pytest.raises(ValueError, match=r"discovery.exclude_channels: \['longitudnal_pct'\] are not candidate "
                                          r"channels of campaign <memory> \(channels and derived features: .*'mlf'"):
         discover(camp, cfg, log=lambda m: None)
@@ -820,17 +823,17 @@ def test_discover_takes_a_campaign_folder_and_a_bare_discovery_config(tmp_path, 
     from conftest import write_tiny
 
     from pvvjax import discovery as D
-    from pvvjax.config import DiscoveryConfig, ExperimentConfig
+    from pvvjax.config import ExperimentConfig
     from pvvjax.discovery import _workflow
 
     folder = write_tiny(tmp_path / "c")
     seen = []
     monkeypatch.setattr(_workflow, "_context", lambda campaign, cfg, log: seen.append((campaign, cfg)) or 1 / 0)
     with pytest.raises(ZeroDivisionError):
-        D.discover(folder, DiscoveryConfig(folds=3), log=lambda m: None)
+        D.discover(folder, discovery_config(folds=3), log=lambda m: None)
     campaign, cfg = seen[0]
     assert len(campaign) == 2 and campaign.source == str(folder)
-    assert cfg == ExperimentConfig(discovery=DiscoveryConfig(folds=3))
+    assert cfg == ExperimentConfig(discovery=discovery_config(folds=3))
     with pytest.raises(TypeError, match="cfg must be an ExperimentConfig or a DiscoveryConfig, got dict"):
         D.discover(folder, {"folds": 3})
     with pytest.raises(TypeError, match="campaign must be a Campaign or a campaign folder, got list"):
@@ -839,10 +842,8 @@ def test_discover_takes_a_campaign_folder_and_a_bare_discovery_config(tmp_path, 
 
 def test_a_gains_column_is_its_band_in_units_of_its_gain_unit():
     # The nets train a gain column of u·band as a gain in steps of 1/u (u = gain_unit): the
-    # selection's bands in steps of DiscoveryConfig.gain_unit, the probe's (no unit) in 1.
-    from pvvjax._strict import from_dict
-    from pvvjax.config import ConfigError, DiscoveryConfig
-    from pvvjax.discovery import Model
+    # selection's bands in steps of GAIN_UNIT, the probe's (no unit) in 1.
+    from pvvjax.discovery import Model, _rules
     from pvvjax.discovery._model import _inputs
     from pvvjax.discovery.candidates import Candidate
 
@@ -855,9 +856,7 @@ def test_a_gains_column_is_its_band_in_units_of_its_gain_unit():
     band = lambda **p: Candidate("resonance", ("rpm",), {"center": 0.5, "width": 0.1, **p})  # noqa: E731
     x = _inputs(Model({}, ("i",), extra=(extra,), gains=(band(gain_unit=10.0), band())), win)
     np.testing.assert_array_equal(x, np.column_stack([win.table.i, vals["beta"], 10.0 * vals["rpm"], vals["rpm"]]))
-    assert DiscoveryConfig().gain_unit == 10.0
-    with pytest.raises((ConfigError, ValueError), match="discovery.gain_unit must be > 0"):
-        from_dict(DiscoveryConfig, {"gain_unit": 0.0})
+    assert _rules.GAIN_UNIT == 10.0
 
 
 @pytest.mark.parametrize("beats_it_alone, control_worse", [(False, False), (True, False), (True, True)])
@@ -870,7 +869,7 @@ def test_a_try_must_confirm_again_on_top_of_the_floor_control_or_beat_it_alone(
     # control predicts at least as well as the current model (their ensemble RMS forced
     # here). The round's proposal and refinement are forced (the selection is tested above);
     # training, replay and the confirmations are the workflow's own.
-    from pvvjax.config import DiscoveryConfig, ExperimentConfig, TrainConfig
+    from pvvjax.config import ExperimentConfig, TrainConfig
     from pvvjax.data.campaign import load_campaign
     from pvvjax.discovery import _round, _workflow, discover
     from pvvjax.discovery._model import source_channels
@@ -901,7 +900,8 @@ def test_a_try_must_confirm_again_on_top_of_the_floor_control_or_beat_it_alone(
 
     monkeypatch.setattr(_workflow, "_propose", propose)
     monkeypatch.setattr(_round, "_confirm", confirm_on_the_current_model_only)
-    d = DiscoveryConfig(seeds=1, folds=3, max_effects=1, floor_control=True, augment="input", offset_step_s=0.5)
+    monkeypatch.setattr(_round, "_modes", lambda operator, d: ("input",))  # one way: the control's logic alone
+    d = discovery_config(seeds=1, folds=3, max_effects=1, offset_step_s=0.5)
     cfg = ExperimentConfig(train=TrainConfig(max_steps=100), discovery=d)
     res = discover(load_campaign(small_campaign_dir), cfg, log=lambda m: None)
 
@@ -930,7 +930,7 @@ def test_a_try_must_confirm_again_on_top_of_the_floor_control_or_beat_it_alone(
         assert "nor better than it alone" in row.why_not
         assert res.effects == [] and res.after == res.before  # confirmed on the current model only: not named
     report = write_discovery(res, tmp_path / "out", cfg).read_text()
-    assert "over_control_region_shrink" in report and "(`floor_control`)" in report
+    assert "over_control_region_shrink" in report and "the floor control" in report
 
 
 @pytest.mark.parametrize("weak", [True, False])
@@ -941,7 +941,7 @@ def test_a_weak_name_brings_its_runner_up_on_other_channels_which_is_retrained_a
     # channels is retrained too; tied with the proposal and keeping 8 % on its own control, it
     # is named. Proposal, runners-up and shrinks are forced; training, replay, the controls and
     # the choice are the workflow's own.
-    from pvvjax.config import DiscoveryConfig, ExperimentConfig, TrainConfig
+    from pvvjax.config import ExperimentConfig, TrainConfig
     from pvvjax.discovery import _round, _workflow, discover
     from pvvjax.discovery._model import source_channels
     from pvvjax.discovery._propose import _unaligned_key
@@ -970,7 +970,8 @@ def test_a_weak_name_brings_its_runner_up_on_other_channels_which_is_retrained_a
 
     monkeypatch.setattr(_workflow, "_propose", propose)
     monkeypatch.setattr(_round, "_confirm", confirm_forced)
-    d = DiscoveryConfig(seeds=1, folds=3, max_effects=1, floor_control=True, augment="input", offset_step_s=0.5)
+    monkeypatch.setattr(_round, "_modes", lambda operator, d: ("input",))  # one way: the choice's logic alone
+    d = discovery_config(seeds=1, folds=3, max_effects=1, offset_step_s=0.5)
     res = discover(small_campaign_dir, ExperimentConfig(train=TrainConfig(max_steps=100), discovery=d),
                    log=lambda m: None)
 
@@ -990,26 +991,26 @@ def test_each_operator_is_added_in_the_ways_the_config_allows():
 
     d = DiscoveryConfig()
     assert _modes("lag", d) == ("lag",) and _modes("resonance", d) == ("gain",)
-    assert _modes("threshold", d) == ("additive", "input")
-    assert _modes("resonance", DiscoveryConfig(resonance_input=True)) == ("gain", "input")
-    assert _modes("abs_rate", DiscoveryConfig(augment="input")) == ("input",)
-    assert _modes("lag", DiscoveryConfig(augment="additive", resonance_input=True)) == ("lag",)
+    assert _modes("threshold", d) == ("additive", "input") and _modes("abs_rate", d) == ("additive", "input")
+    assert _modes("resonance", discovery_config(resonance_input=True)) == ("gain", "input")
+    assert _modes("lag", discovery_config(resonance_input=True)) == ("lag",)
 
 
-@pytest.mark.parametrize("term_refit", ["peaks", "windows", "named"])
-def test_an_additive_term_is_refitted_on_the_residual_of_the_nets_term_refit_names(
+@pytest.mark.parametrize("term_refit", ["peaks", "windows"])
+def test_an_additive_term_is_refitted_on_the_residual_of_the_nets_its_refit_names(
         monkeypatch, small_campaign_dir, term_refit):
     # The term is fitted on the model's residual, then refitted: "peaks", on the residual of
     # the nets retrained on the peaks minus it (those nets are the model's); "windows", on
     # that of nets trained on the strided windows minus it, the model's nets then retrained on
     # the peaks minus the refitted term.
     from pvvjax.analysis.databases import DB_INPUTS
-    from pvvjax.config import DiscoveryConfig, ExperimentConfig, TrainConfig
+    from pvvjax.config import ExperimentConfig, TrainConfig
     from pvvjax.data.campaign import load_campaign
-    from pvvjax.discovery import Model, _confirm, _model, _workflow
+    from pvvjax.discovery import Model, _confirm, _model, _rules, _workflow
     from pvvjax.discovery.candidates import from_key
 
-    d = DiscoveryConfig(seeds=1, folds=3, train_stride=16, term_refit=term_refit)
+    monkeypatch.setattr(_rules, "TRAIN_STRIDE", 16)
+    d = discovery_config(seeds=1, folds=3)
     ctx = _workflow._context(load_campaign(small_campaign_dir),
                              ExperimentConfig(train=TrainConfig(max_steps=100), discovery=d), lambda m: None)
     inputs = tuple(DB_INPUTS["db1"])
@@ -1019,7 +1020,7 @@ def test_an_additive_term_is_refitted_on_the_residual_of_the_nets_term_refit_nam
     monkeypatch.setattr(_confirm, "fit_ensemble",
                         lambda x, y, folds, **kw: calls.append((x, y, fit(x, y, folds, **kw))) or calls[-1][2])
     c = from_key("input:collective_pct:offset_s=0.5")
-    got = _confirm._augment(ctx, base, c, "additive")
+    got = _confirm._augment(ctx, base, c, "additive", refit=term_refit)
     win = _model._replay(ctx, base.offset_s)
     first = _confirm._fit_term(ctx, base, c, win)
     n_peaks = len(ctx.db)
@@ -1041,15 +1042,15 @@ def test_an_additive_term_is_refitted_on_the_residual_of_the_nets_term_refit_nam
                                    - (refit[:, :1] + refit[:, 1:] * x_p), rtol=1e-5, atol=1e-7)
 
 
-@pytest.mark.parametrize("term_refit, kept", [("named", True), ("named", False), ("peaks", None)])
-def test_with_term_refit_named_only_the_named_term_is_refitted_on_window_nets_and_kept_if_it_confirms(
-        monkeypatch, tmp_path, small_campaign_dir, term_refit, kept):
-    # "named": every try is refitted on the peak nets (as "peaks"); the round's named additive
+@pytest.mark.parametrize("kept", [True, False])
+def test_only_the_named_term_is_refitted_on_window_nets_and_kept_if_it_confirms(
+        monkeypatch, tmp_path, small_campaign_dir, kept):
+    # Every try is refitted on the peak nets; the round's named additive
     # term alone is refitted on window nets, from the same current model, and replaces the
     # try where that model confirms too. The proposal and the confirmations' verdicts are
     # forced; the fits, training and replay are the workflow's own.
-    from pvvjax.config import DiscoveryConfig, ExperimentConfig, TrainConfig
-    from pvvjax.discovery import _round, _workflow, discover
+    from pvvjax.config import ExperimentConfig, TrainConfig
+    from pvvjax.discovery import _round, _rules, _workflow, discover
     from pvvjax.discovery.report import write_discovery
     from pvvjax.discovery.selection import Selected
 
@@ -1059,7 +1060,7 @@ def test_with_term_refit_named_only_the_named_term_is_refitted_on_window_nets_an
 
     augments, confirms, augment, confirm = [], [], _round._augment, _round._confirm
 
-    def augment_logged(ctx, model, c, how, refit=""):
+    def augment_logged(ctx, model, c, how, refit="peaks"):
         augments.append((model, c, how, refit, augment(ctx, model, c, how, refit)))
         return augments[-1][-1]
 
@@ -1071,21 +1072,18 @@ def test_with_term_refit_named_only_the_named_term_is_refitted_on_window_nets_an
     monkeypatch.setattr(_workflow, "_propose", propose)
     monkeypatch.setattr(_round, "_augment", augment_logged)
     monkeypatch.setattr(_round, "_confirm", confirm_forced)
-    d = DiscoveryConfig(seeds=1, folds=3, max_effects=1, floor_control=False, augment="additive",
-                        offset_step_s=0.5, train_stride=16, term_refit=term_refit)
+    monkeypatch.setattr(_round, "_modes", lambda operator, d: ("additive",))  # one way: the term's refit alone
+    monkeypatch.setattr(_rules, "TRAIN_STRIDE", 16)
+    d = discovery_config(seeds=1, folds=3, max_effects=1, offset_step_s=0.5)
     cfg = ExperimentConfig(train=TrainConfig(max_steps=100), discovery=d)
     res = discover(small_campaign_dir, cfg, log=lambda m: None)
 
     row = res.rounds.iloc[0]
     assert row.chosen and len(res.effects) == 1
     report = write_discovery(res, tmp_path / "out", cfg).read_text()
-    assert ("window_refit_kept" in report) == (term_refit == "named")
+    assert "window_refit_kept" in report
     peaks_try = augments[0][-1]
-    assert augments[0][3] == ""  # the try: refitted as "peaks" would
-    if term_refit == "peaks":
-        assert len(augments) == 1 and "window_refit_kept" not in res.rounds
-        assert res.final is peaks_try
-        return
+    assert augments[0][3] == "peaks"  # the try: refitted on the peak nets
     (cur, c, how, refit, window_try), = augments[1:]
     assert cur is augments[0][0] and c is peaks_try.terms[-1][0] and (how, refit) == ("additive", "windows")
     assert not np.allclose(window_try.terms[-1][1], peaks_try.terms[-1][1])
@@ -1098,17 +1096,15 @@ def test_with_term_refit_named_only_the_named_term_is_refitted_on_window_nets_an
     assert res.after["ensemble_rms_g"] == pytest.approx(confirms[1 if kept else 0][1]["metrics"]["ensemble_rms_g"])
 
 
-@pytest.mark.parametrize("augment_tie, shrinks, way", [("shrink", (0.05, 0.06), "input"),
-                                                       ("additive", (0.05, 0.06), "additive"),
-                                                       ("additive", (0.01, 0.20), "input")])
-def test_with_augment_tie_additive_a_named_input_gives_way_to_its_proposals_term_where_they_tie(
-        monkeypatch, tmp_path, small_campaign_dir, augment_tie, shrinks, way):
-    # "auto" retrains the proposal as a term and as an input; the input confirms, the term
-    # does not (forced), and their shrinks over all windows are forced. "shrink" names the
-    # input; "additive" names the term where it ties with the input (within `shrink_noise`,
-    # 0.05 against 0.06) though it did not confirm alone, and not where it is far below
-    # (0.01 against 0.20). The fits, training and replay are the workflow's own.
-    from pvvjax.config import DiscoveryConfig, ExperimentConfig, TrainConfig
+@pytest.mark.parametrize("shrinks, way", [((0.05, 0.06), "additive"), ((0.01, 0.20), "input")])
+def test_a_named_input_gives_way_to_its_proposals_term_where_they_tie(
+        monkeypatch, tmp_path, small_campaign_dir, shrinks, way):
+    # The proposal is retrained as a term and as an input; the input confirms, the term does
+    # not (forced), and their shrinks over all windows are forced. The term is named where it
+    # ties with the input (within SHRINK_NOISE, 0.05 against 0.06) though it did not confirm
+    # alone, and not where it is far below (0.01 against 0.20). The fits, training and replay
+    # are the workflow's own.
+    from pvvjax.config import ExperimentConfig, TrainConfig
     from pvvjax.discovery import _round, _workflow, discover
     from pvvjax.discovery.report import write_discovery
     from pvvjax.discovery.selection import Selected
@@ -1127,8 +1123,8 @@ def test_with_augment_tie_additive_a_named_input_gives_way_to_its_proposals_term
 
     monkeypatch.setattr(_workflow, "_propose", propose)
     monkeypatch.setattr(_round, "_confirm", confirm_forced)
-    d = DiscoveryConfig(seeds=1, folds=3, max_effects=1, floor_control=False, offset_step_s=0.5,
-                        augment_tie=augment_tie, term_refit="peaks")  # the way alone, no window refit
+    monkeypatch.setattr(_round._Round, "_refit_named", lambda self, named: named)  # the way alone
+    d = discovery_config(seeds=1, folds=3, max_effects=1, offset_step_s=0.5)
     cfg = ExperimentConfig(train=TrainConfig(max_steps=100), discovery=d)
     res = discover(small_campaign_dir, cfg, log=lambda m: None)
 
@@ -1139,18 +1135,16 @@ def test_with_augment_tie_additive_a_named_input_gives_way_to_its_proposals_term
     term, input_ = trials
     assert res.final is (term if way == "additive" else input_)
     assert ("coefficient" in res.effects[0]["parameters"]) == (way == "additive")
-    asked = rows.p_input_better.notna().tolist()  # the term's p, asked where "additive" could name it
-    assert asked == [augment_tie == "additive", False]
-    if augment_tie == "additive":
-        assert 0 < rows.p_input_better.iloc[0] <= 1
-    assert ("p_input_better" in write_discovery(res, tmp_path / "out", cfg).read_text()) == (augment_tie == "additive")
+    assert rows.p_input_better.notna().tolist() == [True, False]  # the term's p, asked on its row
+    assert 0 < rows.p_input_better.iloc[0] <= 1
+    assert "p_input_better" in write_discovery(res, tmp_path / "out", cfg).read_text()
 
 
 def test_every_confirmed_inputs_term_logs_the_p_of_the_way_it_was_chosen(monkeypatch, small_campaign_dir):
     # Two proposals, each retrained as a term (forced not to confirm) and as an input
-    # (confirms): with `augment_tie = "additive"` both terms log `p_input_better`, the p of
-    # the way chosen for whichever input a round names.
-    from pvvjax.config import DiscoveryConfig, ExperimentConfig, TrainConfig
+    # (confirms): both terms log `p_input_better`, the p of the way chosen for whichever input
+    # a round names.
+    from pvvjax.config import ExperimentConfig, TrainConfig
     from pvvjax.discovery import _round, _workflow, discover
     from pvvjax.discovery.selection import Selected
 
@@ -1167,7 +1161,8 @@ def test_every_confirmed_inputs_term_logs_the_p_of_the_way_it_was_chosen(monkeyp
 
     monkeypatch.setattr(_workflow, "_propose", propose)
     monkeypatch.setattr(_round, "_confirm", confirm_forced)
-    d = DiscoveryConfig(seeds=1, folds=3, max_effects=1, floor_control=False, offset_step_s=0.5, term_refit="peaks")
+    monkeypatch.setattr(_round._Round, "_refit_named", lambda self, named: named)  # the way alone
+    d = discovery_config(seeds=1, folds=3, max_effects=1, offset_step_s=0.5)
     res = discover(small_campaign_dir, ExperimentConfig(train=TrainConfig(max_steps=100), discovery=d),
                    log=lambda m: None)
     rows = res.rounds[res.rounds["round"] == 1]
@@ -1183,12 +1178,12 @@ def test_a_term_on_top_of_itself_keeps_little_of_its_coefficient_and_on_top_of_a
     # keeps is the nets' retraining noise: 0.19 here, 0.12 with 400 steps), the collective on
     # top of the pedal most of its coefficient (0.76).
     from pvvjax.analysis.databases import DB_INPUTS
-    from pvvjax.config import DiscoveryConfig, ExperimentConfig, TrainConfig
+    from pvvjax.config import ExperimentConfig, TrainConfig
     from pvvjax.data.campaign import load_campaign
     from pvvjax.discovery import Model, _confirm, _round, _workflow
     from pvvjax.discovery.candidates import from_key
 
-    d = DiscoveryConfig(seeds=1, folds=3, term_refit="peaks")
+    d = discovery_config(seeds=1, folds=3)
     ctx = _workflow._context(load_campaign(small_campaign_dir),
                              ExperimentConfig(train=TrainConfig(max_steps=100), discovery=d), lambda m: None)
     inputs = tuple(DB_INPUTS["db1"])
@@ -1200,19 +1195,19 @@ def test_a_term_on_top_of_itself_keeps_little_of_its_coefficient_and_on_top_of_a
     assert _round._kept_on_top(ctx, other, first.terms[-1]) > 0.5
 
 
-@pytest.mark.parametrize("encompassing, margin, kept, named", [
-    (False, 0.1, None, "proposal"), (True, 0.1, (0.0, 0.3), "rival"), (True, 0.1, (0.3, 0.0), "proposal"),
-    (True, 0.1, (0.3, 0.35), "proposal"), (True, 0.0, (0.3, 0.35), "rival")])
-def test_with_encompassing_of_two_tied_channels_the_term_that_keeps_more_on_top_of_the_other_is_named(
-        monkeypatch, small_campaign_dir, encompassing, margin, kept, named):
+@pytest.mark.parametrize("margin, kept, named", [
+    (0.1, (0.0, 0.3), "rival"), (0.1, (0.3, 0.0), "proposal"), (0.1, (0.3, 0.35), "proposal"),
+    (0.0, (0.3, 0.35), "rival")])
+def test_of_two_tied_channels_the_term_that_keeps_more_on_top_of_the_other_is_named(
+        monkeypatch, small_campaign_dir, margin, kept, named):
     # Two proposals on other channels, both confirmed as terms and tied (shrinks 0.10 and
-    # 0.095, forced); the selection credits the first with more gain, which names it. With
-    # `encompassing`, each term is fitted on top of the other's model (`_kept_on_top`,
+    # 0.095, forced); the selection credits the first with more gain, which names it. Then
+    # each term is fitted on top of the other's model (`_kept_on_top`,
     # forced: (the proposal's share, the rival's)); the rival is named where it keeps more
     # by more than the margin, and its row logs both. Training, replay and the choice are
     # the workflow's own.
-    from pvvjax.config import DiscoveryConfig, ExperimentConfig, TrainConfig
-    from pvvjax.discovery import _round, _workflow, discover
+    from pvvjax.config import ExperimentConfig, TrainConfig
+    from pvvjax.discovery import _round, _rules, _workflow, discover
     from pvvjax.discovery._model import source_channels
     from pvvjax.discovery.selection import Selected
 
@@ -1242,20 +1237,18 @@ def test_with_encompassing_of_two_tied_channels_the_term_that_keeps_more_on_top_
     monkeypatch.setattr(_workflow, "_propose", propose)
     monkeypatch.setattr(_round, "_confirm", confirm_forced)
     monkeypatch.setattr(_round, "_kept_on_top", kept_forced)
-    d = DiscoveryConfig(seeds=1, folds=3, max_effects=1, floor_control=False, augment="additive",
-                        offset_step_s=0.5, term_refit="peaks", encompassing=encompassing,
-                        encompassing_margin=margin)
+    monkeypatch.setattr(_round, "_modes", lambda operator, d: ("additive",))  # the terms alone
+    monkeypatch.setattr(_round._Round, "_refit_named", lambda self, named: named)
+    monkeypatch.setattr(_rules, "ENCOMPASSING_MARGIN", margin)
+    d = discovery_config(seeds=1, folds=3, max_effects=1, offset_step_s=0.5)
     res = discover(small_campaign_dir, ExperimentConfig(train=TrainConfig(max_steps=100), discovery=d),
                    log=lambda m: None)
     tries = res.rounds[res.rounds["round"] == 1]
     assert len(tries) == 2 and tries.confirmed.all() and tries.chosen.sum() == 1
     assert who[tries[tries.chosen].iloc[0].channels] == named
     assert [e["key"] for e in res.effects] == list(tries[tries.chosen].candidate)
-    assert sorted(calls) == ([] if not encompassing else ["proposal", "rival"])
-    if encompassing:
-        rival = tries[[who[ch] == "rival" for ch in tries.channels]].iloc[0]
-        assert (rival.kept_on_top, rival.named_kept_on_top) == (kept[1], kept[0])
-        proposal = tries[[who[ch] == "proposal" for ch in tries.channels]].iloc[0]
-        assert rival.kept_against == proposal.proposal
-    else:
-        assert "kept_on_top" not in tries
+    assert sorted(calls) == ["proposal", "rival"]
+    rival = tries[[who[ch] == "rival" for ch in tries.channels]].iloc[0]
+    assert (rival.kept_on_top, rival.named_kept_on_top) == (kept[1], kept[0])
+    proposal = tries[[who[ch] == "proposal" for ch in tries.channels]].iloc[0]
+    assert rival.kept_against == proposal.proposal

@@ -5,6 +5,7 @@ inside the workflow."""
 import numpy as np
 import pandas as pd
 import pytest
+from conftest import discovery_config
 
 from pvvjax.discovery import delag
 from pvvjax.discovery._model import _lag_windows, _Windows
@@ -61,8 +62,7 @@ def test_lag_test_is_judged_by_the_learned_tau_and_adds_the_slow_lag_against_the
     # the fast lag), the slow lag the best above it, and its gain (over all windows and in
     # the pull-ups' step, where a lag acts) is reported.
     from pvvjax import discovery as D
-    from pvvjax._strict import from_dict
-    from pvvjax.config import DiscoveryConfig, ExperimentConfig
+    from pvvjax.config import ExperimentConfig
     from pvvjax.discovery import _lag
 
     rng = np.random.default_rng(0)
@@ -90,7 +90,7 @@ def test_lag_test_is_judged_by_the_learned_tau_and_adds_the_slow_lag_against_the
         return lambda ctx, log: dict(tau_s=tau, tau_median_s=float(np.median(tau)), offset_s=0.0, metrics=m)
 
     class Ctx:
-        cfg = ExperimentConfig(discovery=from_dict(DiscoveryConfig, {"lag_test": True, "lag_slow_s": 2.0}))
+        cfg = ExperimentConfig(discovery=discovery_config(lag_test=True, lag_slow_s=2.0))
 
     lagged = {(0.0, 0.0): 0.03, (0.0, 1.0): 0.025, (1.0, 0.0): 0.02, (2.0, 0.0): 0.012, (3.0, 0.0): 0.016}
     monkeypatch.setattr(_lag, "_lag_trials", lambda *a, **k: trials(lagged))
@@ -108,14 +108,14 @@ def test_lag_test_is_judged_by_the_learned_tau_and_adds_the_slow_lag_against_the
 
     # A learned τ of the fast dynamics (the seed-46 null: the slow lag's trainings gained
     # 6.7 % there): nothing to name, whatever the trainings would gain, so they do not run;
-    # the table and round 0 hold the learned lag alone. With lag_trials_always they run.
+    # the table and round 0 hold the learned lag alone. Asked to, they run.
     columns = list(t.columns)
     ran = []
     monkeypatch.setattr(_lag, "_lag_trials", lambda *a, **k: ran.append(1) or trials(lagged))
     monkeypatch.setattr(_lag, "_learned_lag", learned(np.linspace(1.0, 1.4, 10)))
     got = _lag._lag_test(Ctx(), 1.0, log=lambda m: None)
     assert not got["confirmed"] and ran == [] and got["reference"] is None and np.isnan(got["drop"])
-    assert got["why"] == "the learned τ 1.20 s (folds × seeds 1.00-1.40 s) is below lag_slow_s 2 s"
+    assert got["why"] == "the learned τ 1.20 s (folds × seeds 1.00-1.40 s) is below lag_test.slow_s 2 s"
     t = got["table"]
     assert list(t.columns) == columns and list(t.role) == ["learned"] and not t.chosen[0] and np.isnan(t["drop"][0])
     assert t.tau_s[0] == pytest.approx(1.2) and (t.tau_min_s[0], t.tau_max_s[0]) == pytest.approx((1.0, 1.4))
@@ -123,11 +123,7 @@ def test_lag_test_is_judged_by_the_learned_tau_and_adds_the_slow_lag_against_the
     assert effect is None and not row["confirmed"] and row["why_not"] == got["why"]
     assert row["augment"] == "learned" and row["runners_up"] == "learned τ 1.20 s" and np.isnan(row["shrink"])
 
-    class Always:
-        cfg = ExperimentConfig(discovery=from_dict(DiscoveryConfig, {"lag_test": True, "lag_slow_s": 2.0,
-                                                                     "lag_trials_always": True}))
-
-    got = _lag._lag_test(Always(), 1.0, log=lambda m: None)
+    got = _lag._lag_test(Ctx(), 1.0, log=lambda m: None, always_trials=True)
     assert ran == [1] and not got["confirmed"] and got["drop"] > 0.3 and len(got["table"]) == 6
 
     # A learned slow lag whose trainings through it gain nothing (held-out lags 35, 36:
@@ -148,13 +144,12 @@ def test_discover_names_a_long_lag_first_with_nets_trained_through_it(monkeypatc
     # lag and trains through it. τ = 3 s, as the benchmark fits on this world (the τ = 2 s
     # trial starts 1 s after the peak nets' 3 s offset and loses to the reference there);
     # every 16th window (every 32nd: too few windows, and the lag loses 5 %).
-    from test_discovery import _BASE, _FAST
+    from test_discovery import _BASE
 
     from pvvjax import discovery as D
-    from pvvjax._strict import from_dict
-    from pvvjax.config import DiscoveryConfig, ExperimentConfig
+    from pvvjax.config import ExperimentConfig, from_dict
     from pvvjax.data.campaign import campaign_from_frames
-    from pvvjax.discovery import _lag
+    from pvvjax.discovery import _lag, _rules
     from pvvjax.discovery.report import write_discovery
     from pvvjax.synth import SynthConfig, generate
 
@@ -162,8 +157,11 @@ def test_discover_names_a_long_lag_first_with_nets_trained_through_it(monkeypatc
     camp = campaign_from_frames(*generate(from_dict(SynthConfig, {**_BASE, "effects": effects, "name": "lag",
                                                                   "seed": 31}))[:2])
     monkeypatch.setattr(_lag, "_LAG_REFERENCE_OFFSETS", ())
-    cfg = ExperimentConfig(discovery=from_dict(DiscoveryConfig, {**_FAST, "train_stride": 16, "lag_test": True,
-                                                                 "lag_test_taus": [3.0], "lag_learn_steps": 600}))
+    monkeypatch.setattr(_rules, "TRAIN_STRIDE", 16)
+    monkeypatch.setattr(_rules, "LAG_TEST_TAUS", (3.0,))
+    monkeypatch.setattr(_rules, "LAG_LEARN_STEPS", 600)
+    cfg = ExperimentConfig(discovery=discovery_config(seeds=3, proposals=2, max_effects=1, offset_step_s=0.25,
+                                                      lag_test=True))
     res = D.discover(camp, cfg, log=lambda m: None)
     js = D.summary(res)
     assert [e["operator"] for e in js["effects"]] == ["lag"], (res.lag_test, res.rounds.iloc[0])
@@ -171,7 +169,7 @@ def test_discover_names_a_long_lag_first_with_nets_trained_through_it(monkeypatc
     assert params["tau_s"] == 3.0 and 0.0 < js["effects"][0]["p_value"] <= 1.0
     base, learned, t = res.lag_test.iloc[0], res.lag_test.iloc[1], res.lag_test.iloc[2:].reset_index(drop=True)
     assert learned.role == "learned" and learned.tau_min_s <= learned.tau_s <= learned.tau_max_s
-    assert learned.tau_s == pytest.approx(params["learned_tau_s"]) and learned.tau_s >= cfg.discovery.lag_slow_s
+    assert learned.tau_s == pytest.approx(params["learned_tau_s"]) and learned.tau_s >= cfg.discovery.lag_test.slow_s
     assert list(t.tau_s) == [0.0, 3.0] and t["drop"][1] >= cfg.discovery.min_shrink
     # The first row: the peak nets the test started from, at their offset (the window nets
     # learn the maneuvers: a lower RMS).

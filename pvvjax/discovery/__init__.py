@@ -3,8 +3,7 @@ it to the model and show the gap shrink (data-contract §3).
 
 1. **Baseline.** Nets of one database, trained k-fold by condition over several seeds
    (`fit_ensemble`) on its peak rows. Every counter is replayed by the nets that held its
-   condition out; the input-to-vibration offset is fitted on the held-out windows. (With
-   `train_rows = "windows"` the nets are then retrained on the replay windows at that offset.)
+   condition out; the input-to-vibration offset is fitted on the held-out windows.
    With `lag_test`, window nets and a lag of learnable τ between them and the measured PVV,
    trained jointly (`_learned`), then ask whether the vibration lags the state more slowly
    than the fast dynamics the offset stands for (`_lag_test`); window nets trained *through*

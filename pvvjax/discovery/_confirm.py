@@ -7,6 +7,7 @@ import numpy as np
 import pandas as pd
 
 from ..analysis.databases import OUTPUT
+from . import _rules
 from ._fits import _lag_identified
 from ._model import (
     Model,
@@ -27,16 +28,16 @@ from ._model import (
 from .candidates import Candidate, values
 
 
-def _train_model(ctx: _Ctx, model: Model, rows: str = "") -> dict:
+def _train_model(ctx: _Ctx, model: Model, rows: str = "peaks") -> dict:
     """Nets on the database inputs and the model's extra inputs, with its gains, trained on
-    the peaks or the windows (`rows`, default the config's `train_rows`) minus its additive
-    terms (per fold: each fold's terms were fitted without it). A model `through_lag` trains
-    on the windows, the measured ones with the model's lag undone (`delag`)."""
+    the peaks or the windows (`rows`) minus its additive terms (per fold: each fold's terms
+    were fitted without it). A model `through_lag` trains on the windows, the measured ones
+    with the model's lag undone (`delag`)."""
     d = ctx.cfg.discovery
-    if model.through_lag or (rows or d.train_rows) == "windows":  # every train_stride-th full window at the offset
+    if model.through_lag or rows == "windows":  # every TRAIN_STRIDE-th full window at the offset
         win = _replay(ctx, model.offset_s)
         t = win.table
-        sel = (t.weight.to_numpy() >= 0.999) & (t.k.to_numpy() % d.train_stride == 0)
+        sel = (t.weight.to_numpy() >= 0.999) & (t.k.to_numpy() % _rules.TRAIN_STRIDE == 0)
         x, value = _inputs(model, win)[sel], lambda c: win.values(c)[sel]
         y = t.measured_g.to_numpy()
         if model.through_lag:
@@ -46,8 +47,9 @@ def _train_model(ctx: _Ctx, model: Model, rows: str = "") -> dict:
         value = lambda c: values(c, ctx.train_table)  # noqa: E731
         x, y, folds = _columns(ctx.x_db, model, value), ctx.db[OUTPUT].to_numpy(np.float64), ctx.folds
     if model.terms:
-        y = np.stack([y - _terms(model, value, np.full(len(y), f)) for f in range(d.folds)])
-    return fit_ensemble(x, y, folds, k=d.folds, seeds=d.seeds, hidden=d.hidden, train_cfg=ctx.cfg.train,
+        y = np.stack([y - _terms(model, value, np.full(len(y), f)) for f in range(d.ensemble.folds)])
+    e = d.ensemble
+    return fit_ensemble(x, y, folds, k=e.folds, seeds=e.seeds, hidden=e.hidden, train_cfg=ctx.cfg.train,
                         seed=ctx.cfg.seed, n_gain=len(model.gains))
 
 
@@ -59,32 +61,25 @@ def _fit_term(ctx: _Ctx, model: Model, c: Candidate, win: _Windows) -> np.ndarra
     fold = ctx.counter_fold[win.table.i.to_numpy()]
     r = win.table.measured_g.to_numpy() - np.median(predictions(ctx, model, win), axis=0)
     A = np.column_stack([np.ones(len(r)), _lag_windows(win.values(c)[None], win, model.lag_tau_s)[0]])
-    out = np.zeros((ctx.cfg.discovery.folds, 2))
+    out = np.zeros((ctx.cfg.discovery.ensemble.folds, 2))
     for f in range(len(out)):
         rows = full & (fold != f)
         out[f] = np.linalg.lstsq(A[rows], r[rows], rcond=None)[0]
     return out
 
 
-def _refits_on_windows(d, model: Model) -> bool:
-    """Whether a window refit differs from the peaks' one: a model trained through its lag,
-    or on the windows (`train_rows`), already refits on window nets."""
-    return not model.through_lag and d.train_rows == "peaks"
-
-
-def _augment(ctx: _Ctx, model: Model, c: Candidate, how: str, refit: str = "") -> Model:
+def _augment(ctx: _Ctx, model: Model, c: Candidate, how: str, refit: str = "peaks") -> Model:
     """The model with one more effect: an extra network input, a learned gain on the nets'
     output (`gain_apply`), or an additive term (fitted on the windows, the nets retrained on
-    the corrected peaks, the term refitted: on those nets' residual, or, where `refit` (default
-    the config's `term_refit`) is "windows", on that of nets trained on the windows minus it,
-    the peak nets then retrained on the peaks minus the refitted term)."""
+    the corrected peaks, the term refitted: on those nets' residual, or, where `refit` is
+    "windows" and the model trains on the peaks, on that of nets trained on the windows minus
+    it, the peak nets then retrained on the peaks minus the refitted term)."""
     if how in ("input", "gain"):
         trial = model._replace(**({"extra": model.extra + (c,)} if how == "input" else {"gains": model.gains + (c,)}))
         return trial._replace(params=_train_model(ctx, trial))
     win = _replay(ctx, model.offset_s)
     first = model._replace(terms=model.terms + ((c, _fit_term(ctx, model, c, win)),))
-    d = ctx.cfg.discovery
-    if (refit or d.term_refit) == "windows" and _refits_on_windows(d, model):
+    if refit == "windows" and not model.through_lag:
         refit = _fit_term(ctx, model._replace(params=_train_model(ctx, first, rows="windows")), c, win)
         refitted = model._replace(terms=model.terms + ((c, refit),))
         return refitted._replace(params=_train_model(ctx, refitted))
@@ -146,8 +141,8 @@ def _confirm(ctx: _Ctx, current: Model, trial: Model, c: Candidate, where: str, 
     # many windows where a pitch-rate effect's retraining gained on seed 54).
     where_it_acts = (local >= d.min_shrink and shrink > 0.0) or (local >= 2 * d.min_shrink and shrink > -slack)
     why = "" if where_it_acts or shrink >= 2 * d.min_shrink else "too small a shrink"
-    if c.operator == "lag" and not _lag_identified(trial.lag_tau_s, d.lag_taus):
-        why = f"time constant at the grid's largest, {max(d.lag_taus):g} s: a smoother, not a lag"
+    if c.operator == "lag" and not _lag_identified(trial.lag_tau_s, _rules.LAG_TAUS):
+        why = f"time constant at the grid's largest, {max(_rules.LAG_TAUS):g} s: a smoother, not a lag"
     return not why, dict(pred=tpred, win=twin, metrics=metrics(tpred, twin), shrink=shrink, local=local,
                          region=region, judged_in=", ".join(kinds), ensemble=ens, why=why)
 

@@ -11,6 +11,7 @@ import numpy as np
 import optimistix as optx
 import pandas as pd
 
+from . import _rules
 from ._model import Model, _Ctx, _grid, _lag_grid, _lag_windows, _replay, _selection_column, _Windows, predictions
 from .candidates import Candidate
 from .effects import band
@@ -73,10 +74,10 @@ def _fit_offset(ctx: _Ctx, model: Model, with_lag: bool) -> Model:
     (grid, then refined by LM at the best offset) that minimise the held-out window SSE of
     the ensemble median (without `with_lag`, of the model with its own lag)."""
     d = ctx.cfg.discovery
-    if not d.calibrate_offset:
-        offsets = np.array([d.offset_s])
+    if not d.offset.calibrate:
+        offsets = np.array([d.offset.fixed_s])
     else:
-        offsets = np.arange(d.offset_bounds[0], d.offset_bounds[1] + 1e-9, d.offset_step_s)
+        offsets = np.arange(d.offset.bounds[0], d.offset.bounds[1] + 1e-9, d.offset.step_s)
     best = (np.inf, 0.0, 0.0)
     for off in offsets:
         win = _replay(ctx, float(off))
@@ -84,7 +85,7 @@ def _fit_offset(ctx: _Ctx, model: Model, with_lag: bool) -> Model:
         meas = win.table.measured_g.to_numpy()
         yhat = np.median(predictions(ctx, model._replace(lag_tau_s=0.0) if with_lag else model, win), axis=0)
         if with_lag:
-            tau, sse = _fit_tau(yhat, meas, win, full, d.lag_taus, refine=False)
+            tau, sse = _fit_tau(yhat, meas, win, full, _rules.LAG_TAUS, refine=False)
         else:
             tau, sse = model.lag_tau_s, float(np.sum((yhat[full] - meas[full]) ** 2))
         if sse < best[0]:
@@ -92,7 +93,7 @@ def _fit_offset(ctx: _Ctx, model: Model, with_lag: bool) -> Model:
     tau = best[2]
     if with_lag:
         win = _replay(ctx, best[1])
-        tau = _fit_tau(best[3], best[4], win, best[5], sorted({tau, *d.lag_taus}))[0]
+        tau = _fit_tau(best[3], best[4], win, best[5], sorted({tau, *_rules.LAG_TAUS}))[0]
     return model._replace(offset_s=best[1], lag_tau_s=tau)
 
 

@@ -6,6 +6,7 @@ import numpy as np
 import pandas as pd
 
 from ..analysis.databases import DB_INPUTS
+from . import _rules
 from ._confirm import _SIGN_FLIPS, _active_kinds, _paired_errors, _paired_sign_flip, _region, _train_model
 from ._fits import _fit_offset
 from ._learned import fit_learned_lag
@@ -36,7 +37,7 @@ def _lag_trials(ctx: _Ctx, delta: float, taus, reference_offsets, log=print) -> 
         (S, n), metrics (`metrics`) and ensemble_rms_g (held-out RMS of the median over
         seeds, full windows).
     """
-    lo = ctx.cfg.discovery.offset_bounds[0]
+    lo = ctx.cfg.discovery.offset.bounds[0]
     runs = [(0.0, float(o)) for o in sorted({*map(float, reference_offsets), float(delta)})]
     runs += [(float(t), max(lo, round(delta - t, 6))) for t in taus]
     out = []
@@ -74,15 +75,16 @@ def _learned_lag(ctx: _Ctx, log=print) -> dict:
         of the lagged nets.
     """
     d = ctx.cfg.discovery
-    offset = float(d.offset_bounds[0])
+    offset = float(d.offset.bounds[0])
     win = _replay(ctx, offset)
     t = win.table
     fold = ctx.counter_fold[t.i.to_numpy()]
-    rows = (t.weight.to_numpy() >= 0.999) & (t.k.to_numpy() % d.train_stride == 0)
-    train_w = np.stack([rows & (fold != f) for f in range(d.folds)])
+    rows = (t.weight.to_numpy() >= 0.999) & (t.k.to_numpy() % _rules.TRAIN_STRIDE == 0)
+    train_w = np.stack([rows & (fold != f) for f in range(d.ensemble.folds)])
     fit = fit_learned_lag(_inputs(Model({}, _STATE_INPUTS), win), t.measured_g.to_numpy(), train_w,
-                          window_layout(win), d.folds, seeds=d.seeds, hidden=d.hidden, seed=ctx.cfg.seed,
-                          steps=d.lag_learn_steps)
+                          window_layout(win), d.ensemble.folds, seeds=d.ensemble.seeds, hidden=d.ensemble.hidden,
+                          seed=ctx.cfg.seed,
+                          steps=_rules.LAG_LEARN_STEPS)
     held = fit["pred"][fold, :, np.arange(len(fold))].T  # (seeds, n): each window by the nets that held it out
     tau = fit["tau_s"]
     out = dict(tau_s=tau, tau_median_s=float(np.median(tau)), offset_s=offset, metrics=metrics(held, win))
@@ -113,7 +115,7 @@ def _lag_table(learned: dict, trials: list, ref: dict | None, slow: dict | None,
                         tau_max_s=[tau.max()] + [np.nan] * len(trials))
 
 
-def _lag_test(ctx: _Ctx, delta: float, log) -> dict:
+def _lag_test(ctx: _Ctx, delta: float, log, always_trials: bool = False) -> dict:
     """Is there a lag slower than the fast dynamics the offset stands for? Judged by a lag
     learned inside one training (`_learned_lag`): confirmed if its τ, the median over folds
     × seeds, is at least `lag_slow_s`. At the lowest offset the learned τ takes the delay
@@ -129,7 +131,7 @@ def _lag_test(ctx: _Ctx, delta: float, log) -> dict:
     difference of two window trainings moves with the nets' initialization, and nets trained
     through a slow lag can gain without one, where the learned τ separates the two. So where
     the learned τ confirms no lag the trainings, which would decide nothing, are skipped
-    unless `lag_trials_always`.
+    unless `always_trials` (then they are reported, for comparison with other campaigns).
 
     Returns:
         dict: table (one row per ensemble, the learned lag's first), learned
@@ -142,17 +144,17 @@ def _lag_test(ctx: _Ctx, delta: float, log) -> dict:
     d = ctx.cfg.discovery
     learned = _learned_lag(ctx, log)
     tau, tau_all = learned["tau_median_s"], learned["tau_s"]
-    why = ("" if tau >= d.lag_slow_s else
+    why = ("" if tau >= d.lag_test.slow_s else
            f"the learned τ {tau:.2f} s (folds × seeds {tau_all.min():.2f}-{tau_all.max():.2f} s) is below "
-           f"lag_slow_s {d.lag_slow_s:g} s")
-    if why and not d.lag_trials_always:
+           f"lag_test.slow_s {d.lag_test.slow_s:g} s")
+    if why and not always_trials:
         log(f"lag test: {why}: not confirmed (no trainings through lags)")
-        return dict(table=_lag_table(learned, [], None, None, d.lag_fast_s), learned=learned, reference=None,
+        return dict(table=_lag_table(learned, [], None, None, _rules.LAG_FAST_S), learned=learned, reference=None,
                     slow=None, drop=np.nan, local=np.nan, judged_in="", p_value=np.nan, explained_fraction=np.nan,
                     confirmed=False, why=why)
-    trials = _lag_trials(ctx, delta, d.lag_test_taus, _LAG_REFERENCE_OFFSETS, log)
-    ref = min((t for t in trials if t["tau_s"] <= d.lag_fast_s), key=lambda t: t["ensemble_rms_g"])
-    slow = min((t for t in trials if t["tau_s"] > d.lag_fast_s), key=lambda t: t["ensemble_rms_g"])
+    trials = _lag_trials(ctx, delta, _rules.LAG_TEST_TAUS, _LAG_REFERENCE_OFFSETS, log)
+    ref = min((t for t in trials if t["tau_s"] <= _rules.LAG_FAST_S), key=lambda t: t["ensemble_rms_g"])
+    slow = min((t for t in trials if t["tau_s"] > _rules.LAG_FAST_S), key=lambda t: t["ensemble_rms_g"])
     drop = 1.0 - slow["ensemble_rms_g"] / ref["ensemble_rms_g"]
     p, explained = _paired_sign_flip(ref, slow, _SIGN_FLIPS, ctx.cfg.seed)
     rwin = ref["win"]
@@ -163,8 +165,9 @@ def _lag_test(ctx: _Ctx, delta: float, log) -> dict:
     both = _paired_errors(ref, slow)
     there = both[both.maneuver.isin(kinds)]
     local = float(1.0 - np.sqrt(there.e2_b.sum() / there.e2_a.sum()))
-    table = _lag_table(learned, trials, ref, slow, d.lag_fast_s)
-    log(f"lag test: learned τ {tau:.2f} s against lag_slow_s {d.lag_slow_s:g} s; the slow lag τ {slow['tau_s']:g} s "
+    table = _lag_table(learned, trials, ref, slow, _rules.LAG_FAST_S)
+    log(f"lag test: learned τ {tau:.2f} s against lag_test.slow_s {d.lag_test.slow_s:g} s; "
+        f"the slow lag τ {slow['tau_s']:g} s "
         f"against the reference (τ {ref['tau_s']:g} s): ensemble RMS {ref['ensemble_rms_g']:.4f} -> "
         f"{slow['ensemble_rms_g']:.4f} g ({-drop:+.1%}; {-local:+.1%} in {', '.join(kinds)}), p = {p:.3f}: "
         + ("confirmed" if not why else "not confirmed"))

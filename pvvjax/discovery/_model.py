@@ -19,6 +19,7 @@ from ..nets.networks import mlp_apply, mlp_init, scaling
 from ..nets.sweep import stack_trees, train_nets
 from ..replay.quasistatic import FEATURES, input_index
 from ..replay.tables import replay_all
+from . import _rules
 from .candidates import Candidate, values, window_table, window_tables
 from .effects import lag as _first_order_lag
 
@@ -140,8 +141,7 @@ class Model(NamedTuple):
         parameter, default 1: see `_columns`).
         offset_s: input-to-vibration offset, s. lag_tau_s: first-order lag of the replayed
         prediction, s (0: none). through_lag: the nets train on the replay windows with the
-        lag undone in their targets (`delag`), as the lag test trains them, whatever
-        `train_rows` says.
+        lag undone in their targets (`delag`), as the lag test trains them.
     """
 
     params: dict
@@ -245,7 +245,7 @@ def _replay(ctx: _Ctx, offset: float) -> _Windows:
     rep = jax.device_get(replay_all(model, ctx.recs, theta, settings=ctx.settings))
     W = rep.time.shape[1]
     # Input windows in record time: measured window edges (revolutions) -> time -> − offset.
-    a = np.asarray(ctx.recs.rev_start)[:, None] + d.hop_revs * np.arange(W)[None, :]
+    a = np.asarray(ctx.recs.rev_start)[:, None] + _rules.HOP_REVS * np.arange(W)[None, :]
     t0 = np.zeros((N, W))
     t1 = np.zeros((N, W))
     for i in range(N):

@@ -8,6 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pandas as pd
 
+from . import _rules
 from ._confirm import _SIGN_FLIPS, _explained, _paired_errors, _sign_flip_p, _train_model
 from ._lag import _lag_candidates
 from ._model import Model, _Ctx, _determined, _selection_column, _Windows, source_channels
@@ -79,19 +80,17 @@ def _candidate_matrix(ctx: _Ctx, model: Model, win: _Windows, yhat, used_keys,
         (candidates, columns, own refinements, their columns); non-finite, constant and
         duplicate columns dropped.
     """
-    d = ctx.cfg.discovery
     own = _determined(model.inputs)
     taken = tuple(model.inputs) + tuple(c.channels[0] for c in model.extra if c.operator == "input")
     # Candidates take the model's offset, recorded as their alignment: a term keeps it if a
     # later round moves the model's offset (`_Windows.values`). Those without a fitted
     # parameter are also tried at `candidate_offsets_s` (a transient's faster response).
     lib, cols, flib, fcols = [], [], [], []
-    extra = sorted({round(float(o), 6) for o in d.candidate_offsets_s} - {round(float(model.offset_s), 6)})
+    extra = sorted({round(float(o), 6) for o in _rules.CANDIDATE_OFFSETS_S} - {round(float(model.offset_s), 6)})
     win.prefetch([model.offset_s, *extra])
     for off in [model.offset_s, *extra]:
         table = win.at(off)  # `win.cands` at the model's own offset (`win` is its replay)
-        for c in library(table, model_inputs=taken, knee_quantiles=d.knee_quantiles,
-                          resonance_shape=d.band_shape):
+        for c in library(table, model_inputs=taken, knee_quantiles=_rules.KNEE_QUANTILES):
             if off != model.offset_s and c.operator not in _ALIGNED:
                 continue
             c = replace(c, parameters={**c.parameters, "offset_s": off})
@@ -106,7 +105,7 @@ def _candidate_matrix(ctx: _Ctx, model: Model, win: _Windows, yhat, used_keys,
             cols.append(_selection_column(c, values(c, table), yhat))
     C = np.column_stack(cols)
     if lags and model.lag_tau_s <= 0:
-        lc, LC = _lag_candidates(yhat, win, d.lag_taus)
+        lc, LC = _lag_candidates(yhat, win, _rules.LAG_TAUS)
         lib, C = lib + lc, np.column_stack([C, LC])
     # Drop non-finite, constant and duplicate columns (e.g. |x| of a channel that is never negative).
     usable = lambda M: np.all(np.isfinite(M), axis=0) & (np.ptp(M, axis=0) > 0)  # noqa: E731
@@ -151,7 +150,7 @@ def _neighbour_cells(proposals, lib: list[Candidate], M, designs, resid, groups,
             column of `M`. designs: `_propose`'s {where: (rows, floor covariates)}.
 
     Returns:
-        The proposals, neighbours inserted (not counted against `d.proposals`).
+        The proposals, neighbours inserted (not counted against `d.selection.proposals`).
     """
     taken = {j for _, j, _ in proposals}
     out = []
@@ -167,9 +166,9 @@ def _neighbour_cells(proposals, lib: list[Candidate], M, designs, resid, groups,
         if not near:
             continue
         rows, floor = designs[where]
-        g = gains(resid[rows], M[:, near][rows], groups[rows], base=floor, folds=d.folds, seed=seed)
+        g = gains(resid[rows], M[:, near][rows], groups[rows], base=floor, folds=d.ensemble.folds, seed=seed)
         top = int(np.argmax(g))
-        if g[top] >= d.min_gain:
+        if g[top] >= _rules.MIN_GAIN:
             taken.add(near[top])
             out.append((where, near[top], s._replace(index=near[top], gain=float(g[top]))))
     return out
@@ -188,13 +187,13 @@ def _resonance_probe(ctx: _Ctx, model: Model, proposals, lib: list[Candidate], M
                      seed: int, log) -> list:
     """`proposals` and, if none is a resonance, the rotor-speed band of the largest
     `_probe_gains` (the model's offset; a band not named already), for nets trained on the
-    peaks (none for window nets: `Model.through_lag` or `train_rows = "windows"`). Its
+    peaks (none for window nets, `Model.through_lag`). Its
     `Selected` carries the band's held-out gain as a column of the selection (usually ~0:
     what it explains is not proportional to the prediction) and no p-value: the retraining's
     confirmation decides."""
     if any(lib[j].operator == "resonance" for _, j, _ in proposals):
         return proposals
-    if model.through_lag or d.train_rows == "windows":
+    if model.through_lag:
         # The probe is for peak nets: nets trained on the windows under-predict the lowest
         # rotor speed, where the fewest conditions are, and a gain there corrects them out of
         # sample although the campaign has no mode.
@@ -207,7 +206,7 @@ def _resonance_probe(ctx: _Ctx, model: Model, proposals, lib: list[Candidate], M
     g = _probe_gains(ctx, model, [c for _, c in bands])
     j = bands[int(np.argmax(g))][0]
     rows, floor = designs["all"]
-    gain = _selection_gain(resid[rows], M[rows, j], groups[rows], base=floor, folds=d.folds, seed=seed)
+    gain = _selection_gain(resid[rows], M[rows, j], groups[rows], base=floor, folds=d.ensemble.folds, seed=seed)
     log("resonance probe: gains by band centre " + ", ".join(
         f"{c.parameters['center']:.1f} {v:+.2f}" for (_, c), v in zip(bands, g)) + f": proposes {lib[j].name}")
     return list(proposals) + [("all", j, _Selected(j, gain, float("nan"), float("nan"), source="probe"))]
@@ -220,12 +219,12 @@ def hidden_sources(inputs) -> frozenset[str]:
 
 
 def _source_tries(proposals, lib: list[Candidate], M, designs, resid, groups, inputs, d, seed: int, log) -> list:
-    """`proposals` and the `d.source_tries` candidates of the best held-out gain (above 0, one
+    """`proposals` and the `d.selection.source_tries` candidates of the best held-out gain (above 0, one
     alignment each, none proposed already) built only from `hidden_sources`. The nets learn
     part of such an effect through the derived input, so the residual under-ranks the rest:
     the selection alone does not propose it. Their `Selected` carries the gain and no p-value
     (`_source_test` gives its retraining's): the confirmation and the floor control decide."""
-    if not d.source_tries:
+    if not d.selection.source_tries:
         return proposals
     hidden = hidden_sources(inputs)
     proposed = {_unaligned_key(lib[j]) for _, j, _ in proposals}
@@ -234,11 +233,11 @@ def _source_tries(proposals, lib: list[Candidate], M, designs, resid, groups, in
     if not cols:
         return proposals
     rows, floor = designs["all"]
-    g = gains(resid[rows], M[rows][:, cols], groups[rows], base=floor, folds=d.folds, seed=seed)
+    g = gains(resid[rows], M[rows][:, cols], groups[rows], base=floor, folds=d.ensemble.folds, seed=seed)
     out, seen = list(proposals), set()
     for k in np.argsort(-g, kind="stable"):
         key = _unaligned_key(lib[cols[k]])
-        if g[k] <= 0 or len(seen) == d.source_tries:
+        if g[k] <= 0 or len(seen) == d.selection.source_tries:
             break
         if key not in seen:
             seen.add(key)
@@ -289,19 +288,15 @@ def _probe_test(conf: dict, current: dict, c: Candidate, seed: int, alpha: float
 
 def _propose(win: _Windows, yhat, resid, C, rows, own, floor_all, d, seed: int, complexity, keys,
              is_floor=None) -> tuple[list, list, dict]:
-    """Significant candidates over all windows and, with `local_selection`, inside each
-    maneuver kind where the residual concentrates (an effect of one kind is diluted among
-    all windows) and that has `min_subset_conditions` conditions (with fewer, the floor
-    covariates and the k-fold split cannot tell an effect from the floor). Bonferroni over
-    the subsets; the permutations grow so that the corrected level can be reached.
-    `floor_all`: the floor covariates of all the rows (`_floor`; a subset's are computed
-    here). `complexity` (one per column of C) is for the selection's parsimony rule; `keys`
+    """Significant candidates over all windows (`where` "all"): the permutations grow so that
+    the level `alpha` can be reached. `floor_all`: the floor covariates of the rows
+    (`_floor`). `complexity` (one per column of C) is for the selection's parsimony rule; `keys`
     (one per column) names the effect of each, so that one effect at two alignments is
     proposed once (at the better).
 
     `is_floor` marks the columns that refine the model's own inputs (`_candidate_matrix`): before
     any candidate is asked, the one with the largest held-out gain joins the floor
-    covariates, while it gains `min_gain`, at most `floor_refinements` of them. A knee of the
+    covariates, while it gains `MIN_GAIN`, at most `FLOOR_REFINEMENTS` of them. A knee of the
     map's own inputs that ~200 peaks did not teach the nets is the map's floor, not a
     missing effect; left out, a channel that follows it (a stick, the shaft power) is named
     in its place. Never tested, never proposed: covariates (their permutations in the test's
@@ -310,48 +305,38 @@ def _propose(win: _Windows, yhat, resid, C, rows, own, floor_all, d, seed: int, 
     Returns:
         (proposals, absorbed, designs). proposals: list of (where, candidate column,
         `Selected`), most residual² explained first and, inside a selection, the candidates it
-        cannot tell apart (`_try_order`); at most `d.proposals`, one per candidate. absorbed:
+        cannot tell apart (`_try_order`); at most `d.selection.proposals`, one per candidate. absorbed:
         list of (where, column, gain) of the floor columns that joined the floor. designs:
         {where: (rows, floor covariates with the absorbed columns)} of each selection.
     """
     groups = win.table.condition.to_numpy()
-    kinds = win.table.maneuver.to_numpy()
     is_floor = np.zeros(C.shape[1], bool) if is_floor is None else np.asarray(is_floor, bool)
-    subsets = [("all", rows)]
-    r2 = resid[rows] ** 2
-    for kind in sorted(set(kinds[rows])) if d.local_selection else ():
-        sub = rows & (kinds == kind)
-        # Kinds where the residual concentrates (share of residual² ≥ share of windows),
-        # with conditions enough for the k-fold split.
-        concentration = (np.sum(resid[sub] ** 2) / np.sum(r2)) / (np.sum(sub) / np.sum(rows))
-        if concentration >= 1.0 and len(set(groups[sub])) >= d.min_subset_conditions:
-            subsets.append((kind, sub))
-    alpha = d.alpha / len(subsets)
-    perms = max(d.permutations, int(np.ceil(1.0 / alpha)) - 1)
+    alpha = d.selection.alpha
+    perms = max(d.selection.permutations, int(np.ceil(1.0 / alpha)) - 1)
     found, absorbed, designs = [], [], {}
-    for where, sub in subsets:
+    for where, sub in [("all", rows)]:
         Cs = C[sub]
         keep = np.flatnonzero(np.ptp(Cs, axis=0) > 0)
-        floor = floor_all if where == "all" else _floor(win, yhat, resid, sub, own, groups)
+        floor = floor_all
         # The floor first: the static map of the model's own inputs is the null model, so
         # its refinements (the one with the largest held-out gain, while it gains `min_gain`)
         # join the floor covariates before any candidate is asked (never tested: covariates).
-        for _ in range(d.floor_refinements):
+        for _ in range(_rules.FLOOR_REFINEMENTS):
             own_cols = keep[is_floor[keep]]
             if not len(own_cols):
                 break
-            g = gains(resid[sub], Cs[:, own_cols], groups[sub], base=floor, folds=d.folds, seed=seed)
+            g = gains(resid[sub], Cs[:, own_cols], groups[sub], base=floor, folds=d.ensemble.folds, seed=seed)
             top = int(np.argmax(g))
-            if g[top] < d.min_gain:
+            if g[top] < _rules.MIN_GAIN:
                 break
             absorbed.append((where, int(own_cols[top]), float(g[top])))
             floor = np.column_stack([floor, Cs[:, own_cols[top]]])
             keep = keep[keep != own_cols[top]]
         keep = keep[~is_floor[keep]]
         designs[where] = (sub, floor)
-        for s in forward_select(resid[sub], Cs[:, keep], groups[sub], base=floor, folds=d.folds, max_effects=1,
-                                min_gain=d.min_gain, alpha=alpha, permutations=perms, seed=seed,
-                                complexity=complexity[keep], parsimony=d.parsimony):
+        for s in forward_select(resid[sub], Cs[:, keep], groups[sub], base=floor, folds=d.ensemble.folds, max_effects=1,
+                                min_gain=_rules.MIN_GAIN, alpha=alpha, permutations=perms, seed=seed,
+                                complexity=complexity[keep], parsimony=_rules.PARSIMONY):
             amount = s.gain * float(np.sum(resid[sub] ** 2))
             s = s._replace(index=int(keep[s.index]),  # global columns
                            alternatives=tuple((int(keep[a]), g) for a, g in s.alternatives),
@@ -363,4 +348,4 @@ def _propose(win: _Windows, yhat, resid, C, rows, own, floor_all, d, seed: int, 
             if keys[j] not in seen:
                 seen.add(keys[j])
                 out.append((where, j, s._replace(index=j, gain=g)))
-    return out[: d.proposals], absorbed, designs
+    return out[: d.selection.proposals], absorbed, designs

@@ -9,6 +9,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from . import _rules
 from ._confirm import (
     _SIGN_FLIPS,
     _augment,
@@ -18,7 +19,6 @@ from ._confirm import (
     _encompassed,
     _floor_control,
     _paired_sign_flip,
-    _refits_on_windows,
     _rival,
     _rival_encompasses,
     _tied,
@@ -32,7 +32,7 @@ from .selection import Selected
 
 
 class _Confirmed(NamedTuple):
-    """A try of a round: what `_choose` compares and what naming it takes (`augment_tie` may
+    """A try of a round: what `_choose` compares and what naming it takes (`_way` may
     name a term that did not confirm alone in place of its proposal's input)."""
 
     shrink: float  # of the ensemble's RMS over all windows
@@ -49,13 +49,13 @@ class _Confirmed(NamedTuple):
 def _modes(operator: str, d) -> tuple[str, ...]:
     """The ways a proposal of `operator` is added and retrained (`_confirm._augment`): a lag
     refitted in the replay, a band as a gain on the nets' output (and, with
-    `resonance_input`, as an extra input too), any other candidate as `augment` says
-    ("auto": an additive term and an extra input)."""
+    `resonance.as_input`, as an extra input too), any other candidate both as an additive
+    term and as an extra input (the confirmation keeps one)."""
     if operator == "lag":
         return ("lag",)
     if operator == "resonance":
-        return ("gain", "input") if d.resonance_input else ("gain",)
-    return ("additive", "input") if d.augment == "auto" else (d.augment,)
+        return ("gain", "input") if d.resonance.as_input else ("gain",)
+    return ("additive", "input")
 
 
 def _kept_on_top(ctx: _Ctx, first: Model, term: tuple) -> float:
@@ -76,8 +76,8 @@ class _Round:
             windows) and their `metrics`.
         win, yhat, resid: the current model's windows, median prediction and residual.
         lib, designs: the candidates the proposals index, and each selection's (rows, floor).
-        refinements: the floor's refinements over all windows, the floor control's inputs
-            (empty without `floor_control`). floor_terms: what the floor took, in words.
+        refinements: the floor's refinements over all windows, the floor control's inputs.
+            floor_terms: what the floor took, in words.
         used: the proposals' keys of every round so far (updated). rounds: the rounds table's
             rows (appended to). log: progress messages.
     """
@@ -112,7 +112,7 @@ class _Round:
         rows, fl = self.designs[where]
         refined = _keep_better(lib[j], _refine(lib[j], resid[rows], win.at(
             lib[j].parameters.get("offset_s", win.offset))[rows], yhat[rows], base=fl), win, yhat, resid,
-            rows, fl, d.folds, self.seed, self.log)
+            rows, fl, d.ensemble.folds, self.seed, self.log)
         self.used.add(_unaligned_key(lib[j]))
         if refined.key in self.tried:  # two grid knees refined to the same one: retrained already
             self.log(f"  {lib[j].name}: refined to {refined.name}, tried already")
@@ -125,7 +125,7 @@ class _Round:
             p_value, explained = s.p_value, s.explained_fraction
             if s.source == "probe":  # no selection p: its retraining's, by condition
                 p_value, explained, why = _probe_test(conf, dict(pred=self.pred, win=win), c, self.seed,
-                                                      d.probe_alpha)
+                                                      _rules.PROBE_ALPHA)
                 if ok and why:
                     ok, conf["why"] = False, why
             elif s.source == "source":  # no selection p either: its retraining's, reported
@@ -136,13 +136,13 @@ class _Round:
                 control, kept = self._control_for(added)
             if control is not None:  # the same try on top of the floor control
                 ok, on_control = _confirm(ctx, control, _augment(ctx, control, added, mode), added, where, d,
-                                          slack=d.shrink_noise)
+                                          slack=_rules.SHRINK_NOISE)
                 # Or the try alone beats the control (`_floor_control`), where the control predicts
                 # at least as well as the current model: beating a worse one, the try has shown
                 # nothing its first confirmation had not.
                 control_worse = on_control["ensemble"][0] > conf["ensemble"][0]
                 if not ok and not control_worse:
-                    ok, over_control = _confirm(ctx, control, trial, added, where, d, slack=d.shrink_noise)
+                    ok, over_control = _confirm(ctx, control, trial, added, where, d, slack=_rules.SHRINK_NOISE)
                 if not ok:
                     alone = ("the control predicts worse than the current model (ensemble's RMS "
                              f"{on_control['ensemble'][0]:.4f} against {conf['ensemble'][0]:.4f} g)" if control_worse
@@ -177,7 +177,7 @@ class _Round:
                               s._replace(p_value=p_value, explained_fraction=explained), c, trial, conf,
                               refined.key, on_control["shrink"])
             self.ways[(refined.key, mode)] = done
-            if ok:  # "auto" tries both ways; `_choose`, then `augment_tie`, keeps one
+            if ok:  # both ways are tried; `_choose`, then `_way`, keeps one
                 self.confirmed.append(done)
         self.seconds += time.perf_counter() - t0
 
@@ -189,7 +189,7 @@ class _Round:
             c = replace(c, parameters={"tau_s": trial.lag_tau_s})
             return c, trial, c
         if mode == "gain" and s.source != "probe":  # a tested band: its gain in steps of gain_unit
-            c = replace(c, parameters={**c.parameters, "gain_unit": self.d.gain_unit})
+            c = replace(c, parameters={**c.parameters, "gain_unit": _rules.GAIN_UNIT})
         added = c
         trial = _augment(self.ctx, self.current, c, mode)
         if trial.terms and trial.terms[-1][0] is c:
@@ -209,14 +209,14 @@ class _Round:
         tries = [(t.shrink, np.nan if t.selected.source == "probe" else t.selected.gain, p, t.proposal,
                   t.control_shrink) for t, p in zip(self.confirmed, ps)]
         d = self.d
-        return tries, _choose(tries, d.shrink_noise, d.alpha, d.min_shrink, d.tie_share)
+        return tries, _choose(tries, _rules.SHRINK_NOISE, d.selection.alpha, d.min_shrink, _rules.TIE_SHARE)
 
     def name(self, proposals: list) -> _Confirmed | None:
         """Try every proposal (`(where, j, Selected)`) and name one of the confirmed tries:
-        `_choose`'s, or a weak name's runner-up on other channels (`_rival`); then, with
-        `augment_tie`, its proposal's term in place of a tied input, and with `term_refit`,
-        a named term refitted on window nets. None where nothing confirms. The named try's
-        row is marked `chosen`."""
+        `_choose`'s, or a weak name's runner-up on other channels (`_rival`), or a tied rival
+        its term encompasses (`_encompass`); then its proposal's term in place of a tied input
+        (`_way`), and a named term refitted on window nets (`_refit_named`). None where nothing
+        confirms. The named try's row is marked `chosen`."""
         for where, j, s in proposals:
             self.try_proposal(where, j, s)
         if not self.confirmed:
@@ -227,7 +227,7 @@ class _Round:
         taken = set().union(*(source_channels(lib[j].channels) for _, j, _ in proposals))
         named = self.confirmed[k]
         rival = _rival(k, tries, named.selected.alternatives, [c.channels for c in lib], taken,
-                       self.d.min_shrink, self.d.min_gain)
+                       self.d.min_shrink, _rules.MIN_GAIN)
         if rival is not None:  # a weak name: its runner-up on other channels retrained beside it
             a, g = rival
             self.log(f"round {self.rnd + 1}: {named.candidate.name} gains less than min_shrink on top of its floor "
@@ -243,16 +243,14 @@ class _Round:
         return named
 
     def _encompass(self, k: int, tries) -> int:
-        """With `encompassing`, the named try's index after comparing its proposal's term with
+        """The named try's index after comparing its proposal's term with
         each tied proposal's on other source channels (both confirmed as additive terms; lags
         and bands aside), in turn: the rival is named, in its way of the largest shrink, where
         its term keeps a larger share of its own coefficient on top of the named's model
         (`_kept_on_top`) than the named's term keeps on top of its own, by more than
-        `encompassing_margin`. Each rival's term row logs what it kept on top (`kept_on_top`),
+        `ENCOMPASSING_MARGIN`. Each rival's term row logs what it kept on top (`kept_on_top`),
         what the named kept on top of it (`named_kept_on_top`) and the named's proposal
         (`kept_against`: a rival after a change of name is measured against the new one)."""
-        if not self.d.encompassing:
-            return k
         d, ways, conf = self.d, self.ways, self.confirmed
 
         def term(i: int):  # its proposal's additive try, where that confirmed
@@ -267,23 +265,21 @@ class _Round:
             kept_b = _kept_on_top(self.ctx, a.trial, b.trial.terms[-1])
             kept_a = _kept_on_top(self.ctx, b.trial, a.trial.terms[-1])
             self.rounds[b.row].update(kept_on_top=kept_b, named_kept_on_top=kept_a, kept_against=named.proposal)
-            won = _rival_encompasses((kept_b, kept_a), d.encompassing_margin)
+            won = _rival_encompasses((kept_b, kept_a), _rules.ENCOMPASSING_MARGIN)
             self.log(f"round {self.rnd + 1}: encompassing: {t.candidate.name} keeps {kept_b:.2f} of its coefficient "
                      f"on top of {named.candidate.name}, which keeps {kept_a:.2f} on top of it (margin "
-                     f"{d.encompassing_margin:.2f}): {t.candidate.name if won else named.candidate.name} named")
+                     f"{_rules.ENCOMPASSING_MARGIN:.2f}): {t.candidate.name if won else named.candidate.name} named")
             return kept_b, kept_a
 
-        return _encompassed(k, _ties(tries, d.shrink_noise, d.alpha, d.min_shrink, d.tie_share),
+        return _encompassed(k, _ties(tries, _rules.SHRINK_NOISE, d.selection.alpha, d.min_shrink, _rules.TIE_SHARE),
                             [c.proposal for c in conf], lambda i: term(i) is not None,
-                            lambda i: source_channels(conf[i].candidate.channels), measure, d.encompassing_margin,
+                            lambda i: source_channels(conf[i].candidate.channels), measure, _rules.ENCOMPASSING_MARGIN,
                             lambda j: conf[j].shrink)
 
     def _input_ties(self):
-        """With `augment_tie = "additive"`, log on the term row of every proposal whose input
-        confirmed the p that the input predicts better (`p_input_better`): what `_way` decides
-        by, for whichever input is named, and what `discovery_rechoose` replays it from."""
-        if self.d.augment_tie != "additive":
-            return
+        """Log on the term row of every proposal whose input confirmed the p that the input
+        predicts better (`p_input_better`): what `_way` decides by, for whichever input is
+        named."""
         for t in self.confirmed:
             term = self.ways.get((t.proposal, "additive"))
             if self.rounds[t.row]["augment"] == "input" and term is not None:
@@ -291,16 +287,16 @@ class _Round:
                                                                             self.seed)[0]
 
     def _way(self, named: _Confirmed) -> _Confirmed:
-        """With `augment_tie = "additive"`, a named input's proposal as its additive term where
-        the two tie (`p_input_better`, logged by `_input_ties`)."""
+        """A named input's proposal as its additive term where the two tie (`p_input_better`,
+        logged by `_input_ties`)."""
         term = self.ways.get((named.proposal, "additive"))
-        if self.d.augment_tie != "additive" or self.rounds[named.row]["augment"] != "input" or term is None:
+        if self.rounds[named.row]["augment"] != "input" or term is None:
             return named
-        # The proposal is confirmed; which way adds it is a choice between fits: the term,
-        # where it ties with the input as `_choose` ties tries (config's `augment_tie`).
+        # The proposal is confirmed; which way adds it is a choice between fits: a term is two
+        # numbers per fold, an input is learned anew by each training; tied, the smaller model.
         d = self.d
         p = self.rounds[term.row]["p_input_better"]
-        if not _tied(term.shrink, named.shrink, p, d.shrink_noise, d.alpha, d.tie_share):
+        if not _tied(term.shrink, named.shrink, p, _rules.SHRINK_NOISE, d.selection.alpha, _rules.TIE_SHARE):
             return named
         self.log(f"round {self.rnd + 1}: {named.candidate.name} added as a term, not an input: its shrink "
                  f"{term.shrink:+.1%} ties with the input's {named.shrink:+.1%} (p = {p:.3f} that the input "
@@ -308,11 +304,9 @@ class _Round:
         return term
 
     def _refit_named(self, named: _Confirmed) -> _Confirmed:
-        """With `term_refit = "named"`, a named additive term refitted on window nets, kept where
-        that confirms too."""
+        """A named additive term refitted on window nets, kept where that confirms too."""
         d, row, c, conf = self.d, named.row, named.candidate, named.conf
-        if d.term_refit != "named" or self.rounds[row]["augment"] != "additive" or not _refits_on_windows(
-                d, self.current):
+        if self.rounds[row]["augment"] != "additive" or self.current.through_lag:
             return named
         # The tries were refitted on the peak nets, whose residual holds a term short; the
         # named one alone is refitted on window nets, so floor structure that no try

@@ -16,6 +16,7 @@ from ..data.batch import to_batch
 from ..data.campaign import Campaign, load_campaign
 from ..nets import train as _train
 from ..replay.quasistatic import make_settings, prepare
+from . import _rules
 from ._confirm import _train_model
 from ._fits import _fit_offset
 from ._lag import _lag_round, _lag_test, _table_row
@@ -80,7 +81,7 @@ class Discovery:
             started from, a second "learned": the lag learned inside one training, with its
             tau_s the median and tau_min_s, tau_max_s the range over folds × seeds), drop
             (against the reference), chosen. The trainings through lags (reference, slow)
-            only where a lag was confirmed or with `lag_trials_always`.
+            only where a lag was confirmed or with `discover(..., lag_trials=True)`.
     """
 
     campaign: str
@@ -136,7 +137,8 @@ def _context(campaign: Campaign, cfg: ExperimentConfig, log) -> _Ctx:
     dbs = build_databases(campaign, cfg.analysis)
     db = dbs[d.database]
     source = campaign.source or "<memory>"  # for the errors below
-    folds = _train.condition_folds(db.condition, d.folds, d.split_seed, f"discovery.folds (campaign {source}, "
+    folds = _train.condition_folds(db.condition, d.ensemble.folds, d.ensemble.split_seed,
+                                   f"discovery.ensemble.folds (campaign {source}, "
                                    f"{d.database})")
     fold_of = dict(zip(db.condition, folds))
     info = campaign.counters.loc[:, ["maneuver", "condition"]]
@@ -150,8 +152,8 @@ def _context(campaign: Campaign, cfg: ExperimentConfig, log) -> _Ctx:
     batch = to_batch(campaign, STATE_CHANNELS, list(info.index))
     recs = prepare(batch)
     L = cfg.analysis.window_revs
-    lo, hi = d.offset_bounds if d.calibrate_offset else (min(0.0, d.offset_s), max(0.0, d.offset_s))
-    settings = make_settings(batch, max_window_revs=L, min_window_revs=L, hop_revs=d.hop_revs,
+    lo, hi = d.offset.bounds if d.offset.calibrate else (min(0.0, d.offset.fixed_s), max(0.0, d.offset.fixed_s))
+    settings = make_settings(batch, max_window_revs=L, min_window_revs=L, hop_revs=_rules.HOP_REVS,
                              offset_bounds=(float(min(lo, 0.0)), float(max(hi, 0.0))))
     # Each database row's peak window (zero offset), where extra inputs are taken for training.
     rows, row_of = [], {c: i for i, c in enumerate(info.index)}
@@ -164,7 +166,7 @@ def _context(campaign: Campaign, cfg: ExperimentConfig, log) -> _Ctx:
         rows.append((r.counter, np.interp(mid - L / 2, rev, t), np.interp(mid + L / 2, rev, t)))
     train_iv = pd.DataFrame(rows, columns=["counter", "t0", "t1"])
     log(f"discovery: {d.database} on {len(db)} conditions, {len(info)} counters replayed "
-        f"({d.folds}-fold by condition x {d.seeds} seeds)")
+        f"({d.ensemble.folds}-fold by condition x {d.ensemble.seeds} seeds)")
     return _Ctx(campaign, cfg, db, db[list(DB_INPUTS[d.database])].to_numpy(np.float64), folds, info,
                 np.array([fold_of[c] for c in info.condition]), batch, recs, settings,
                 window_table(campaign, train_iv, d.exclude_channels), replay_params={})
@@ -193,7 +195,7 @@ def _workflow_inputs(caller: str, campaign, cfg, name: str = "") -> tuple[Campai
 
 
 def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | DiscoveryConfig = ExperimentConfig(), *,
-             name: str = "", log=print, progress=None) -> Discovery:
+             name: str = "", log=print, lag_trials: bool = False) -> Discovery:
     """Run the discovery workflow on a campaign (see the module docstring).
 
     Args:
@@ -202,6 +204,9 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
             `DiscoveryConfig` (the other sections at their defaults).
         name: the campaign's path or name, for the summary (default: the folder given).
         log: progress messages.
+        lag_trials: with the lag test on, train the window nets through lags even where the
+            learned lag confirms none: they decide nothing then, but their gains (in
+            `Discovery.lag_test`) measure what a lag would close on this campaign.
 
     Returns:
         `Discovery`.
@@ -219,17 +224,13 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
     sec["train_baseline"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     model = _fit_offset(ctx, Model(params, tuple(DB_INPUTS[d.database])), with_lag=False)
-    if d.train_rows == "windows":  # on the windows at the offset the peak nets calibrated
-        t1 = time.perf_counter()
-        model = model._replace(params=_train_model(ctx, model))
-        sec["train_baseline"] += time.perf_counter() - t1
     win = _replay(ctx, model.offset_s)
     pred0 = predictions(ctx, model, win)
     before = metrics(pred0, win)
     lag = None
-    if d.lag_test and d.max_effects > 0:
+    if d.lag_test.enabled and d.max_effects > 0:
         t1 = time.perf_counter()
-        lag = _lag_test(ctx, model.offset_s, log)
+        lag = _lag_test(ctx, model.offset_s, log, always_trials=lag_trials)
         lag["table"] = _with_baseline_row(lag["table"], model.offset_s, before,
                                           lag["reference"]["ensemble_rms_g"] if lag["reference"] else np.nan)
         sec["lag_test"] = time.perf_counter() - t1
@@ -266,7 +267,7 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
         # test, and a lag of the prediction that a round confirms after it rejected one is a
         # smoother of the nets' transients.
         lib, C, flib, F = _candidate_matrix(ctx, current, win, yhat, used, lags=lag is None)
-        sel_rows = full & (win.table.k.to_numpy() % d.selection_stride == 0)
+        sel_rows = full & (win.table.k.to_numpy() % _rules.SELECTION_STRIDE == 0)
         own = floor_features(current.inputs)
         groups = win.table.condition.to_numpy()
         floor = _floor(win, yhat, resid, sel_rows, own, groups)
@@ -280,13 +281,13 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
         round_log = lambda m, r=rnd: log(f"round {r + 1}: {m}")  # noqa: E731
         proposals = _source_tries(proposals, lib, M, designs, resid, groups, current.inputs, d, cfg.seed + rnd,
                                   round_log)
-        if d.resonance_probe:
+        if d.resonance.probe:
             proposals = _resonance_probe(ctx, current, proposals, lib, M, designs, resid, groups, d, cfg.seed + rnd,
                                          round_log)
         if rnd == 0:  # the selection's design: its floor with the refinements it took over all windows
             taken = [M[sel_rows, j] for where, j, _ in absorbed if where == "all"]
             first = Residual(resid, sel_rows, np.column_stack([floor, *taken]) if taken else floor,
-                             groups, d.folds, cfg.seed)
+                             groups, d.ensemble.folds, cfg.seed)
         floor_terms = "; ".join(f"{lib[j].name} in {where} ({g:.3f})" for where, j, g in absorbed)
         if absorbed:
             log(f"round {rnd + 1}: the floor takes {floor_terms}")
@@ -296,7 +297,7 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
                          for where, j, s in proposals) or "none")
             + "".join(f"; {len(s.equivalents)} equivalent to the best in {where}: "
                       + ", ".join(lib[a].name for a, _ in s.equivalents[:10]) for where, _, s in proposals[:1]))
-        refinements = [lib[j] for where, j, _ in absorbed if where == "all"] if d.floor_control else []
+        refinements = [lib[j] for where, j, _ in absorbed if where == "all"]
         step = _Round(ctx, rnd, current, pred, cur_metrics, win, yhat, resid, lib, designs, refinements,
                       floor_terms, used, rounds, log)
         named = step.name(proposals)

@@ -128,7 +128,7 @@ def write_discovery(res: Discovery, out, cfg=None, worst: int = 4) -> Path:
                   "reference is the best without a lag or with one of at most `lag_fast_s`, the slow lag the "
                   "best above it (round 0 below; its gain and a sign-flip test by condition are reported, not "
                   "required). Where no lag is confirmed those trainings decide nothing and are skipped, unless "
-                  "`lag_trials_always`.", "", _md(res.lag_test), ""]
+                  "`discover(..., lag_trials=True)`.", "", _md(res.lag_test), ""]
     if not res.rounds.empty:
         controlled = "control_shrink" in res.rounds and bool(res.rounds.control_shrink.notna().any())
         refit = "window_refit_kept" in res.rounds
@@ -154,12 +154,12 @@ def write_discovery(res: Discovery, out, cfg=None, worst: int = 4) -> Path:
                   "why a try is not confirmed." + (
                       " `control_shrink`, `control_region_shrink`: the same try added to the floor control (the "
                       "model retrained with its selection's floor refinements as inputs), where it must confirm "
-                      "again (`floor_control`); `over_control_shrink`, `over_control_region_shrink`: the try's "
+                      "again; `over_control_shrink`, `over_control_region_shrink`: the try's "
                       "own model against the control, which it may beat instead." if controlled else "") + (
-                      " `window_refit_*` (`term_refit = \"named\"`): the named term refitted on nets trained on the "
+                      " `window_refit_*`: the named term refitted on nets trained on the "
                       "windows, its coefficient and ensemble's RMS after, and whether that model confirmed too and "
                       "replaced the try." if refit else "") + (
-                      " `p_input_better` (`augment_tie = \"additive\"`, on a term's row): that its proposal's "
+                      " `p_input_better` (on a term's row): that its proposal's "
                       "input, confirmed, predicts better than the term (by condition); where the named input's "
                       "term ties with it, the term is named, confirmed alone or not." if way_tie else ""), "",
                   _md(res.rounds[["round", "name", *(["source"] if "source" in res.rounds else []), "augment",

@@ -1,0 +1,53 @@
+"""Experiment configs: TOML files validated into frozen dataclasses.
+
+An unknown or mistyped key, a value of the wrong type, or a value out of range is a
+`ConfigError` that names the file and the key. Relative paths in a config are relative to
+the working directory the command runs in.
+"""
+
+from .._strict import ConfigError, from_dict, to_dict
+from ..data.units import ColumnMap
+from ._discovery import (
+    DiscoveryConfig,
+    EnsembleConfig,
+    LagTestConfig,
+    OffsetConfig,
+    ResonanceConfig,
+    SelectionConfig,
+)
+from ._experiment import ExperimentConfig, config_hash, load_config, load_toml
+from ._sections import (
+    TRANSIENT_MANEUVERS,
+    AnalysisConfig,
+    CalibrationConfig,
+    CampaignConfig,
+    ReplayConfig,
+    RunConfig,
+    SweepConfig,
+    TrainConfig,
+)
+
+__all__ = [
+    "AnalysisConfig",
+    "CalibrationConfig",
+    "CampaignConfig",
+    "ColumnMap",
+    "ConfigError",
+    "DiscoveryConfig",
+    "EnsembleConfig",
+    "ExperimentConfig",
+    "LagTestConfig",
+    "OffsetConfig",
+    "ReplayConfig",
+    "ResonanceConfig",
+    "RunConfig",
+    "SelectionConfig",
+    "SweepConfig",
+    "TRANSIENT_MANEUVERS",
+    "TrainConfig",
+    "config_hash",
+    "from_dict",
+    "load_config",
+    "load_toml",
+    "to_dict",
+]

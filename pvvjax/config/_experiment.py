@@ -1,0 +1,77 @@
+"""An experiment config, read from TOML and hashed."""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .._strict import ConfigError, from_dict, to_dict
+from ._discovery import DiscoveryConfig
+from ._sections import (
+    AnalysisConfig,
+    CalibrationConfig,
+    CampaignConfig,
+    ReplayConfig,
+    RunConfig,
+    SweepConfig,
+    TrainConfig,
+)
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+
+@dataclass(frozen=True)
+class ExperimentConfig:
+    """One experiment: a campaign and the pipeline settings applied to it."""
+
+    name: str = "experiment"
+    out_dir: str = "runs"
+    seed: int = 0
+    campaign: CampaignConfig = field(default_factory=CampaignConfig)
+    analysis: AnalysisConfig = field(default_factory=AnalysisConfig)
+    train: TrainConfig = field(default_factory=TrainConfig)
+    sweep: SweepConfig = field(default_factory=SweepConfig)
+    replay: ReplayConfig = field(default_factory=ReplayConfig)
+    calibration: CalibrationConfig = field(default_factory=CalibrationConfig)
+    discovery: DiscoveryConfig = field(default_factory=DiscoveryConfig)
+    run: RunConfig = field(default_factory=RunConfig)
+
+    def with_(self, **changes) -> "ExperimentConfig":
+        return dataclasses.replace(self, **changes)
+
+
+def load_toml(path: str | Path) -> dict:
+    """Read a TOML file; a syntax error names the file."""
+    path = Path(path)
+    try:
+        with open(path, "rb") as f:
+            return tomllib.load(f)
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: no such config file") from None
+    except tomllib.TOMLDecodeError as e:
+        raise ConfigError(f"{path}: not valid TOML: {e}") from None
+
+
+def load_config(path: str | Path, cls: type = ExperimentConfig):
+    """Load and validate a TOML config into the frozen dataclass `cls`.
+
+    Raises:
+        ConfigError: naming the file and the offending key.
+    """
+    try:
+        return from_dict(cls, load_toml(path))
+    except ConfigError as e:
+        raise ConfigError(f"{path}: {e}") from None
+
+
+def config_hash(cfg) -> str:
+    """A short stable hash of a config's content (for result tables and caches)."""
+    blob = json.dumps(to_dict(cfg), sort_keys=True, default=str).encode()
+    return hashlib.sha256(blob).hexdigest()[:12]

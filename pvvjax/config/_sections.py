@@ -1,0 +1,285 @@
+"""The sections of an experiment config other than discovery's: campaign, analysis, training,
+sweep, replay, calibration and the main job."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+from ..data.units import CANONICAL_UNITS, ColumnMap
+
+
+@dataclass(frozen=True)
+class CampaignConfig:
+    """Where the flight-test campaign comes from.
+
+    Attributes:
+        path: campaign folder (data-contract §1). Empty: the embedded synthetic campaign.
+        synthetic: generator config (TOML) for the embedded campaign; empty: the default
+            campaign with the experiment's seed.
+        columns: foreign column name -> `ColumnMap`, applied to counters.csv and time series.
+    """
+
+    path: str = ""
+    synthetic: str = ""
+    columns: dict[str, ColumnMap] = field(default_factory=dict)
+
+    def __post_init__(self):
+        targets = [m.to for m in self.columns.values()]
+        dup = {t for t in targets if targets.count(t) > 1}
+        if dup:
+            raise ValueError(f"columns: several columns map to {sorted(dup)}")
+        for src, m in self.columns.items():
+            if m.to not in CANONICAL_UNITS and m.unit is not None:
+                raise ValueError(f"columns.{src}: {m.to!r} is not a canonical channel")
+
+
+@dataclass(frozen=True)
+class AnalysisConfig:
+    """Windowed harmonic analysis and peak extraction.
+
+    Attributes:
+        window_revs: window length L in rotor revolutions (paper: 8). Continuous.
+        hop_revs: window start spacing in revolutions; 0 means consecutive windows (= L).
+        harmonic: harmonic order k analysed (4 for the 4-bladed UH-60A: 4/rev).
+        taper_revs: width of the raised-cosine window edges in revolutions; 0 gives the
+            rectangular window (edges resolved to fractions of a sample).
+        inputs: how a database row takes the flight state at the peak window: "mean"
+            averages each channel over the window (the paper's replay inputs), "center"
+            takes the instantaneous value at the window's center.
+    """
+
+    window_revs: float = 8.0
+    hop_revs: float = 0.0
+    harmonic: int = 4
+    taper_revs: float = 0.0
+    inputs: Literal["mean", "center"] = "mean"
+
+    def __post_init__(self):
+        if not self.window_revs > 0:
+            raise ValueError(f"window_revs must be > 0, got {self.window_revs}")
+        if self.hop_revs < 0:
+            raise ValueError(f"hop_revs must be >= 0, got {self.hop_revs}")
+        if self.harmonic < 1:
+            raise ValueError(f"harmonic must be >= 1, got {self.harmonic}")
+        if self.taper_revs < 0 or self.taper_revs >= self.window_revs:
+            raise ValueError(f"taper_revs must be in [0, window_revs), got {self.taper_revs}")
+
+    @property
+    def hop(self) -> float:
+        return self.hop_revs or self.window_revs
+
+
+def _check_databases(section: str, databases, field: str = "databases"):
+    bad = [d for d in databases if d not in ("db1", "db2", "db3")]
+    if bad or not databases:
+        raise ValueError(f"{section}.{field}: unknown {bad}; use db1, db2, db3")
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Full-batch training of one net.
+
+    Attributes:
+        optimizer: "adam" (first order) or "lm" (Levenberg-Marquardt, second order).
+        learning_rate: Adam step size.
+        max_steps: optimizer steps at most.
+        eval_every: steps between validation evaluations.
+        patience: evaluations without a better validation RMS before stopping.
+        weight_decay: decoupled weight decay (AdamW) when > 0.
+        lm_damping: initial Levenberg-Marquardt damping λ.
+        divergence_factor: a training loss above this multiple of the initial loss is divergence.
+    """
+
+    optimizer: Literal["adam", "lm"] = "adam"
+    learning_rate: float = 3e-3
+    max_steps: int = 6000
+    eval_every: int = 50
+    patience: int = 10
+    weight_decay: float = 0.0
+    lm_damping: float = 1e-2
+    divergence_factor: float = 1e3
+
+    def __post_init__(self):
+        for name in ("learning_rate", "max_steps", "eval_every", "patience", "lm_damping", "divergence_factor"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"train.{name} must be > 0, got {getattr(self, name)}")
+        if self.weight_decay < 0:
+            raise ValueError(f"train.weight_decay must be >= 0, got {self.weight_decay}")
+
+
+@dataclass(frozen=True)
+class SweepConfig:
+    """A family of nets trained together: databases × architectures × seeds × folds.
+
+    Attributes:
+        databases: which of db1, db2, db3.
+        family: "mlp" (back-propagation nets) or "rbf" (radial-basis-function nets).
+        hidden: MLP hidden-layer widths per architecture, e.g. [[10, 5], [15, 5]].
+        centers: RBF centre counts per architecture.
+        seeds: number of initialisation seeds (0 .. seeds-1).
+        folds: k of the k-fold split by condition.
+        test_folds: outer folds to run (empty: all k, so every condition is held out once).
+        split_seed: seed of the assignment of conditions to folds.
+        chunk_evals: evaluations per compiled chunk; finished nets leave the batch between chunks.
+        cpu_devices: on CPU, expose this many host devices so that the net axis is sharded
+            over the cores (0: one per core; 1: off). Applied by `pvvjax sweep` before JAX
+            starts; results then depend on it (same config, seed and devices: same numbers).
+    """
+
+    databases: tuple[str, ...] = ("db1", "db2", "db3")
+    family: Literal["mlp", "rbf"] = "mlp"
+    hidden: tuple[tuple[int, ...], ...] = ((10, 5),)
+    centers: tuple[int, ...] = (20,)
+    seeds: int = 1
+    folds: int = 5
+    test_folds: tuple[int, ...] = ()
+    split_seed: int = 0
+    chunk_evals: int = 4
+    cpu_devices: int = 0
+
+    def __post_init__(self):
+        if self.cpu_devices < 0:
+            raise ValueError(f"sweep.cpu_devices must be >= 0, got {self.cpu_devices}")
+        _check_databases("sweep", self.databases)
+        if any(not h or min(h) < 1 for h in self.hidden):
+            raise ValueError(f"sweep.hidden: every architecture needs widths >= 1, got {self.hidden}")
+        if self.seeds < 1 or self.folds < 3 or self.chunk_evals < 1:
+            raise ValueError("sweep.seeds must be >= 1, sweep.folds >= 3, sweep.chunk_evals >= 1")
+        if any(not 0 <= f < self.folds for f in self.test_folds):
+            raise ValueError(f"sweep.test_folds must lie in 0..{self.folds - 1}, got {self.test_folds}")
+
+    @property
+    def fold_list(self) -> tuple[int, ...]:
+        return self.test_folds or tuple(range(self.folds))
+
+
+TRANSIENT_MANEUVERS = ("pullup", "pushover", "roll", "autorotation", "flare")
+
+
+def _bounds(name: str, b: tuple[float, float]):
+    if len(b) != 2 or not b[0] < b[1]:
+        raise ValueError(f"{name} must be [lo, hi] with lo < hi, got {list(b)}")
+
+
+@dataclass(frozen=True)
+class ReplayConfig:
+    """Quasi-static replay of recorded counters through trained nets.
+
+    Attributes:
+        sweep: folder of the sweep whose nets are replayed ("": this config's own sweep,
+            `<out_dir>/<name>/sweep`). Each counter is replayed by the nets that held its
+            condition out, median over seeds.
+        architecture: which architecture of the sweep ("": its only one).
+        databases: which of db1, db2, db3.
+        counters: counters to replay (empty: every counter of the `maneuvers` kinds).
+        maneuvers: maneuver kinds replayed when `counters` is empty.
+        offset_s: input-to-vibration offset τ, s (inputs precede the vibration when > 0).
+        window_revs: window length L, revolutions (the paper: 8).
+        stick_offset_s: extra offset of the three stick inputs, s.
+        hop_revs: window spacing, revolutions (0: consecutive windows, as the paper).
+    """
+
+    sweep: str = ""
+    architecture: str = ""
+    databases: tuple[str, ...] = ("db1", "db2", "db3")
+    counters: tuple[str, ...] = ()
+    maneuvers: tuple[str, ...] = TRANSIENT_MANEUVERS
+    offset_s: float = 0.0
+    window_revs: float = 8.0
+    stick_offset_s: float = 0.0
+    hop_revs: float = 0.0
+
+    def __post_init__(self):
+        _check_databases("replay", self.databases)
+        if not 1.0 <= self.window_revs <= 64.0:
+            raise ValueError(f"replay.window_revs must be in [1, 64], got {self.window_revs}")
+        if self.hop_revs < 0:
+            raise ValueError(f"replay.hop_revs must be >= 0, got {self.hop_revs}")
+
+
+@dataclass(frozen=True)
+class CalibrationConfig:
+    """Gradient calibration of offset, window length and stick lag (see `pvvjax.replay.calibration`).
+
+    Attributes:
+        free: parameters fitted: any of offset_s, window_revs, stick_offset_s.
+        groups: one θ for "all" counters, one per "maneuver" kind, or one per "counter".
+        offset_bounds, window_bounds, stick_offset_bounds: [lo, hi] of each parameter
+            (s, revolutions, s).
+        hop_revs: window spacing of the calibration replays (finer than L resolves the
+            peak time better than the paper's consecutive windows).
+        reference_revs: length of the measured PVV windows (0: the fitted window length,
+            shared by inputs and vibration as in the paper; > 0: fixed reference windows,
+            and the window length is that of the input averaging only).
+        coarse_offset_step_s, coarse_window_step_revs, coarse_stick_step_s: the coarse
+            grid whose best point starts each solve.
+        grid_offset_step_s, grid_window_step_revs: the brute-force grid reported beside
+            the gradient optimum (0: no grid).
+        peak_weight, phase_weight, rms_weight, peak_scale_g, phase_scale_s, temperature_g,
+            phase_cap_s: the cost (`replay.CostWeights`).
+        max_steps: Levenberg-Marquardt steps at most.
+    """
+
+    free: tuple[str, ...] = ("offset_s", "window_revs")
+    groups: Literal["all", "maneuver", "counter"] = "all"
+    offset_bounds: tuple[float, float] = (-1.0, 3.0)
+    window_bounds: tuple[float, float] = (4.0, 16.0)
+    stick_offset_bounds: tuple[float, float] = (-2.0, 2.0)
+    hop_revs: float = 1.0
+    reference_revs: float = 0.0
+    coarse_offset_step_s: float = 0.25
+    coarse_window_step_revs: float = 2.0
+    coarse_stick_step_s: float = 0.5
+    grid_offset_step_s: float = 0.1
+    grid_window_step_revs: float = 0.5
+    peak_weight: float = 1.0
+    phase_weight: float = 1.0
+    rms_weight: float = 1.0
+    peak_scale_g: float = 0.02
+    phase_scale_s: float = 1.0
+    temperature_g: float = 0.005
+    phase_cap_s: float = 3.0
+    max_steps: int = 64
+
+    def __post_init__(self):
+        params = ("offset_s", "window_revs", "stick_offset_s")
+        bad = [f for f in self.free if f not in params]
+        if bad or not self.free or len(set(self.free)) != len(self.free):
+            raise ValueError(f"calibration.free: unknown or repeated {bad or list(self.free)}; use {list(params)}")
+        _bounds("calibration.offset_bounds", self.offset_bounds)
+        _bounds("calibration.window_bounds", self.window_bounds)
+        _bounds("calibration.stick_offset_bounds", self.stick_offset_bounds)
+        if self.window_bounds[0] < 1.0:
+            raise ValueError(f"calibration.window_bounds must start at >= 1 revolution, got {self.window_bounds[0]}")
+        for name in ("hop_revs", "coarse_offset_step_s", "coarse_window_step_revs", "coarse_stick_step_s",
+                     "peak_scale_g", "phase_scale_s", "temperature_g", "max_steps"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"calibration.{name} must be > 0, got {getattr(self, name)}")
+        for name in ("grid_offset_step_s", "grid_window_step_revs", "peak_weight", "phase_weight", "rms_weight",
+                     "phase_cap_s", "reference_revs"):
+            if getattr(self, name) < 0:
+                raise ValueError(f"calibration.{name} must be >= 0, got {getattr(self, name)}")
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """What the main job (`pvvjax run`) does beyond campaign, databases and figures.
+
+    Attributes:
+        networks: train the config's `[sweep]` (resumable) and report Figs 10-12 and Table 1
+            beside the paper.
+        replay: with `networks`, fit the offset on every transient maneuver ([replay]
+            maneuvers, [calibration]) and replay the pull-up 11022 (Figs 13-14).
+        studies: with `replay`, the studies the paper left open: one offset per maneuver
+            kind, the window length (gradient and brute-force grid) and a stick lag.
+        discovery_scenario: a generator config (TOML) whose campaign hides an effect; the
+            main job runs the discovery workflow on it ("": no discovery stage).
+        html: also write report.html beside report.md.
+    """
+
+    networks: bool = False
+    replay: bool = True
+    studies: bool = True
+    discovery_scenario: str = ""
+    html: bool = True
