@@ -8,12 +8,40 @@ import re
 
 # Pipeline order: data, analysis, networks, replay, discovery, real time, the generator, the shell.
 # A package is listed where it holds names of private modules (discovery, synth).
-MODULES = ["data.campaign", "data.units", "data.batch", "data.constants", "data.features", "analysis.harmonics",
-           "analysis.databases", "nets.networks", "nets.train", "nets.sweep", "nets.evaluation", "replay.quasistatic",
-           "replay.calibration", "replay.tables", "replay.studies", "discovery", "discovery.residuals",
-           "discovery.candidates", "discovery.effects", "discovery.selection", "discovery.report", "realtime.element",
-           "realtime.npnet", "realtime.jax_element", "synth", "paper.comparison", "config", "io", "plots", "experiment",
-           "cli"]
+MODULES = [
+    "data.campaign",
+    "data.units",
+    "data.batch",
+    "data.constants",
+    "data.features",
+    "analysis.harmonics",
+    "analysis.databases",
+    "nets.networks",
+    "nets.train",
+    "nets.sweep",
+    "nets.evaluation",
+    "replay.quasistatic",
+    "replay.calibration",
+    "replay.tables",
+    "replay.studies",
+    "discovery",
+    "discovery.residuals",
+    "discovery.candidates",
+    "discovery.effects",
+    "discovery.selection",
+    "discovery.report",
+    "realtime.element",
+    "realtime.npnet",
+    "realtime.jax_element",
+    "realtime.export",
+    "synth",
+    "paper.comparison",
+    "config",
+    "io",
+    "plots",
+    "experiment",
+    "cli",
+]
 
 
 def _signature(name: str, obj) -> str:

@@ -3,7 +3,6 @@ against the current model (and its floor control), compared, and one of them nam
 
 from __future__ import annotations
 
-import time
 from dataclasses import replace
 from typing import NamedTuple
 
@@ -91,7 +90,6 @@ class _Round:
             refinements, floor_terms, used, rounds, log)
         self.controls = {}  # the floor controls of this round, by the keys of the refinements they hold
         self.confirmed, self.tried, self.ways = [], set(), {}  # ways: every try, confirmed or not, by (proposal, way)
-        self.seconds = 0.0
 
     def _control_for(self, c: Candidate):
         """The floor control a try of `c` is judged on top of, and the refinements it holds."""
@@ -108,7 +106,6 @@ class _Round:
         """Retrain the proposal (column `j` of `lib`, found in `where`, `s` its `Selected`) in
         each way it can be added; its rows go to `rounds`, its confirmed tries to `confirmed`."""
         ctx, d, win, yhat, resid, lib = self.ctx, self.d, self.win, self.yhat, self.resid, self.lib
-        t0 = time.perf_counter()
         rows, fl = self.designs[where]
         refined = _keep_better(lib[j], _refine(lib[j], resid[rows], win.at(
             lib[j].parameters.get("offset_s", win.offset))[rows], yhat[rows], base=fl), win, yhat, resid,
@@ -179,7 +176,6 @@ class _Round:
             self.ways[(refined.key, mode)] = done
             if ok:  # both ways are tried; `_choose`, then `_way`, keeps one
                 self.confirmed.append(done)
-        self.seconds += time.perf_counter() - t0
 
     def _trial(self, c: Candidate, mode: str, s: Selected) -> tuple[Candidate, Model, Candidate]:
         """The current model with `c` added in `mode`, retrained: (the candidate with its fitted
@@ -221,7 +217,6 @@ class _Round:
             self.try_proposal(where, j, s)
         if not self.confirmed:
             return None
-        t0 = time.perf_counter()
         tries, k = self._choose()
         lib = self.lib
         taken = set().union(*(source_channels(lib[j].channels) for _, j, _ in proposals))
@@ -239,7 +234,6 @@ class _Round:
         self._input_ties()
         named = self._refit_named(self._way(self.confirmed[k]))
         self.rounds[named.row]["chosen"] = True
-        self.seconds += time.perf_counter() - t0
         return named
 
     def _encompass(self, k: int, tries) -> int:

@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import os
-import time
 from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
 
+from .._timing import Stopwatch
 from ..analysis.databases import DB_INPUTS, STATE_CHANNELS, build_databases
 from ..config import DiscoveryConfig, ExperimentConfig
 from ..data.batch import to_batch
@@ -26,6 +26,7 @@ from ._model import (
     _lag_windows,
     _replay,
     _selection_column,
+    _Windows,
     floor_features,
     metrics,
     predictions,
@@ -194,9 +195,21 @@ def _workflow_inputs(caller: str, campaign, cfg, name: str = "") -> tuple[Campai
     return campaign, cfg, name
 
 
+class _Baseline(NamedTuple):
+    """The model discovery starts from, with its replay windows, predictions (seeds ×
+    windows) and `metrics`; `lag`: the lag test's outcome, where it ran."""
+
+    model: Model
+    win: _Windows
+    pred: np.ndarray
+    before: dict
+    lag: dict | None
+
+
 def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | DiscoveryConfig = ExperimentConfig(), *,
              name: str = "", log=print, lag_trials: bool = False) -> Discovery:
-    """Run the discovery workflow on a campaign (see the module docstring).
+    """Run the discovery workflow on a campaign: the baseline (and the lag test), where its
+    residual lies, then rounds of explain, add and confirm (see the package docstring).
 
     Args:
         campaign: any campaign in the data-contract format, loaded or its folder.
@@ -212,96 +225,77 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
         `Discovery`.
     """
     campaign, cfg, name = _workflow_inputs("discover", campaign, cfg, name)
-    d = cfg.discovery
-    sec = {}
-    t0 = time.perf_counter()
-    ctx = _context(campaign, cfg, log)
-    sec["prepare"] = time.perf_counter() - t0
+    clock = Stopwatch()
+    with clock("prepare"):
+        ctx = _context(campaign, cfg, log)
+    base = _baseline(ctx, clock, log, lag_trials)
+    localized = _localized(ctx, base, log)
+    effects, rounds, final, first = _rounds(ctx, base, clock, log)
+    return _outcome(ctx, name or str(campaign.source), base, final, effects, rounds, localized, clock.seconds, first,
+                    log)
 
-    t0 = time.perf_counter()
-    params = _train_model(ctx, Model({}, tuple(DB_INPUTS[d.database])), rows="peaks")  # they calibrate the replay
-    ctx.replay_params = params
-    sec["train_baseline"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    model = _fit_offset(ctx, Model(params, tuple(DB_INPUTS[d.database])), with_lag=False)
-    win = _replay(ctx, model.offset_s)
-    pred0 = predictions(ctx, model, win)
-    before = metrics(pred0, win)
+
+def _baseline(ctx: _Ctx, clock: Stopwatch, log, lag_trials: bool) -> _Baseline:
+    """Peak nets of the database, trained k-fold by condition (they calibrate the replay), at
+    the offset fitted on their held-out windows; with the lag test, its reference where it
+    confirmed a slow lag (before/after then measures the lag)."""
+    d = ctx.cfg.discovery
+    inputs = tuple(DB_INPUTS[d.database])
+    with clock("train_baseline"):
+        ctx.replay_params = _train_model(ctx, Model({}, inputs), rows="peaks")
+    with clock("offset_and_replay"):
+        model = _fit_offset(ctx, Model(ctx.replay_params, inputs), with_lag=False)
+        win = _replay(ctx, model.offset_s)
+        pred = predictions(ctx, model, win)
+        before = metrics(pred, win)
     lag = None
     if d.lag_test.enabled and d.max_effects > 0:
-        t1 = time.perf_counter()
-        lag = _lag_test(ctx, model.offset_s, log, always_trials=lag_trials)
-        lag["table"] = _with_baseline_row(lag["table"], model.offset_s, before,
-                                          lag["reference"]["ensemble_rms_g"] if lag["reference"] else np.nan)
-        sec["lag_test"] = time.perf_counter() - t1
-        if lag["confirmed"]:  # the baseline is then the test's reference: before/after measures the lag
-            model = lag["reference"]["model"]
-            win = _replay(ctx, model.offset_s)
-            pred0 = predictions(ctx, model, win)
-            before = metrics(pred0, win)
-    full = win.table.weight.to_numpy() >= 0.999
-    sec["offset_and_replay"] = time.perf_counter() - t0
+        with clock("lag_test"):
+            lag = _lag_test(ctx, model.offset_s, log, always_trials=lag_trials)
+            reference_rms = lag["reference"]["ensemble_rms_g"] if lag["reference"] else np.nan
+            lag["table"] = _with_baseline_row(lag["table"], model.offset_s, before, reference_rms)
+            if lag["confirmed"]:
+                model = lag["reference"]["model"]
+                win = _replay(ctx, model.offset_s)
+                pred = predictions(ctx, model, win)
+                before = metrics(pred, win)
     log(f"baseline {d.database}: offset {model.offset_s:.2f} s, held-out RMS {before['rms_g']:.4f} g, peak error "
         f"{before['peak_error_g']:.4f} g, phase error {before['phase_error_s']:.2f} s")
-    loc_windows = win.table.assign(database=d.database, predicted_g=np.median(pred0, axis=0))
-    localized = localize(loc_windows[full])
+    return _Baseline(model, win, pred, before, lag)
+
+
+def _localized(ctx: _Ctx, base: _Baseline, log) -> dict:
+    """Where the baseline's residual lies (`residuals.localize`), on its full windows."""
+    full = base.win.table.weight.to_numpy() >= 0.999
+    windows = base.win.table.assign(database=ctx.cfg.discovery.database, predicted_g=np.median(base.pred, axis=0))
+    localized = localize(windows[full])
     log("residual by maneuver (share of the squared residual): " + ", ".join(
         f"{k} {v:.0%}" for k, v in localized["maneuver"].share_sq.head(4).items()))
+    return localized
 
-    baseline, current, pred, cur_metrics = model, model, pred0, before
+
+def _rounds(ctx: _Ctx, base: _Baseline, clock: Stopwatch, log) -> tuple[list, list, Model, Residual | None]:
+    """The effects named, the rounds table's rows, the final model and the first round's
+    selection design: the lag test's round, then rounds of explain (`_explain`) and add and
+    confirm (`_Round.name`) until nothing confirms or `max_effects`."""
+    d = ctx.cfg.discovery
     effects, rounds, used, first = [], [], set(), None
-    t_explain = t_confirm = 0.0
-    if lag is not None:
-        row, effect = _lag_round(ctx, lag, current.inputs)
+    current, pred, cur_metrics = base.model, base.pred, base.before
+    if base.lag is not None:
+        row, effect = _lag_round(ctx, base.lag, current.inputs)
         rounds.append(row)
         if effect is not None:
             effects.append(effect)
-            current, pred, cur_metrics = lag["slow"]["model"], lag["slow"]["pred"], lag["slow"]["metrics"]
+            slow = base.lag["slow"]
+            current, pred, cur_metrics = slow["model"], slow["pred"], slow["metrics"]
     for rnd in range(d.max_effects - len(effects)):
-        t0 = time.perf_counter()
-        win = _replay(ctx, current.offset_s)
-        full = win.table.weight.to_numpy() >= 0.999
-        yhat = np.median(pred, axis=0)
-        resid = win.table.measured_g.to_numpy() - yhat
-        # A lag test that ran is the lag's judge: its trainings through the lag are the finer
-        # test, and a lag of the prediction that a round confirms after it rejected one is a
-        # smoother of the nets' transients.
-        lib, C, flib, F = _candidate_matrix(ctx, current, win, yhat, used, lags=lag is None)
-        sel_rows = full & (win.table.k.to_numpy() % _rules.SELECTION_STRIDE == 0)
-        own = floor_features(current.inputs)
-        groups = win.table.condition.to_numpy()
-        floor = _floor(win, yhat, resid, sel_rows, own, groups)
-        both, M = lib + flib, np.column_stack([C, F])
-        proposals, absorbed, designs = _propose(win, yhat, resid, M, sel_rows, own, floor, d,
-                                                seed=cfg.seed + rnd, complexity=np.array([c.complexity for c in both]),
-                                                keys=[_unaligned_key(c) for c in both],
-                                                is_floor=np.arange(len(both)) >= len(lib))
-        lib = both  # proposals and their runners-up index both
-        proposals = _neighbour_cells(proposals, lib, M, designs, resid, groups, d, seed=cfg.seed + rnd)
-        round_log = lambda m, r=rnd: log(f"round {r + 1}: {m}")  # noqa: E731
-        proposals = _source_tries(proposals, lib, M, designs, resid, groups, current.inputs, d, cfg.seed + rnd,
-                                  round_log)
-        if d.resonance.probe:
-            proposals = _resonance_probe(ctx, current, proposals, lib, M, designs, resid, groups, d, cfg.seed + rnd,
-                                         round_log)
-        if rnd == 0:  # the selection's design: its floor with the refinements it took over all windows
-            taken = [M[sel_rows, j] for where, j, _ in absorbed if where == "all"]
-            first = Residual(resid, sel_rows, np.column_stack([floor, *taken]) if taken else floor,
-                             groups, d.ensemble.folds, cfg.seed)
-        floor_terms = "; ".join(f"{lib[j].name} in {where} ({g:.3f})" for where, j, g in absorbed)
-        if absorbed:
-            log(f"round {rnd + 1}: the floor takes {floor_terms}")
-        t_explain += time.perf_counter() - t0
-        log(f"round {rnd + 1}: {len(lib) - len(flib)} candidates, {len(proposals)} proposed: "
-            + (", ".join(f"{lib[j].name} in {where} (p={s.p_value:.4f}, gain {s.gain:.3f})"
-                         for where, j, s in proposals) or "none")
-            + "".join(f"; {len(s.equivalents)} equivalent to the best in {where}: "
-                      + ", ".join(lib[a].name for a, _ in s.equivalents[:10]) for where, _, s in proposals[:1]))
-        refinements = [lib[j] for where, j, _ in absorbed if where == "all"]
-        step = _Round(ctx, rnd, current, pred, cur_metrics, win, yhat, resid, lib, designs, refinements,
-                      floor_terms, used, rounds, log)
-        named = step.name(proposals)
-        t_confirm += step.seconds
+        with clock("explain"):
+            ex = _explain(ctx, rnd, current, pred, used, lags=base.lag is None, log=log)
+        first = first or ex.design
+        with clock("confirm"):
+            step = _Round(ctx, rnd, current, pred, cur_metrics, ex.win, ex.yhat, ex.resid, ex.lib, ex.designs,
+                          ex.refinements, ex.floor_terms, used, rounds, log)
+            named = step.name(ex.proposals)
         if named is None:
             break
         c, conf = named.candidate, named.conf
@@ -310,27 +304,91 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
                             explained_fraction=named.selected.explained_fraction, p_value=named.selected.p_value,
                             region=conf["region"], key=c.key, candidate=c, found_in=named.where))
         current, pred, cur_metrics = named.trial, conf["pred"], conf["metrics"]
-    sec["explain"], sec["confirm"] = t_explain, t_confirm
+    return effects, rounds, current, first
 
-    # Before and after on the final model's windows (the same counters and windows; the
-    # baseline re-predicted there if the offset moved).
+
+class _Explained(NamedTuple):
+    """One round's explanation of the current model's residual: its windows, median prediction
+    and residual; the candidates (`lib`) the proposals index; each selection's (rows, floor);
+    the proposals; the floor refinements over all windows (the floor control's inputs) and in
+    words; and the selection's design (`Residual`)."""
+
+    win: _Windows
+    yhat: np.ndarray
+    resid: np.ndarray
+    lib: list
+    designs: dict
+    proposals: list
+    refinements: list
+    floor_terms: str
+    design: Residual
+
+
+def _explain(ctx: _Ctx, rnd: int, current: Model, pred, used: set, lags: bool, log) -> _Explained:
+    """The candidates that explain the current model's residual beyond its floor: the
+    selection's proposals, the cells next to a proposed band, the source tries and the
+    resonance probe (each as the config asks). Without `lags` (a lag test ran: its trainings
+    through the lag are the finer test, and a lag of the prediction that a round confirms
+    after it rejected one is a smoother of the nets' transients) no lag is a candidate."""
+    d, seed = ctx.cfg.discovery, ctx.cfg.seed + rnd
     win = _replay(ctx, current.offset_s)
-    final_pred = predictions(ctx, current, win)
-    base_win = _replay(ctx, baseline.offset_s)
+    full = win.table.weight.to_numpy() >= 0.999
+    yhat = np.median(pred, axis=0)
+    resid = win.table.measured_g.to_numpy() - yhat
+    lib, C, flib, F = _candidate_matrix(ctx, current, win, yhat, used, lags=lags)
+    sel_rows = full & (win.table.k.to_numpy() % _rules.SELECTION_STRIDE == 0)
+    own = floor_features(current.inputs)
+    groups = win.table.condition.to_numpy()
+    floor = _floor(win, yhat, resid, sel_rows, own, groups)
+    lib, M = lib + flib, np.column_stack([C, F])  # proposals and their runners-up index both
+    proposals, absorbed, designs = _propose(win, yhat, resid, M, sel_rows, own, floor, d, seed=seed,
+                                            complexity=np.array([c.complexity for c in lib]),
+                                            keys=[_unaligned_key(c) for c in lib],
+                                            is_floor=np.arange(len(lib)) >= len(lib) - len(flib))
+    proposals = _neighbour_cells(proposals, lib, M, designs, resid, groups, d, seed=seed)
+    round_log = lambda m: log(f"round {rnd + 1}: {m}")  # noqa: E731
+    proposals = _source_tries(proposals, lib, M, designs, resid, groups, current.inputs, d, seed, round_log)
+    if d.resonance.probe:
+        proposals = _resonance_probe(ctx, current, proposals, lib, M, designs, resid, groups, d, seed, round_log)
+    # The selection's design: its floor with the refinements it took over all windows.
+    taken = [M[sel_rows, j] for where, j, _ in absorbed if where == "all"]
+    design = Residual(resid, sel_rows, np.column_stack([floor, *taken]) if taken else floor, groups,
+                      d.ensemble.folds, ctx.cfg.seed)
+    floor_terms = "; ".join(f"{lib[j].name} in {where} ({g:.3f})" for where, j, g in absorbed)
+    if absorbed:
+        round_log(f"the floor takes {floor_terms}")
+    round_log(f"{len(lib) - len(flib)} candidates, {len(proposals)} proposed: "
+              + (", ".join(f"{lib[j].name} in {where} (p={s.p_value:.4f}, gain {s.gain:.3f})"
+                           for where, j, s in proposals) or "none")
+              + "".join(f"; {len(s.equivalents)} equivalent to the best in {where}: "
+                        + ", ".join(lib[a].name for a, _ in s.equivalents[:10]) for where, _, s in proposals[:1]))
+    refinements = [lib[j] for where, j, _ in absorbed if where == "all"]
+    return _Explained(win, yhat, resid, lib, designs, proposals, refinements, floor_terms, design)
+
+
+def _outcome(ctx: _Ctx, name: str, base: _Baseline, final: Model, effects: list, rounds: list, localized: dict,
+             seconds: dict, first: Residual | None, log) -> Discovery:
+    """Before and after on the final model's windows (the same counters and windows; the
+    baseline re-predicted there if the offset moved), each effect's column as the selection
+    saw it beside them."""
+    win = _replay(ctx, final.offset_s)
+    final_pred = predictions(ctx, final, win)
+    base_win = _replay(ctx, base.model.offset_s)
     after = metrics(final_pred, win)
-    table = base_win.table.assign(predicted_before_g=np.median(pred0, axis=0))
+    yb = np.median(base.pred, axis=0)
+    table = base_win.table.assign(predicted_before_g=yb)
     table = table.merge(win.table[["counter", "window"]].assign(predicted_after_g=np.median(final_pred, axis=0)),
                         on=["counter", "window"], how="left")
-    yb = np.median(pred0, axis=0)
-    for e in effects:  # each effect's column as the selection saw it, for its partial-dependence plot
+    for e in effects:  # for its partial-dependence plot
         c = e["candidate"]
         if c.operator == "lag":
             table[f"effect_{e['rank']}"] = _lag_windows(yb[None], base_win, c.parameters["tau_s"])[0] - yb
         else:
             table[f"effect_{e['rank']}"] = _selection_column(c, base_win.values(c), yb)
-    log(f"final: {len(effects)} effect(s); held-out RMS {before['rms_g']:.4f} -> {after['rms_g']:.4f} g")
-    return Discovery(name or str(campaign.source), d.database, baseline, current, before, after, effects,
-                     pd.DataFrame(rounds), localized, table, sec, first, None if lag is None else lag["table"])
+    log(f"final: {len(effects)} effect(s); held-out RMS {base.before['rms_g']:.4f} -> {after['rms_g']:.4f} g")
+    return Discovery(name, ctx.cfg.discovery.database, base.model, final, base.before, after, effects,
+                     pd.DataFrame(rounds), localized, table, seconds, first,
+                     None if base.lag is None else base.lag["table"])
 
 
 def summary(res: Discovery) -> dict:

@@ -1,0 +1,332 @@
+"""The subcommands: each reads its arguments, runs the library and prints where it wrote."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+from ..experiment import (
+    _progress,
+    campaign_plots,
+    database_summary,
+    enable_compilation_cache,
+    prepare_sweep,
+    resolve_campaign,
+    run_main_job,
+    write_databases,
+)
+
+
+def _experiment(args):
+    from ..config import ExperimentConfig, load_config
+
+    return load_config(args.config) if getattr(args, "config", None) else ExperimentConfig()
+
+
+def cmd_validate(args) -> int:
+    from ..data.campaign import validate_campaign
+
+    cfg = _experiment(args)
+    problems = validate_campaign(args.campaign, cfg.campaign.columns, cfg.analysis.window_revs,
+                                 progress=_progress("validating"))
+    if problems:
+        print(f"{args.campaign}: {len(problems)} problem(s)")
+        for p in problems:
+            print(f"  - {p}")
+        return 1
+    print(f"{args.campaign}: valid")
+    return 0
+
+
+def cmd_build_db(args) -> int:
+    from ..analysis.databases import build_databases
+
+    cfg = _experiment(args)
+    campaign, _ = resolve_campaign(cfg, args.campaign)
+    dbs = build_databases(campaign, cfg.analysis)
+    out = Path(args.out)
+    write_databases(dbs, out, cfg)
+    print(database_summary(dbs))
+    print(f"wrote db1, db2, db3 and peaks (.csv, .parquet) to {out}")
+    return 0
+
+
+def cmd_synth(args) -> int:
+    import dataclasses
+
+    from ..synth import SynthConfig, load_synth_config, write_synthetic
+
+    scfg = load_synth_config(args.config) if args.config else SynthConfig()
+    if args.seed is not None:
+        scfg = dataclasses.replace(scfg, seed=args.seed)
+    t0 = time.perf_counter()
+    folder, truth = write_synthetic(args.out, scfg, args.truth)
+    print(f"wrote campaign {folder} ({time.perf_counter() - t0:.1f} s); ground truth: {truth}")
+    if args.plots:
+        from ..config import ExperimentConfig
+
+        cfg = ExperimentConfig()
+        campaign, _ = resolve_campaign(cfg, folder)
+        campaign_plots(campaign, cfg, Path(args.plots))  # the generator's check figures
+    return 0
+
+
+def cmd_plot(args) -> int:
+    cfg = _experiment(args)
+    campaign, _ = resolve_campaign(cfg, args.campaign)
+    _, _, rows = campaign_plots(campaign, cfg, Path(args.out), paper=args.paper)
+    if rows is not None:
+        from ..paper.comparison import comparison_markdown
+
+        print(comparison_markdown(rows))
+    return 0
+
+
+def cmd_run(args) -> int:
+    """The main job of an experiment config (`experiment.run_main_job`)."""
+    from ..config import load_config
+
+    run_main_job(load_config(args.config), args.config)
+    return 0
+
+
+def cmd_sweep(args) -> int:
+    """Train the config's family of nets; resumable."""
+    t0 = time.perf_counter()
+    _, _, res, out = prepare_sweep(args.config, args.out)
+    cols = ["val_rms_g", "test_rms_g", "test_max_abs_g", "test_p95_abs_g", "steps"]
+    print(res.groupby(["database", "architecture"])[cols].median().round(4).to_string())
+    print(f"{len(res)} nets in {out / 'results.parquet'} ({time.perf_counter() - t0:.1f} s)")
+    return 0
+
+
+def _export_element(args, res, sweep: Path) -> int:
+    """Every net of one database (all seeds and folds: their median) with the replay
+    settings and the training envelope, as a NumPy real-time element."""
+    from ..analysis.databases import DB_INPUTS, peak_table
+    from ..config import load_config
+    from ..realtime.export import element_spec, write_element
+
+    sel = res[res.database == args.database]
+    if sel.empty:
+        raise KeyError(f"{sweep / 'results.parquet'}: no net for database {args.database!r}")
+    archs = sorted(set(sel.architecture))
+    if len(archs) > 1:
+        raise ValueError(f"{sweep}: {args.database} has several architectures {archs}; export one with --net")
+    ids = list(sel.sort_values(["test_fold", "seed"]).net_id)
+    cfg = load_config(sweep / "config.toml")
+    campaign, _ = resolve_campaign(cfg)
+    inputs = list(DB_INPUTS[args.database])
+    db = peak_table(campaign, cfg.analysis)[0][inputs]
+    spec = element_spec([f"net_{i}.npz" for i in ids], inputs, (db.min(), db.max()), campaign,
+                        cfg.analysis.window_revs, window_revs=args.window, hop_revs=args.hop, offset_s=args.offset,
+                        stick_offset_s=args.stick_offset)
+    out = write_element(args.out, [sweep / "params" / f"{i}.npz" for i in ids], spec)
+    print(f"exported a real-time element: {len(ids)} {archs[0]} nets ({args.database}), window {args.window:g} revs, "
+          f"hop {args.hop:g} revs, offset {args.offset:g} s, to {out}")
+    return 0
+
+
+def cmd_export(args) -> int:
+    """Copy a trained net and the NumPy evaluator into a folder a simulator host can use."""
+    import shutil
+
+    import pandas as pd
+
+    from ..nets.sweep import load_params
+    from ..realtime import npnet
+
+    sweep = Path(args.sweep)
+    res = pd.read_parquet(sweep / "results.parquet")
+    if args.element:
+        return _export_element(args, res, sweep)
+    if args.net:
+        sel = res[res.net_id == args.net]
+        if sel.empty:
+            raise KeyError(f"{sweep / 'results.parquet'}: no net {args.net!r}")
+    else:  # best held-out net of the requested database
+        sel = res[res.database == args.database].sort_values("test_rms_g").head(1)
+        if sel.empty:
+            raise KeyError(f"{sweep / 'results.parquet'}: no net for database {args.database!r}")
+    row = sel.iloc[0]
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    shutil.copy(sweep / "params" / f"{row.net_id}.npz", out / "net.npz")
+    shutil.copy(npnet.__file__, out / "npnet.py")
+    _, meta = load_params(out / "net.npz")
+    (out / "README.md").write_text(
+        f"# Exported network {row.architecture} ({row.database}, net {row.net_id})\n\n"
+        f"Held-out RMS {row.test_rms_g:.4f} g. Needs NumPy only.\n\n"
+        "```python\nfrom npnet import NumpyNet\nnet = NumpyNet.load('net.npz')\n"
+        f"pvv_g = net([{', '.join(meta['inputs'])}])\n```\n\nInputs in this order, canonical units "
+        "(kt, lb, rpm, -, -, ft/min, %).\n")
+    print(f"exported {row.database} {row.architecture} (net {row.net_id}, held-out RMS {row.test_rms_g:.4f} g) "
+          f"to {out}")
+    print(f"inputs: {', '.join(meta['inputs'])}")
+    return 0
+
+
+def _replay_inputs(args, cfg):
+    """Campaign, counters, held-out models of the config's replay (training the sweep first
+    if the config names none)."""
+    from ..replay.tables import load_replay_set, select_counters
+
+    enable_compilation_cache()
+    if cfg.replay.sweep:
+        sweep = Path(cfg.replay.sweep)
+        if not (sweep / "parts").is_dir():
+            raise FileNotFoundError(f"{args.config}: replay.sweep = {cfg.replay.sweep!r} is not a sweep folder")
+    else:
+        _, _, _, sweep = prepare_sweep(args.config)
+    campaign, _ = resolve_campaign(cfg)
+    counters = list(args.counters) if getattr(args, "counters", None) else select_counters(campaign, cfg.replay)
+    info, batch, recs, models = load_replay_set(campaign, counters, sweep, cfg.replay.databases,
+                                                cfg.replay.architecture)
+    print(f"replaying {len(counters)} counters through the held-out nets of {sweep} ({', '.join(models)})")
+    return info, batch, recs, models
+
+
+def cmd_replay(args) -> int:
+    """Quasi-static replay of recorded counters at a given offset and window length."""
+    from .. import plots
+    from ..config import load_config
+    from ..io import write_config, write_table
+    from ..replay.tables import peak_summary, replay_windows, settings_at
+
+    cfg = load_config(args.config)
+    rc = cfg.replay
+    tau = rc.offset_s if args.offset is None else args.offset
+    L = rc.window_revs if args.window is None else args.window
+    out = Path(args.out) if args.out else Path(cfg.out_dir) / cfg.name / "replay"
+    info, batch, recs, models = _replay_inputs(args, cfg)
+    theta = (tau, L, rc.stick_offset_s)
+    windows = replay_windows(info, recs, models, theta, settings_at(batch, theta, rc.hop_revs))
+    summary = peak_summary(windows)
+    write_table(windows, out / "windows", cfg)
+    write_table(summary, out / "summary", cfg)
+    write_config(cfg, out / "config.toml")
+    cols = ["peak_error_g", "phase_error_s", "rms_g"]
+    print(f"offset {tau:g} s, window {L:g} revs, stick offset {rc.stick_offset_s:g} s; median over counters:")
+    print(summary.groupby("database")[cols].median().round(3).to_string())
+    for counter in list(info.index)[: args.plots]:
+        series = {db: windows[(windows.database == db) & (windows.counter == counter)] for db in models}
+        fig = plots.replay(series, f"counter {counter} ({info.loc[counter, 'maneuver']}): offset {tau:g} s, "
+                                   f"{L:g}-rev windows")
+        print(f"figure: {plots.save(fig, out / f'replay_{counter}.png')}")
+    print(f"tables: {out / 'windows.parquet'}, {out / 'summary.csv'}")
+    return 0
+
+
+def cmd_calibrate(args) -> int:
+    """Fit offset / window length / stick lag by gradient; check against a brute-force grid."""
+    import dataclasses
+
+    import numpy as np
+
+    from .. import plots
+    from ..config import load_config
+    from ..io import write_config, write_table
+    from ..replay.tables import calibration_table, grid_table
+
+    cfg = load_config(args.config)
+    cc = cfg.calibration
+    if args.groups or args.free:
+        cc = dataclasses.replace(cc, groups=args.groups or cc.groups, free=tuple(args.free or cc.free))
+        cfg = cfg.with_(calibration=cc)
+    out = Path(args.out) if args.out else Path(cfg.out_dir) / cfg.name / "calibration"
+    info, batch, recs, models = _replay_inputs(args, cfg)
+    init = (cfg.replay.offset_s, cfg.replay.window_revs, cfg.replay.stick_offset_s)
+    table = calibration_table(info, batch, recs, models, cc, init)
+    if cc.grid_offset_step_s > 0 and cc.grid_window_step_revs > 0 and "stick_offset_s" not in cc.free \
+            and cc.groups != "counter":
+        grid = grid_table(info, recs, models, cc, batch, init)
+        write_table(grid, out / "grid", cfg)
+        best = grid.loc[grid.groupby(["database", "group"]).cost.idxmin()].set_index(["database", "group"])
+        table["grid_offset_s"] = [best.loc[(r.database, r.group), "offset_s"] for r in table.itertuples()]
+        table["grid_window_revs"] = [best.loc[(r.database, r.group), "window_revs"] for r in table.itertuples()]
+        table["grid_cost"] = [best.loc[(r.database, r.group), "cost"] for r in table.itertuples()]
+        table["cost_minus_grid"] = table.cost - table.grid_cost  # < 0: better than every grid point
+        table["within_one_grid_step"] = (
+            (np.abs(table.offset_s - table.grid_offset_s) <= cc.grid_offset_step_s + 1e-6)
+            | ~np.isin("offset_s", list(cc.free)))
+        if "window_revs" in cc.free:
+            table["within_one_grid_step"] &= np.abs(table.window_revs - table.grid_window_revs) <= \
+                cc.grid_window_step_revs + 1e-6
+        for r in table[table.group == table.group.iloc[0]].itertuples():
+            g = grid[(grid.database == r.database) & (grid.group == r.group)]
+            fig = plots.cost_map(g, (r.offset_s, r.window_revs), f"{r.database}, group {r.group}: replay cost")
+            print(f"figure: {plots.save(fig, out / f'cost_map_{r.database}_{r.group}.png')}")
+    write_table(table, out / "calibration", cfg)
+    write_config(cfg, out / "config.toml")
+    show = ["database", "group", "n_counters", *cc.free, "cost", "start_cost", "steps"]
+    show += [c for c in ("grid_offset_s", "grid_window_revs", "grid_cost", "within_one_grid_step", "cost_minus_grid")
+             if c in table]
+    print(table[show].round(3).to_string(index=False))
+    print(f"table: {out / 'calibration.csv'}")
+    return 0
+
+
+def cmd_realtime(args) -> int:
+    """Feed a recorded counter to an exported element frame by frame (an example host loop)."""
+    import numpy as np
+    import pandas as pd
+
+    from ..config import ExperimentConfig
+    from ..realtime.element import CHANNELS, VibrationElement
+
+    el = VibrationElement.load(args.model)
+    cfg = ExperimentConfig()
+    campaign, _ = resolve_campaign(cfg, args.campaign)
+    if args.record not in campaign.records:
+        raise KeyError(f"record {args.record!r} is not in the campaign")
+    rec = campaign.records[args.record]
+    t0 = rec.time_s.to_numpy(float)
+    rev = np.unwrap(rec.azimuth_deg.to_numpy(float), period=360.0)
+    x0 = rec[list(CHANNELS)].to_numpy(float)
+    rate = args.rate or 1.0 / float(np.median(np.diff(t0)))
+    rng = np.random.default_rng(0)
+    t = np.arange(t0[0], t0[-1], 1.0 / rate)
+    if args.jitter:  # frame times jitter by up to ±jitter of a frame
+        t = np.sort(np.clip(t + rng.uniform(-args.jitter, args.jitter, t.size) / rate, t0[0], t0[-1]))
+    az = np.mod(np.interp(t, t0, rev), 360.0)
+    x = np.stack([np.interp(t, t0, x0[:, c]) for c in range(x0.shape[1])], 1)
+    out = np.zeros((t.size, 4))
+    lat = np.empty(t.size)
+    clock = time.perf_counter_ns
+    for i in range(t.size):
+        s0 = clock()
+        o = el.step(t[i], az[i], x[i])
+        lat[i] = (clock() - s0) / 1e3
+        out[i] = (o.pvv_g, o.shake_g, o.amplitude_g, o.out_of_envelope)
+    p50, p99, pmax = np.percentile(lat, [50, 99, 100])
+    print(f"{t.size} frames at {rate:g} Hz from record {args.record} ({t[-1] - t[0]:.1f} s): latency per frame "
+          f"median {p50:.1f} µs, 99th percentile {p99:.1f} µs, max {pmax:.0f} µs; "
+          f"{(t[-1] - t[0]) / (lat.sum() / 1e6):.0f}x faster than real time")
+    if args.out:
+        df = pd.DataFrame({"time_s": t, "azimuth_deg": az, "pvv_g": out[:, 0], "shake_g": out[:, 1],
+                           "amplitude_g": out[:, 2], "out_of_envelope": out[:, 3].astype(bool), "latency_us": lat})
+        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+        df.to_csv(args.out, index=False)
+        print(f"signal: {args.out}")
+    return 0
+
+
+def cmd_discover(args) -> int:
+    """Find, name, add and confirm the effects a static map misses (data-contract §3)."""
+    from ..config import ExperimentConfig, load_config
+    from ..discovery import discover
+    from ..discovery.report import write_discovery
+
+    cfg = load_config(args.config) if args.config else ExperimentConfig(name="discovery")
+    enable_compilation_cache()
+    if args.campaign:
+        campaign, folder = resolve_campaign(cfg, args.campaign)
+    else:
+        campaign, folder = resolve_campaign(cfg)
+    t0 = time.perf_counter()
+    res = discover(campaign, cfg, name=str(folder))
+    report = write_discovery(res, args.out, cfg)
+    print(f"{len(res.effects)} effect(s) named; held-out RMS {res.before['rms_g']:.4f} -> {res.after['rms_g']:.4f} g "
+          f"({time.perf_counter() - t0:.0f} s)")
+    print(f"discovery: {Path(args.out) / 'discovery.json'}; report: {report}")
+    return 0

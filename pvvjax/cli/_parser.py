@@ -1,0 +1,150 @@
+"""The command line's parser and its reference (docs/cli.md), generated from it."""
+
+from __future__ import annotations
+
+import argparse
+import os
+
+from . import _commands as C
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The `pvvjax` parser: one subcommand each, its function as `fn`."""
+    p = argparse.ArgumentParser(prog="pvvjax", description="Helicopter pilot-floor 4/rev vibration (PVV) toolkit.")
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    _data_commands(sub)
+    _net_commands(sub)
+    _replay_commands(sub)
+    return p
+
+
+def _data_commands(sub):
+    s = sub.add_parser("validate", help="check a campaign folder against the data contract",
+                       description="Report every problem in a campaign folder (exit 1), or exit 0 if valid.")
+    s.add_argument("campaign", help="campaign folder")
+    s.add_argument("--config", help="experiment config (column mapping, window length)")
+    s.set_defaults(fn=C.cmd_validate)
+
+    def campaign_command(name, fn, help, description, out_help):
+        s = sub.add_parser(name, help=help, description=description)
+        s.add_argument("campaign", nargs="?", default=None, help="campaign folder (default: embedded synthetic)")
+        s.add_argument("--out", required=True, help=out_help)
+        s.add_argument("--config", help="experiment config")
+        s.set_defaults(fn=fn)
+        return s
+
+    campaign_command("build-db", C.cmd_build_db, "build databases 1-3 from a campaign",
+                     "Harmonic analysis, peak PVV per condition and db1-db3 as CSV and Parquet.", "output folder")
+
+    s = sub.add_parser("synth", help="generate a synthetic UH-60A campaign",
+                       description="Write a synthetic campaign (and its ground truth beside it).")
+    s.add_argument("--out", required=True, help="campaign folder to write")
+    s.add_argument("--config", help="generator config (TOML), e.g. a hidden-effect scenario")
+    s.add_argument("--seed", type=int, default=None, help="random seed (overrides the config)")
+    s.add_argument("--truth", default=None, help="ground-truth file (default: OUT.truth.json, beside OUT)")
+    s.add_argument("--plots", default=None, metavar="DIR", help="also write the check figures to DIR")
+    s.set_defaults(fn=C.cmd_synth)
+
+    s = campaign_command("plot", C.cmd_plot, "figures of a campaign (PVV vs airspeed, pull-up, autorotation)",
+                     "PVV vs airspeed in level flight and paper-style time histories.", "output folder for PNG files")
+    s.add_argument("--paper", action="store_true",
+                   help="also the paper's Figs 1-9, one file each, and their numbers beside the paper's")
+
+
+
+def _net_commands(sub):
+    s = sub.add_parser("sweep", help="train a sweep of networks (databases x architectures x seeds x folds)",
+                       description="Train every net of the config's [sweep] with its [train] settings. "
+                                   "Resumable: run it again after an interruption to finish the rest.")
+    s.add_argument("config", help="experiment config (TOML), e.g. experiments/configs/sweep-small.toml")
+    s.add_argument("--out", default=None, help="sweep folder (default: OUT_DIR/NAME/sweep)")
+    s.set_defaults(fn=C.cmd_sweep)
+
+    s = sub.add_parser("export", help="export a trained net as a NumPy evaluator for a simulator host",
+                       description="Copy a net's parameters and the NumPy evaluator (no JAX) into a folder.")
+    s.add_argument("sweep", help="sweep folder (with results.parquet and params/)")
+    s.add_argument("--out", required=True, help="output folder")
+    s.add_argument("--net", default=None, help="net id (default: the best held-out net of --database)")
+    s.add_argument("--database", default="db1", choices=["db1", "db2", "db3"])
+    s.add_argument("--element", action="store_true",
+                   help="export a real-time vibration element (all nets of --database, their median)")
+    s.add_argument("--offset", type=float, default=0.0, help="element: input-to-vibration offset, s")
+    s.add_argument("--stick-offset", type=float, default=0.0, help="element: extra offset of the sticks, s")
+    s.add_argument("--window", type=float, default=8.0, help="element: window length, revolutions")
+    s.add_argument("--hop", type=float, default=1.0, help="element: window spacing (update interval), revolutions")
+    s.set_defaults(fn=C.cmd_export)
+
+    s = sub.add_parser("realtime", help="feed a recorded counter to a real-time element frame by frame",
+                       description="An example simulator host: resample a record to a frame rate, step the "
+                                   "exported NumPy element once per frame, report latency percentiles.")
+    s.add_argument("--model", required=True, help="element folder (pvvjax export --element)")
+    s.add_argument("--record", required=True, help="counter to play, e.g. 11022")
+    s.add_argument("--campaign", default=None, help="campaign folder (default: embedded synthetic)")
+    s.add_argument("--rate", type=float, default=None, help="frame rate, Hz (default: the record's)")
+    s.add_argument("--jitter", type=float, default=0.0, help="random frame-time jitter, fraction of a frame")
+    s.add_argument("--out", default=None, help="CSV of the output signal")
+    s.set_defaults(fn=C.cmd_realtime)
+
+
+
+def _replay_commands(sub):
+    s = sub.add_parser("replay", help="quasi-static replay of recorded maneuvers through the trained nets",
+                       description="Replay counters through the nets that held them out ([replay] of the config; "
+                                   "trains the config's sweep first when [replay] sweep is empty).")
+    s.add_argument("config", help="experiment config (TOML), e.g. experiments/configs/replay.toml")
+    s.add_argument("--offset", type=float, default=None, help="input-to-vibration offset, s (overrides the config)")
+    s.add_argument("--window", type=float, default=None, help="window length, revolutions (overrides the config)")
+    s.add_argument("--counters", nargs="+", default=None, help="counters to replay (overrides the config)")
+    s.add_argument("--plots", type=int, default=4, help="figures for the first N counters (default 4)")
+    s.add_argument("--out", default=None, help="output folder (default: OUT_DIR/NAME/replay)")
+    s.set_defaults(fn=C.cmd_replay)
+
+    s = sub.add_parser("calibrate", help="fit the offset, window length and stick lag by gradient",
+                       description="Levenberg-Marquardt from the best point of a coarse grid, per database and "
+                                   "group ([calibration] of the config), checked against a brute-force grid.")
+    s.add_argument("config", help="experiment config (TOML), e.g. experiments/configs/replay.toml")
+    s.add_argument("--groups", choices=["all", "maneuver", "counter"], default=None,
+                   help="one fit for all counters, per maneuver kind, or per counter (overrides the config)")
+    s.add_argument("--free", nargs="+", choices=["offset_s", "window_revs", "stick_offset_s"], default=None,
+                   help="parameters to fit (overrides the config)")
+    s.add_argument("--counters", nargs="+", default=None, help="counters to calibrate on (overrides the config)")
+    s.add_argument("--out", default=None, help="output folder (default: OUT_DIR/NAME/calibration)")
+    s.set_defaults(fn=C.cmd_calibrate)
+
+    s = sub.add_parser("discover", help="find, name, add and confirm effects the static map misses",
+                       description="Replay every counter through held-out nets, locate the residual, rank "
+                                   "candidate effects (cross-validated, permutation-tested), add each to the "
+                                   "model, retrain and keep it only if the held-out error drops. Writes "
+                                   "OUT/discovery.json (data contract section 3) and OUT/report.md.")
+    s.add_argument("--campaign", default=None, help="campaign folder (default: embedded synthetic)")
+    s.add_argument("--out", required=True, help="output folder")
+    s.add_argument("--config", default=None, help="experiment config ([discovery], [train], [analysis] sections)")
+    s.set_defaults(fn=C.cmd_discover)
+
+    s = sub.add_parser("run", help="run an experiment config end to end (the main job)",
+                       description="Campaign, databases and figures for one experiment config; with [run] "
+                                   "networks the paper's networks (Figs 10-12, Table 1), with [run] "
+                                   "discovery_scenario a hidden-effect discovery; writes report.md and report.html.")
+    s.add_argument("config", help="experiment config (TOML)")
+    s.set_defaults(fn=C.cmd_run)
+
+
+def cli_reference(width: int = 96) -> str:
+    """The command-line reference as Markdown, generated from the parser itself (every
+    subcommand's `--help`), so that the docs cannot drift from the CLI."""
+    old = os.environ.get("COLUMNS")
+    os.environ["COLUMNS"] = str(width)  # argparse wraps to the terminal width
+    try:
+        p = build_parser()
+        parts = ["# Command-line reference", "",
+                 "Generated from the CLI itself (`python experiments/reference_docs.py --docs`); "
+                 "every subcommand also has `--help`.", "", "```", p.format_help().rstrip(), "```", ""]
+        sub = next(a for a in p._actions if isinstance(a, argparse._SubParsersAction))
+        for name, sp in sub.choices.items():
+            parts += [f"## pvvjax {name}", "", "```", sp.format_help().rstrip(), "```", ""]
+        return "\n".join(parts)
+    finally:
+        if old is None:
+            os.environ.pop("COLUMNS", None)
+        else:
+            os.environ["COLUMNS"] = old

@@ -1,0 +1,78 @@
+"""A real-time element for a simulator host, written from trained nets (NumPy only at run time).
+
+`element_spec` gathers what the element needs besides its nets: inputs, window and offset,
+the training envelope, and the seat shake's phase and harmonic content measured on the flight
+test; `write_element` writes it with the nets' parameter files and the two NumPy modules
+(`npnet.py`, `rtelement.py`) that `VibrationElement.load` reads.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+
+from ..analysis.harmonics import analyze
+from ..data.batch import to_batch
+from ..data.campaign import Campaign
+from . import element, npnet
+
+__all__ = ["element_spec", "seat_shake_content", "write_element"]
+
+
+def seat_shake_content(campaign: Campaign, window_revs: float, harmonic: int = 4) -> tuple[float, dict]:
+    """The flight test's seat shake as the element synthesises it: the phase of the analysed
+    harmonic (rad, amplitude-weighted over every valid window), and the 1P, 2P and 2N/rev
+    content beside it as {k: [median amplitude ratio to the analysed harmonic, weighted phase]}.
+
+    Args:
+        campaign: the flight test. window_revs: analysis window, revolutions.
+        harmonic: the analysed harmonic N (4 for the UH-60A).
+    """
+    batch = to_batch(campaign, [])
+    wn = analyze(batch, window_revs, harmonic=harmonic)
+    valid = np.asarray(wn.valid)
+    an = np.asarray(wn.amplitude)[valid]
+    phase = float(np.angle(np.sum(an * np.exp(1j * np.asarray(wn.phase)[valid]))))
+    content = {}
+    for k in (1, 2, 2 * harmonic):
+        wk = analyze(batch, window_revs, harmonic=k)
+        ak, pk = np.asarray(wk.amplitude)[valid], np.asarray(wk.phase)[valid]
+        content[k] = [float(np.median(ak / an)), float(np.angle(np.sum(ak * np.exp(1j * pk))))]
+    return phase, content
+
+
+def element_spec(nets: list[str], inputs: list[str], envelope: tuple, campaign: Campaign, analysis_window_revs: float,
+                 *, window_revs: float, hop_revs: float, offset_s: float, stick_offset_s: float) -> dict:
+    """The element's settings (`element.json`).
+
+    Args:
+        nets: parameter file names, beside element.json; the element predicts their median.
+        inputs: the database's inputs, in the nets' order. envelope: (lo, hi) of the training
+            inputs, each (n_inputs,): frames outside are flagged.
+        campaign: the flight test the nets were trained on (seat-shake content, rotor).
+        analysis_window_revs: the window of the campaign's harmonic analysis, revolutions.
+        window_revs, hop_revs: the element's input window and update interval, revolutions.
+        offset_s: input-to-vibration offset, s. stick_offset_s: extra offset of the sticks, s.
+    """
+    phase, content = seat_shake_content(campaign, analysis_window_revs)
+    lo, hi = envelope
+    return dict(nets=list(nets), inputs=list(inputs), window_revs=window_revs, hop_revs=hop_revs, offset_s=offset_s,
+                stick_offset_s=stick_offset_s, phase_rad=phase, harmonics=content,
+                envelope=dict(lo=[float(v) for v in lo], hi=[float(v) for v in hi]),
+                aircraft=dict(rotor_radius_ft=campaign.aircraft.rotor_radius_ft, g_ft_s2=campaign.aircraft.g_ft_s2))
+
+
+def write_element(out, net_files: list, spec: dict) -> Path:
+    """Write an element folder: the nets' parameter files under `spec["nets"]`' names,
+    element.json, and the NumPy modules it runs on. Returns the folder."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    for src, name in zip(net_files, spec["nets"]):
+        shutil.copy(src, out / name)
+    (out / "element.json").write_text(json.dumps(spec, indent=2))
+    shutil.copy(npnet.__file__, out / "npnet.py")
+    shutil.copy(element.__file__, out / "rtelement.py")
+    return out
