@@ -10,6 +10,7 @@ import re
 # A package is listed where it holds names of private modules (discovery, synth).
 MODULES = [
     "data.campaign",
+    "data.checks",
     "data.units",
     "data.batch",
     "data.constants",

@@ -21,6 +21,7 @@ __all__ = [
     "database_summary",
     "enable_compilation_cache",
     "prepare_sweep",
+    "progress_bar",
     "resolve_campaign",
     "run_main_job",
     "use_cpu_cores",
@@ -53,12 +54,13 @@ def resolve_campaign(cfg, campaign_dir=None, log=print):
         folder = cached_campaign(scfg)
         log(f"embedded synthetic campaign: {folder} ({time.perf_counter() - t0:.1f} s)")
     t0 = time.perf_counter()
-    campaign = load_campaign(folder, cfg.campaign.columns, cfg.analysis.window_revs, progress=_progress("loading"))
+    campaign = load_campaign(folder, cfg.campaign.columns, cfg.analysis.window_revs, progress=progress_bar("loading"))
     log(f"loaded {len(campaign)} counters, {len(campaign.conditions())} conditions ({time.perf_counter() - t0:.1f} s)")
     return campaign, Path(folder)
 
 
-def _progress(desc):
+def progress_bar(desc):
+    """A progress callback (`fn(iterable, total=None)`) that shows a bar on a terminal only."""
     from tqdm.auto import tqdm
 
     return lambda it, total=None: tqdm(it, total=total, desc=desc, unit="counter", leave=False,

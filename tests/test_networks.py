@@ -70,3 +70,31 @@ def test_rbf_network_fits_a_smooth_function_and_matches_least_squares():
     t = (y - float(p["y_shift"])) / float(p["y_scale"])
     sol = np.linalg.solve(A.T @ A + 1e-3 * np.eye(A.shape[1]), A.T @ t)
     np.testing.assert_allclose(A @ np.r_[np.asarray(p["w"]), float(p["b"])], A @ sol, atol=2e-3)
+
+
+def test_the_flax_modules_own_their_variables_and_apply_as_the_functions_do():
+    # `MLP.init` makes the variables of the allocation (layers to train; masks, input mask and
+    # scaling as constants) with the same padding-invariant draw as `mlp_init`, from the key
+    # linen derives for the layers; the functions apply the modules to the flat dicts.
+    from pvvjax.nets.networks import MLP, RBF
+
+    x = np.random.default_rng(5).normal(size=(20, 8)).astype(np.float32)
+    module = MLP(8, (4, 5), (16, 5))
+    variables = module.init(jax.random.key(0), x)
+    assert set(variables) == {"params", "constants"} and list(variables["params"]) == ["layers"]
+    assert [layer["w"].shape for layer in variables["params"]["layers"]] == [(8, 16), (16, 5), (5, 1)]
+    assert np.asarray(variables["constants"]["masks"][0]).sum() == 4
+    flat = {**variables["params"], **variables["constants"]}
+    np.testing.assert_array_equal(module.apply(variables, x), mlp_apply(flat, x))
+    p = mlp_init(jax.random.key(1), 8, (4, 5), max_hidden=(16, 5))
+    ref = MLP(8, (4, 5), (16, 5)).apply({"params": {"layers": p["layers"]},
+                                         "constants": {k: v for k, v in p.items() if k != "layers"}}, x)
+    np.testing.assert_array_equal(ref, mlp_apply(p, x))
+    # variables of another allocation are refused, naming the layers
+    with pytest.raises(Exception, match="layers"):
+        MLP(8, (4, 5), (8, 5)).apply(variables, x)
+    r = rbf_fit(jax.random.key(2), x, x[:, 0] ** 2, 6)
+    assert RBF(6, 8).init(jax.random.key(0), x)["params"]["centers"].shape == (6, 8)
+    np.testing.assert_array_equal(rbf_apply(r, x), RBF(6, 8).apply(
+        {"params": {k: r[k] for k in ("centers", "log_width", "w", "b")},
+         "constants": {k: r[k] for k in ("in_mask", "x_shift", "x_scale", "y_shift", "y_scale")}}, x))

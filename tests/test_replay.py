@@ -259,7 +259,7 @@ def test_stick_lag_moves_only_the_stick_inputs(small_replay):
 
 def test_replays_at_other_offsets_share_one_program_and_equal_replays_that_bake_them_in():
     # The offset bounds (how far the input windows may reach) and the reference length enter
-    # the compiled replay as data (`jit_settings`): replaying at another offset reuses the
+    # the compiled replay as data (a `Settings` PyTree): replaying at another offset reuses the
     # program, and gives what a replay with the settings as static constants gives.
     from pvvjax.nets.networks import mlp_init
     from pvvjax.replay.tables import replay_all, replay_windows, settings_at
@@ -271,7 +271,7 @@ def test_replays_at_other_offsets_share_one_program_and_equal_replays_that_bake_
     net = dict(params=jax.tree.map(lambda *a: jnp.stack(a), *seeds), idx=jnp.asarray(R.input_index("db1")))
     model = jax.tree.map(lambda a: jnp.broadcast_to(a, (2, *jnp.shape(a))), net)
     info = camp.counters[["maneuver", "condition"]]
-    n0 = replay_all.jitted._cache_size()
+    n0 = replay_all._cache_size()
     for tau in (0.0, 0.5, 1.25):
         s = settings_at(batch, (tau, 8.0, 0.0))
         w = replay_windows(info, recs, {"db1": model}, (tau, 8.0, 0.0), s)
@@ -281,4 +281,4 @@ def test_replays_at_other_offsets_share_one_program_and_equal_replays_that_bake_
             np.testing.assert_allclose(w[col].to_numpy(), np.asarray(ref).ravel()[keep], rtol=1e-6, atol=1e-7)
         # Inputs τ > 0 before the first windows reach before the record: weighted out (the bound is data).
         assert ((~keep).sum() + (w.weight < 0.999).sum() > 0) == (tau > 0)
-    assert replay_all.jitted._cache_size() - n0 <= 1
+    assert replay_all._cache_size() - n0 <= 1

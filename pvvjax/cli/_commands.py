@@ -6,11 +6,11 @@ import time
 from pathlib import Path
 
 from ..experiment import (
-    _progress,
     campaign_plots,
     database_summary,
     enable_compilation_cache,
     prepare_sweep,
+    progress_bar,
     resolve_campaign,
     run_main_job,
     write_databases,
@@ -28,7 +28,7 @@ def cmd_validate(args) -> int:
 
     cfg = _experiment(args)
     problems = validate_campaign(args.campaign, cfg.campaign.columns, cfg.analysis.window_revs,
-                                 progress=_progress("validating"))
+                                 progress=progress_bar("validating"))
     if problems:
         print(f"{args.campaign}: {len(problems)} problem(s)")
         for p in problems:

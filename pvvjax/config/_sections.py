@@ -81,27 +81,23 @@ class TrainConfig:
     """Full-batch training of one net.
 
     Attributes:
-        optimizer: "adam" (first order) or "lm" (Levenberg-Marquardt, second order).
         learning_rate: Adam step size.
         max_steps: optimizer steps at most.
         eval_every: steps between validation evaluations.
         patience: evaluations without a better validation RMS before stopping.
         weight_decay: decoupled weight decay (AdamW) when > 0.
-        lm_damping: initial Levenberg-Marquardt damping λ.
         divergence_factor: a training loss above this multiple of the initial loss is divergence.
     """
 
-    optimizer: Literal["adam", "lm"] = "adam"
     learning_rate: float = 3e-3
     max_steps: int = 6000
     eval_every: int = 50
     patience: int = 10
     weight_decay: float = 0.0
-    lm_damping: float = 1e-2
     divergence_factor: float = 1e3
 
     def __post_init__(self):
-        for name in ("learning_rate", "max_steps", "eval_every", "patience", "lm_damping", "divergence_factor"):
+        for name in ("learning_rate", "max_steps", "eval_every", "patience", "divergence_factor"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"train.{name} must be > 0, got {getattr(self, name)}")
         if self.weight_decay < 0:

@@ -19,6 +19,16 @@ import numpy as np
 import pandas as pd
 
 from .._strict import ConfigError, from_dict
+from .checks import (
+    RANGES,
+    REQUIRED_CHANNELS,
+    Problem,
+    _check_record,
+    _check_values,
+    _first_bad,
+    _integrate_azimuth,
+    _numeric,
+)
 from .constants import UH60A, Aircraft
 from .units import ColumnMap
 
@@ -41,43 +51,7 @@ __all__ = [
 
 MANEUVERS = ("level", "climb", "descent", "turn", "roll", "pushover", "pullup", "autorotation", "flare")
 
-# Channels every record needs (gross weight and density ratio may come from counters.csv).
-REQUIRED_CHANNELS = (
-    "time_s", "az_g", "rotor_rpm", "airspeed_kt", "pitch_rate_dps", "roll_angle_deg",
-    "climb_rate_fpm", "collective_pct", "lateral_pct", "longitudinal_pct",
-    "gross_weight_lb", "density_ratio",
-)
-# (lower, upper, inclusive) physical ranges; None = unbounded.
-RANGES: dict[str, tuple[float | None, float | None, bool]] = {
-    "collective_pct": (0.0, 100.0, True),
-    "lateral_pct": (0.0, 100.0, True),
-    "longitudinal_pct": (0.0, 100.0, True),
-    "pedal_pct": (0.0, 100.0, True),
-    "rotor_rpm": (0.0, None, False),
-    "density_ratio": (0.3, 1.3, True),
-    "roll_angle_deg": (-90.0, 90.0, True),
-    "gross_weight_lb": (0.0, None, False),
-}
 COUNTER_COLUMNS = ("counter", "maneuver", "condition", "segment", "description")
-UNIFORM_TOLERANCE = 0.01  # sample spacing may vary by less than 1 %
-
-
-@dataclass(frozen=True)
-class Problem:
-    """One thing wrong with a campaign: where it is and what it is."""
-
-    file: str
-    column: str | None
-    row: int | None
-    message: str
-
-    def __str__(self) -> str:
-        where = self.file
-        if self.column:
-            where += f", column {self.column!r}"
-        if self.row is not None:
-            where += f", row {self.row}"
-        return f"{where}: {self.message}"
 
 
 class CampaignError(ValueError):
@@ -163,44 +137,6 @@ def _apply_mapping(df: pd.DataFrame, mapping: Mapping[str, ColumnMap], file: str
         df = df.drop(columns=src)
         df[m.to] = values
     return df
-
-
-def _first_bad(mask: np.ndarray) -> int | None:
-    idx = np.flatnonzero(mask)
-    return int(idx[0]) + 1 if idx.size else None
-
-
-def _numeric(series: pd.Series) -> np.ndarray:
-    return pd.to_numeric(series, errors="coerce").to_numpy(dtype=float)
-
-
-def _check_values(df: pd.DataFrame, columns, file: str, problems: list) -> None:
-    """Non-numeric / NaN / infinite values and physical ranges, first bad row each."""
-    for col in columns:
-        if col not in df.columns:
-            continue
-        raw = df[col]
-        vals = _numeric(raw)
-        nonnum = np.isnan(vals) & raw.notna().to_numpy()
-        row = _first_bad(nonnum)
-        if row is not None:
-            problems.append(Problem(file, col, row, f"non-numeric value {raw.iloc[row - 1]!r}"))
-            continue
-        row = _first_bad(~np.isfinite(vals))
-        if row is not None:
-            problems.append(Problem(file, col, row, f"missing, NaN or infinite value ({raw.iloc[row - 1]})"))
-            continue
-        lo, hi, inclusive = RANGES.get(col, (None, None, True))
-        bad = np.zeros(vals.shape, bool)
-        if lo is not None:
-            bad |= vals < lo if inclusive else vals <= lo
-        if hi is not None:
-            bad |= vals > hi if inclusive else vals >= hi
-        row = _first_bad(bad)
-        if row is not None:
-            span = (f"{'[' if inclusive else '('}{'' if lo is None else lo}, "
-                    f"{'' if hi is None else hi}{']' if inclusive else ')'}")
-            problems.append(Problem(file, col, row, f"value {vals[row - 1]:g} outside the physical range {span}"))
 
 
 def _read_campaign_toml(folder: Path, problems: list) -> tuple[Aircraft, dict]:
@@ -294,60 +230,6 @@ def _check_counters(df: pd.DataFrame, mapping, problems: list) -> pd.DataFrame |
     constants = [c for c in df.columns if c not in COUNTER_COLUMNS]
     _check_values(df, [c for c in constants if c in RANGES or c in REQUIRED_CHANNELS], "counters.csv", problems)
     return df
-
-
-def _unwrap_azimuth(az_deg: np.ndarray) -> np.ndarray:
-    return np.unwrap(az_deg, period=360.0)
-
-
-def _integrate_azimuth(time_s: np.ndarray, rpm: np.ndarray) -> np.ndarray:
-    """Rotor azimuth (deg, wrapped 0-360) by trapezoidal integration of rotor speed."""
-    deg_per_s = rpm * 6.0
-    inc = 0.5 * (deg_per_s[1:] + deg_per_s[:-1]) * np.diff(time_s)
-    return np.mod(np.concatenate([[0.0], np.cumsum(inc)]), 360.0)
-
-
-def _check_record(df: pd.DataFrame, file: str, constants: dict, window_revs: float, problems: list) -> bool:
-    """Check one time series; returns True when it is usable."""
-    n_before = len(problems)
-    for col in REQUIRED_CHANNELS:
-        if col in df.columns and col in constants:
-            problems.append(Problem(file, col, None,
-                                    "channel given both here and in counters.csv; give it in one place"))
-        elif col not in df.columns and col not in constants:
-            where = " (or as a constant in counters.csv)" if col in ("gross_weight_lb", "density_ratio") else ""
-            problems.append(Problem(file, col, None, f"required column missing{where}"))
-    extra = [c for c in ("azimuth_deg", "shaft_power_hp", "pedal_pct") if c in df.columns]
-    _check_values(df, [c for c in REQUIRED_CHANNELS if c in df.columns] + extra, file, problems)
-    if len(problems) > n_before:
-        return False
-    t = _numeric(df["time_s"])
-    if len(t) < 3:
-        problems.append(Problem(file, "time_s", None, f"only {len(t)} samples"))
-        return False
-    dt = np.diff(t)
-    row = _first_bad(dt <= 0)
-    if row is not None:
-        problems.append(Problem(file, "time_s", row + 1,
-                                f"time not strictly increasing ({t[row - 1]:g} then {t[row]:g})"))
-        return False
-    med = np.median(dt)
-    row = _first_bad(np.abs(dt - med) > UNIFORM_TOLERANCE * med)
-    if row is not None:
-        problems.append(Problem(
-            file, "time_s", row + 1,
-            f"sampling not uniform: step {dt[row - 1]:g} s vs median {med:g} s (tolerance 1 %)",
-        ))
-        return False
-    rpm = _numeric(df["rotor_rpm"]) if "rotor_rpm" in df.columns else np.full(len(t), constants["rotor_rpm"])
-    revs = float(np.sum(0.5 * (rpm[1:] + rpm[:-1]) * dt) / 60.0 + rpm[-1] / 60.0 * med)
-    if revs < window_revs:
-        problems.append(Problem(
-            file, "time_s", None,
-            f"record covers {revs:.2f} rotor revolutions, shorter than one analysis window ({window_revs:g} revs)",
-        ))
-        return False
-    return True
 
 
 def _timeseries_files(folder: Path, problems: list) -> dict[str, Path]:

@@ -13,6 +13,7 @@ import numpy as np
 import optax
 
 from ..nets.networks import mlp_apply, mlp_init, scaling
+from ..nets.train import descend
 from ._model import lagged_windows
 
 
@@ -24,14 +25,7 @@ def _loss(trainable, fixed, x, y, w, layout):
 
 def _fit_one(trainable, fixed, x, y, w, layout, steps: int, learning_rate: float):
     opt = optax.adam(learning_rate)
-    grad = jax.grad(_loss)
-
-    def step(carry, _):
-        p, st = carry
-        up, st = opt.update(grad(p, fixed, x, y, w, layout), st, p)
-        return (optax.apply_updates(p, up), st), None
-
-    return jax.lax.scan(step, (trainable, opt.init(trainable)), None, length=steps)[0][0]
+    return descend(_loss, trainable, opt.init(trainable), opt, steps, fixed, x, y, w, layout)[0]
 
 
 _fit_all = jax.jit(jax.vmap(_fit_one, in_axes=(0, 0, None, None, 0, None, None, None)), static_argnums=(6, 7))

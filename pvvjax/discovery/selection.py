@@ -214,6 +214,19 @@ def _remaining(chosen, usable):
     return free
 
 
+def _permutation_p(design, C, groups, gain: float, current: float, rng, alpha: float, permutations: int) -> float:
+    """The block-permutation p-value of the best gain `gain`. Null: the best gain of *any*
+    candidate (a column of `C`) once the candidates' condition blocks are permuted (the
+    selected gain is a best of K, not of one). Stops as soon as p > alpha is certain."""
+    null = []
+    for _ in range(permutations):
+        perm = _block_permutation(groups, rng)
+        null.append(1.0 - np.min(design.scores(C[perm])) / current)
+        if 1 + np.sum(np.array(null) >= gain) > alpha * (1 + permutations):
+            break  # p > alpha whatever the remaining permutations give
+    return (1 + int(np.sum(np.array(null) >= gain))) / (1 + permutations)
+
+
 def forward_select(residual, candidates, groups, *, base=None, folds: int = 5, max_effects: int = 3,
                    min_gain: float = 0.02, alpha: float = 0.01, permutations: int = 199,
                    seed: int = 0, complexity=None, parsimony: float = 0.0, compare: int = 20) -> list[Selected]:
@@ -271,15 +284,7 @@ def forward_select(residual, candidates, groups, *, base=None, folds: int = 5, m
         gain = 1.0 - scores[k] / current
         if gain < min_gain:
             break
-        # Null: the best gain of *any* remaining candidate once the candidates' condition
-        # blocks are permuted (the selected gain is a best of K, not of one).
-        null = []
-        for _ in range(permutations):
-            perm = _block_permutation(groups, rng)
-            null.append(1.0 - np.min(design.scores(C[perm][:, free])) / current)
-            if 1 + np.sum(np.array(null) >= gain) > alpha * (1 + permutations):
-                break  # p > alpha whatever the remaining permutations give
-        p = (1 + int(np.sum(np.array(null) >= gain))) / (1 + permutations)
+        p = _permutation_p(design, C[:, free], groups, gain, current, rng, alpha, permutations)
         if p > alpha:
             break
         same = (k,)

@@ -1,9 +1,11 @@
-"""Networks as pure functions of parameter PyTrees: multi-layer perceptrons and
-radial-basis-function networks, with input and output scaling stored in the parameters.
+"""The paper's networks: multi-layer perceptrons and radial-basis-function networks, as flax
+linen modules (`MLP`, `RBF`) applied as pure functions of a parameter PyTree, with the input
+and output scaling stored beside the weights.
 
-Parameters are plain dicts of arrays, so they jit, vmap and differentiate, and they save
-to `.npz` without pickle (`pvvjax.io`). A network takes inputs in physical units and
-returns peak PVV in g.
+`mlp_apply(params, x)` and `rbf_apply(params, x)` apply the modules to a flat dict of arrays
+(the trainable weights and the constants: masks and scalings), so parameters jit, vmap and
+differentiate like any PyTree, stack over nets, and save to `.npz` without pickle
+(`pvvjax.io`). A network takes inputs in physical units and returns peak PVV in g.
 
 Architectures of different widths share one compiled program by padding: every hidden
 layer is allocated at a maximum width and carries a 0/1 mask of its active units, and
@@ -16,11 +18,14 @@ from __future__ import annotations
 
 from typing import Sequence
 
+import flax.linen as nn
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 __all__ = [
+    "MLP",
+    "RBF",
     "apply_for",
     "architecture_name",
     "mlp_apply",
@@ -70,32 +75,87 @@ def mlp_init(key, n_in: int, hidden: Sequence[int], *, max_hidden: Sequence[int]
         masks), in_mask, and the scaling entries.
     """
     max_hidden = tuple(max_hidden or hidden)
+    in_mask = jnp.ones(n_in) if in_mask is None else jnp.asarray(in_mask, jnp.float32)
+    layers = _glorot_layers(key, n_in, tuple(hidden), max_hidden, in_mask)
+    masks = tuple((jnp.arange(m) < h).astype(jnp.float32) for h, m in zip(hidden, max_hidden))
+    return dict(layers=layers, masks=masks, in_mask=in_mask, **(scale or _identity_scaling(n_in)))
+
+
+def _glorot_layers(key, n_in: int, hidden, max_hidden=(), in_mask=None) -> tuple:
+    """Layers {w, b} of an MLP allocated at `max_hidden`: Glorot-uniform on the *active*
+    fan-in and fan-out (so padding does not change the draw), one key per layer split from
+    `key`, zero biases."""
+    max_hidden = tuple(max_hidden or hidden)
     if len(max_hidden) != len(hidden) or any(h > m for h, m in zip(hidden, max_hidden)):
         raise ValueError(f"hidden {tuple(hidden)} does not fit in max_hidden {max_hidden}")
     sizes = (n_in, *max_hidden, 1)
     keys = jax.random.split(key, len(sizes) - 1)
-    in_mask = jnp.ones(n_in) if in_mask is None else jnp.asarray(in_mask, jnp.float32)
-    # Glorot-uniform on the *active* fan-in/fan-out, so padding does not change the init.
-    fan = (float(jnp.sum(in_mask)), *map(float, hidden), 1.0)
+    fan = (float(n_in if in_mask is None else np.sum(np.asarray(in_mask))), *map(float, hidden), 1.0)
     layers = []
     for i, k in enumerate(keys):
         lim = np.sqrt(6.0 / (fan[i] + fan[i + 1]))
         layers.append(dict(w=jax.random.uniform(k, (sizes[i], sizes[i + 1]), minval=-lim, maxval=lim),
                            b=jnp.zeros(sizes[i + 1])))
-    masks = tuple((jnp.arange(m) < h).astype(jnp.float32) for h, m in zip(hidden, max_hidden))
-    scale = scale or dict(x_shift=jnp.zeros(n_in), x_scale=jnp.ones(n_in), y_shift=jnp.zeros(()),
-                          y_scale=jnp.ones(()))
-    return dict(layers=tuple(layers), masks=masks, in_mask=in_mask, **scale)
+    return tuple(layers)
+
+
+_SCALING = ("x_shift", "x_scale", "y_shift", "y_scale")
+
+
+def _identity_scaling(n_in: int) -> dict:
+    return dict(x_shift=jnp.zeros(n_in), x_scale=jnp.ones(n_in), y_shift=jnp.zeros(()), y_scale=jnp.ones(()))
+
+
+def _constants(module: nn.Module, names, defaults) -> dict:
+    """The module's constants (masks, scalings); `defaults()`, called only to initialise
+    them, gives their initial values."""
+    return {k: module.variable("constants", k, lambda k=k: defaults()[k]).value for k in names}
+
+
+def _variables(params: dict, trainable, constants) -> dict:
+    """A flat parameter dict as the module's variables: "params" (trained) and "constants"."""
+    return {"params": {k: params[k] for k in trainable}, "constants": {k: params[k] for k in constants}}
+
+
+class MLP(nn.Module):
+    """An MLP n_in-hidden...-1 (tanh hidden layers, linear output) on standardised inputs.
+
+    Variables: params `layers` ({w, b} per layer, allocated at `max_hidden`); constants
+    `masks` (0/1 active units per hidden layer), `in_mask` (active inputs) and the scaling
+    (`scaling`). A masked unit outputs exactly 0. `MLP(n_in, hidden, max_hidden).init(key, x)`
+    draws the layers as `mlp_init` does, from the key linen derives for them.
+
+    Attributes:
+        n_in, hidden, max_hidden: the allocation and the active widths (for `init` only:
+            `apply` takes the shapes from the variables).
+    """
+
+    n_in: int = 0
+    hidden: tuple[int, ...] = ()
+    max_hidden: tuple[int, ...] = ()
+
+    @nn.compact
+    def __call__(self, x):
+        layers = self.param("layers", lambda key: _glorot_layers(key, self.n_in, self.hidden, self.max_hidden))
+        alloc = self.max_hidden or self.hidden
+        defaults = lambda: dict(  # noqa: E731
+            masks=tuple((jnp.arange(m) < h).astype(jnp.float32) for h, m in zip(self.hidden, alloc)),
+            in_mask=jnp.ones(self.n_in), **_identity_scaling(self.n_in))
+        c = _constants(self, ("masks", "in_mask", *_SCALING), defaults)
+        h = (x - c["x_shift"]) / c["x_scale"] * c["in_mask"]
+        for layer, mask in zip(layers[:-1], c["masks"]):
+            h = jnp.tanh(h @ layer["w"] + layer["b"]) * mask
+        out = (h @ layers[-1]["w"] + layers[-1]["b"])[..., 0]
+        return out * c["y_scale"] + c["y_shift"]
 
 
 def mlp_apply(params: dict, x):
-    """Evaluate an MLP. x: (..., n_in) in physical units -> (...,) peak PVV, g."""
-    h = (x - params["x_shift"]) / params["x_scale"] * params["in_mask"]
+    """Evaluate an MLP (`MLP.apply` on a flat parameter dict as `mlp_init` makes it).
+    x: (..., n_in) in physical units -> (...,) peak PVV, g."""
     layers = params["layers"]
-    for layer, mask in zip(layers[:-1], params["masks"]):
-        h = jnp.tanh(h @ layer["w"] + layer["b"]) * mask
-    out = (h @ layers[-1]["w"] + layers[-1]["b"])[..., 0]
-    return out * params["y_scale"] + params["y_shift"]
+    widths = tuple(int(layer["w"].shape[1]) for layer in layers[:-1])
+    module = MLP(int(layers[0]["w"].shape[0]), widths, widths)  # the allocation: apply checks the shapes
+    return module.apply(_variables(params, ("layers",), ("masks", "in_mask", *_SCALING)), x)
 
 
 def mlp_pad(params: dict, max_hidden: Sequence[int], n_in: int | None = None) -> dict:
@@ -177,10 +237,34 @@ def _rbf_features(params, x):
     return jnp.exp(-0.5 * d2 / jnp.exp(2 * params["log_width"]))
 
 
+class RBF(nn.Module):
+    """A radial-basis-function network: Gaussian units in standardised input space, a linear
+    output layer. Variables: params `centers` (m, d), `log_width` (m,), `w` (m,), `b` ();
+    constants `in_mask` and the scaling. Fitted by `rbf_fit` (k-means and least squares),
+    not by gradient: `init` gives zeros of the right shapes.
+
+    Attributes:
+        n_centers, n_in: the units and inputs.
+    """
+
+    n_centers: int = 0
+    n_in: int = 0
+
+    @nn.compact
+    def __call__(self, x):
+        m, d = self.n_centers, self.n_in
+        shapes = dict(centers=(m, d), log_width=(m,), w=(m,), b=())
+        p = {k: self.param(k, lambda key, shape=shape: jnp.zeros(shape)) for k, shape in shapes.items()}
+        p |= _constants(self, ("in_mask", *_SCALING), lambda: dict(in_mask=jnp.ones(d), **_identity_scaling(d)))
+        out = _rbf_features(p, x) @ p["w"] + p["b"]
+        return out * p["y_scale"] + p["y_shift"]
+
+
 def rbf_apply(params: dict, x):
-    """Evaluate an RBF network. x: (..., d) physical units -> (...,) peak PVV, g."""
-    out = _rbf_features(params, x) @ params["w"] + params["b"]
-    return out * params["y_scale"] + params["y_shift"]
+    """Evaluate an RBF network (`RBF.apply` on `rbf_fit`'s parameter dict).
+    x: (..., d) physical units -> (...,) peak PVV, g."""
+    module = RBF(*map(int, params["centers"].shape))
+    return module.apply(_variables(params, ("centers", "log_width", "w", "b"), ("in_mask", *_SCALING)), x)
 
 
 def apply_for(params: dict):

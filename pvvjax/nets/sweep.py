@@ -71,7 +71,7 @@ def net_table(cfg: ExperimentConfig) -> pd.DataFrame:
                     rows.append(dict(net_id=net_id, database=db, family=sw.family, hidden="-".join(map(str, hidden)),
                                      architecture=architecture_name(len(DB_INPUTS[db]), hidden) if sw.family == "mlp"
                                      else f"rbf-{hidden[0]}", depth=len(hidden), seed=seed, test_fold=fold,
-                                     optimizer=tr.optimizer if sw.family == "mlp" else "kmeans+lstsq"))
+                                     optimizer="adam" if sw.family == "mlp" else "kmeans+lstsq"))
     return pd.DataFrame(rows)
 
 

@@ -21,8 +21,8 @@ import optax
 
 from .networks import mlp_apply
 
-__all__ = ["TRAINABLE", "Data", "Fit", "TrainState", "TrainingError", "condition_folds", "done", "fit", "init_state",
-           "make_data", "masked_metrics", "result", "run", "split_masks"]
+__all__ = ["TRAINABLE", "Data", "Fit", "TrainState", "TrainingError", "condition_folds", "descend", "done", "fit",
+           "init_state", "make_data", "masked_metrics", "result", "run", "split_masks"]
 
 
 class TrainingError(RuntimeError):
@@ -86,7 +86,7 @@ def _wrms(pred, y, w):
 class TrainState(NamedTuple):
     """Everything a net's training needs to continue (vmap it over nets)."""
 
-    opt: tuple  # optimizer state: (weights, adam state) or (weights, LM damping)
+    opt: tuple  # (weights, Adam state)
     best: dict  # weights at the best validation RMS
     best_val: jax.Array
     best_step: jax.Array
@@ -133,27 +133,30 @@ def _optimizer(cfg):
     return optax.adam(cfg.learning_rate)
 
 
-def _lm_step(t, lam, const, data, apply):
-    from jax.flatten_util import ravel_pytree
+def descend(loss, params, opt_state, optimizer: optax.GradientTransformation, steps: int, *args):
+    """`steps` steps of an optax optimizer on `loss(params, *args)`, as one scan: every
+    training in pvvjax takes its gradient steps here.
 
-    f, unravel = ravel_pytree(t)
-    sw = jnp.sqrt(data.w)
-    resid = lambda g: sw * (apply({**const, **unravel(g)}, data.x) - data.y) / const["y_scale"]  # noqa: E731
-    r = resid(f)
-    J = jax.jacfwd(resid)(f)
-    H = J.T @ J
-    d = jnp.linalg.solve(H + lam * jnp.diag(jnp.diag(H)) + 1e-6 * jnp.eye(f.size), -(J.T @ r))
-    loss, new_loss = jnp.sum(r**2), jnp.sum(resid(f + d) ** 2)
-    ok = jnp.isfinite(new_loss) & (new_loss < loss)
-    return (unravel(jnp.where(ok, f + d, f)), jnp.where(ok, lam / 3.0, lam * 2.0),
-            loss / jnp.maximum(jnp.sum(data.w), 1.0))
+    Returns:
+        (params, optimizer state, (steps,) the loss before each step).
+    """
+    value_and_grad = jax.value_and_grad(loss)
+
+    def step(carry, _):
+        p, s = carry
+        value, g = value_and_grad(p, *args)
+        upd, s = optimizer.update(g, s, p)
+        return (optax.apply_updates(p, upd), s), value
+
+    (params, opt_state), values = jax.lax.scan(step, (params, opt_state), None, length=steps)
+    return params, opt_state, values
 
 
 def init_state(params: dict, data: Data, cfg, apply=mlp_apply) -> TrainState:
     """Initial training state of one net (`cfg`: a `TrainConfig`)."""
     t, const = _split(params)
     loss0 = _wmse(apply(params, data.x), data.y, data.w, const["y_scale"])
-    opt = (t, _optimizer(cfg).init(t)) if cfg.optimizer == "adam" else (t, jnp.asarray(cfg.lm_damping, jnp.float32))
+    opt = (t, _optimizer(cfg).init(t))
     zero = jnp.zeros((), jnp.int32)
     val0 = _wrms(apply(params, data.x_val), data.y_val, data.w_val)
     return TrainState(opt, t, val0, zero, zero, zero, jnp.full((), -1, jnp.int32),
@@ -177,17 +180,6 @@ def run(state: TrainState, const: dict, data: Data, cfg, max_evals: int | None =
     opt = _optimizer(cfg)
     full = lambda t: {**const, **t}  # noqa: E731
     loss_fn = lambda t: _wmse(apply(full(t), data.x), data.y, data.w, const["y_scale"])  # noqa: E731
-    grad_fn = jax.value_and_grad(loss_fn)
-
-    def step(carry, _):
-        (t, s), bad = carry
-        if cfg.optimizer == "adam":
-            loss, g = grad_fn(t)
-            upd, s = opt.update(g, s, t)
-            t = optax.apply_updates(t, upd)
-        else:
-            t, s, loss = _lm_step(t, s, const, data, apply)
-        return ((t, s), bad | ~jnp.isfinite(loss) | (loss > state.limit)), None
 
     def cond(c):
         st, n = c
@@ -196,7 +188,8 @@ def run(state: TrainState, const: dict, data: Data, cfg, max_evals: int | None =
 
     def body(c):
         st, n = c
-        (o, bad), _ = jax.lax.scan(step, (st.opt, jnp.zeros((), bool)), None, length=cfg.eval_every)
+        t, s, losses = descend(loss_fn, *st.opt, opt, cfg.eval_every)
+        o, bad = (t, s), jnp.any(~jnp.isfinite(losses) | (losses > state.limit))
         stp = st.step + cfg.eval_every
         val = _wrms(apply(full(o[0]), data.x_val), data.y_val, data.w_val)
         bad = bad | ~jnp.isfinite(val)

@@ -222,65 +222,78 @@ def paper_figures(campaign, windows: pd.DataFrame, peaks: pd.DataFrame, figures:
         figs.append((f"Fig. {n}. {caption}", plots.save(fig, figures / f"fig{n.zfill(2)}_{name}.png")))
 
     if PULLUP in conds:
-        p = peaks.set_index("condition").loc[PULLUP]
-        pk, sec = float(p.peak_time_s), "pull-up 11022 (Figs 1-4)"
-        mark = "; dotted: the peak-PVV window"
-        draw("1", "Pilot floor vertical acceleration, pull-up", [PULLUP], [("a_z, g", ["az_g"])], "az_11022", pk)
-        draw("2", "Pitch rate, pull-up" + mark, [PULLUP], [("pitch rate, deg/s", ["pitch_rate_dps"])],
-             "pitch_rate_11022", pk)
-        draw("3", "Pilot control stick positions, pull-up" + mark, [PULLUP],
-             [("sticks, %", ["collective_pct", "lateral_pct", "longitudinal_pct"])], "sticks_11022", pk)
-        draw("4", "Pilot vertical vibration (4P, 8-rev windows), pull-up", [PULLUP], [("PVV, g", ["pvv"])],
-             "pvv_11022", pk)
-        dur, revs = _record_length(campaign, PULLUP)
-        P = PAPER_PULLUP
-        rows += [check(sec, "record length, s", P["record_s"], dur, tol=1.0, fmt=".1f", source="text"),
-                 check(sec, "record length, revolutions", P["record_revs"], revs, tol=4.0, fmt=".0f", source="text"),
-                 *_condition_rows(sec, P, p),
-                 check(sec, "pitch rate at the peak, deg/s", P["pitch_rate_dps"], float(p.pitch_rate_dps), tol=0.5,
-                       fmt=".2f", source="Fig. 2"),
-                 check(sec, "roll angle at the peak, deg", P["roll_angle_deg"], float(p.roll_angle_deg), tol=3.0,
-                       fmt=".1f", source="text"),
-                 check(sec, "maneuver load factor at the peak", P["mlf"], float(p.mlf), tol=0.1, fmt=".2f",
-                       source="text"),
-                 *[check(sec, f"{s} stick at the peak, %", P[f"{s}_pct"], float(p[f"{s}_pct"]), tol=3.0,
-                         fmt=".1f", source="Fig. 3") for s in ("collective", "lateral", "longitudinal")],
-                 check(sec, "peak PVV, g", P["peak_pvv_g"], float(p.peak_pvv_g), tol=0.02, source="Fig. 4")]
+        rows += _pullup_checks(campaign, peaks, draw)
     if "AR60" in conds and all(c in campaign.records for c in AUTOROTATION):
-        p = peaks.set_index("condition").loc["AR60"]
-        s1, s2 = AUTOROTATION
-        sec = "autorotation AR60 = 11539 + 11540 (Figs 5-9)"
-        cut, back = _power_events(campaign)
-        draw("5", "Pilot floor vertical acceleration and rotor shaft power, autorotation, segment 1", [s1],
-             [("a_z, g", ["az_g"]), ("shaft power, hp", ["shaft_power_hp"])], "az_power_11539")
-        draw("6", "Collective stick position, autorotation, segment 1", [s1], [("collective, %", ["collective_pct"])],
-             "collective_11539")
-        draw("7", "Pilot floor vertical acceleration and rotor shaft power, autorotation, segment 2", [s2],
-             [("a_z, g", ["az_g"]), ("shaft power, hp", ["shaft_power_hp"])], "az_power_11540")
-        draw("8", "Collective stick position, autorotation, segment 2", [s2], [("collective, %", ["collective_pct"])],
-             "collective_11540")
-        draw("9", "Pilot vertical vibration (4P), autorotation, segments 1 and 2", [s1, s2], [("PVV, g", ["pvv"])],
-             "pvv_AR60")
-        P = PAPER_AUTOROTATION
-        seg_w = windows[windows.counter.isin(AUTOROTATION)]
-        top = seg_w.loc[seg_w.pvv_g.idxmax()]
-        for c in AUTOROTATION:
-            dur, revs = _record_length(campaign, c)
-            rows += [check(sec, f"segment {c} length, s", P["segment_s"], dur, tol=1.0, fmt=".1f", source="text"),
-                     check(sec, f"segment {c} length, revolutions", P["segment_revs"], revs, tol=4.0, fmt=".0f",
-                           source="text")]
-        rows += [*_condition_rows(sec, P, p, "the paper's ~60 kt at 256 rpm is μ 0.14; its μ 0.17 would be ~73 kt"),
-                 check(sec, "power cut in segment 1, s", "just before 10 s", cut, accept=(8.0, 10.0), fmt=".1f",
-                       source="Fig. 5"),
-                 check(sec, "power back in segment 2, s", "after 10 s", back, accept=(10.0, 12.5), fmt=".1f",
-                       source="Fig. 7"),
-                 check(sec, "segment of the peak PVV", "2 (post-autorotation)",
-                       AUTOROTATION.index(str(top.counter)) + 1, accept=(2, 2), fmt="d", source="Fig. 9"),
-                 check(sec, "peak PVV after power back (segment 2), s after", "> 0 (post-autorotation)",
-                       float(top.time_s) - back if str(top.counter) == s2 else float("nan"), accept=(0.0, 27.0),
-                       fmt=".1f", source="Fig. 9"),
-                 check(sec, "peak PVV, g", P["peak_pvv_g"], float(p.peak_pvv_g), tol=0.02, source="Fig. 9")]
+        rows += _autorotation_checks(campaign, windows, peaks, draw)
     return figs, pd.DataFrame(rows)
+
+
+def _pullup_checks(campaign, peaks: pd.DataFrame, draw) -> list[dict]:
+    """Figs 1-4 (drawn by `draw`) and the pull-up's numbers beside the paper's."""
+    p = peaks.set_index("condition").loc[PULLUP]
+    pk, sec = float(p.peak_time_s), "pull-up 11022 (Figs 1-4)"
+    mark = "; dotted: the peak-PVV window"
+    draw("1", "Pilot floor vertical acceleration, pull-up", [PULLUP], [("a_z, g", ["az_g"])], "az_11022", pk)
+    draw("2", "Pitch rate, pull-up" + mark, [PULLUP], [("pitch rate, deg/s", ["pitch_rate_dps"])],
+         "pitch_rate_11022", pk)
+    draw("3", "Pilot control stick positions, pull-up" + mark, [PULLUP],
+         [("sticks, %", ["collective_pct", "lateral_pct", "longitudinal_pct"])], "sticks_11022", pk)
+    draw("4", "Pilot vertical vibration (4P, 8-rev windows), pull-up", [PULLUP], [("PVV, g", ["pvv"])],
+         "pvv_11022", pk)
+    dur, revs = _record_length(campaign, PULLUP)
+    P = PAPER_PULLUP
+    rows = [check(sec, "record length, s", P["record_s"], dur, tol=1.0, fmt=".1f", source="text"),
+             check(sec, "record length, revolutions", P["record_revs"], revs, tol=4.0, fmt=".0f", source="text"),
+             *_condition_rows(sec, P, p),
+             check(sec, "pitch rate at the peak, deg/s", P["pitch_rate_dps"], float(p.pitch_rate_dps), tol=0.5,
+                   fmt=".2f", source="Fig. 2"),
+             check(sec, "roll angle at the peak, deg", P["roll_angle_deg"], float(p.roll_angle_deg), tol=3.0,
+                   fmt=".1f", source="text"),
+             check(sec, "maneuver load factor at the peak", P["mlf"], float(p.mlf), tol=0.1, fmt=".2f",
+                   source="text"),
+             *[check(sec, f"{s} stick at the peak, %", P[f"{s}_pct"], float(p[f"{s}_pct"]), tol=3.0,
+                     fmt=".1f", source="Fig. 3") for s in ("collective", "lateral", "longitudinal")],
+             check(sec, "peak PVV, g", P["peak_pvv_g"], float(p.peak_pvv_g), tol=0.02, source="Fig. 4")]
+    return rows
+
+
+def _autorotation_checks(campaign, windows: pd.DataFrame, peaks: pd.DataFrame, draw) -> list[dict]:
+    """Figs 5-9 (drawn by `draw`) and the autorotation's numbers beside the paper's."""
+    p = peaks.set_index("condition").loc["AR60"]
+    s1, s2 = AUTOROTATION
+    sec = "autorotation AR60 = 11539 + 11540 (Figs 5-9)"
+    cut, back = _power_events(campaign)
+    draw("5", "Pilot floor vertical acceleration and rotor shaft power, autorotation, segment 1", [s1],
+         [("a_z, g", ["az_g"]), ("shaft power, hp", ["shaft_power_hp"])], "az_power_11539")
+    draw("6", "Collective stick position, autorotation, segment 1", [s1], [("collective, %", ["collective_pct"])],
+         "collective_11539")
+    draw("7", "Pilot floor vertical acceleration and rotor shaft power, autorotation, segment 2", [s2],
+         [("a_z, g", ["az_g"]), ("shaft power, hp", ["shaft_power_hp"])], "az_power_11540")
+    draw("8", "Collective stick position, autorotation, segment 2", [s2], [("collective, %", ["collective_pct"])],
+         "collective_11540")
+    draw("9", "Pilot vertical vibration (4P), autorotation, segments 1 and 2", [s1, s2], [("PVV, g", ["pvv"])],
+         "pvv_AR60")
+    P = PAPER_AUTOROTATION
+    seg_w = windows[windows.counter.isin(AUTOROTATION)]
+    top = seg_w.loc[seg_w.pvv_g.idxmax()]
+    rows = []
+    for c in AUTOROTATION:
+        dur, revs = _record_length(campaign, c)
+        rows += [check(sec, f"segment {c} length, s", P["segment_s"], dur, tol=1.0, fmt=".1f", source="text"),
+                 check(sec, f"segment {c} length, revolutions", P["segment_revs"], revs, tol=4.0, fmt=".0f",
+                       source="text")]
+    rows += [*_condition_rows(sec, P, p, "the paper's ~60 kt at 256 rpm is μ 0.14; its μ 0.17 would be ~73 kt"),
+             check(sec, "power cut in segment 1, s", "just before 10 s", cut, accept=(8.0, 10.0), fmt=".1f",
+                   source="Fig. 5"),
+             check(sec, "power back in segment 2, s", "after 10 s", back, accept=(10.0, 12.5), fmt=".1f",
+                   source="Fig. 7"),
+             check(sec, "segment of the peak PVV", "2 (post-autorotation)",
+                   AUTOROTATION.index(str(top.counter)) + 1, accept=(2, 2), fmt="d", source="Fig. 9"),
+             check(sec, "peak PVV after power back (segment 2), s after", "> 0 (post-autorotation)",
+                   float(top.time_s) - back if str(top.counter) == s2 else float("nan"), accept=(0.0, 27.0),
+                   fmt=".1f", source="Fig. 9"),
+             check(sec, "peak PVV, g", P["peak_pvv_g"], float(p.peak_pvv_g), tol=0.02, source="Fig. 9")]
+    return rows
 
 
 def database_checks(peaks: pd.DataFrame) -> pd.DataFrame:

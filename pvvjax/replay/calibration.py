@@ -20,7 +20,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .quasistatic import CostWeights, ReplayRecord, Settings, cost_terms, jit_settings, replay, residuals
+from .quasistatic import CostWeights, ReplayRecord, Settings, cost_terms, replay, residuals
 
 __all__ = ["PARAMS", "Bounds", "Calibration", "calibrate", "cost_grid", "counter_costs", "group_members"]
 
@@ -95,7 +95,7 @@ def _group_cost(theta, models, recs, mask, settings, weights, apply):
     return jnp.sum(_group_residuals(theta, models, recs, mask, settings, weights, apply) ** 2)
 
 
-@partial(jit_settings, static_argnames=("weights", "apply"))
+@partial(jax.jit, static_argnames=("weights", "apply"))
 def counter_costs(models, recs: ReplayRecord, theta, *, settings: Settings, weights: CostWeights = CostWeights(),
                   apply=None) -> dict:
     """Cost terms of every counter at its own θ.
@@ -117,7 +117,7 @@ def counter_costs(models, recs: ReplayRecord, theta, *, settings: Settings, weig
     return jax.vmap(one)(models, recs, theta)
 
 
-@partial(jit_settings, static_argnames=("weights", "apply"))
+@partial(jax.jit, static_argnames=("weights", "apply"))
 def cost_grid(models, recs: ReplayRecord, members, mask, offsets, lengths, base=(0.0, 8.0, 0.0), *,
               settings: Settings, weights: CostWeights = CostWeights(), apply=None):
     """Brute-force group cost on a grid of offsets × window lengths.
@@ -192,7 +192,7 @@ def _levenberg_marquardt(fn, y0, *, max_steps: int, rtol: float, atol: float):
     return y, r, steps, ok
 
 
-@partial(jit_settings, static_argnames=("free", "bounds", "weights", "apply", "max_steps", "rtol", "atol"))
+@partial(jax.jit, static_argnames=("free", "bounds", "weights", "apply", "max_steps", "rtol", "atol"))
 def calibrate(models, recs: ReplayRecord, members, mask, init, coarse, *, free: tuple[str, ...] = ("offset_s",),
               bounds: Bounds = Bounds(), settings: Settings, weights: CostWeights = CostWeights(), apply=None,
               max_steps: int = 64, rtol: float = 1e-5, atol: float = 1e-6) -> Calibration:

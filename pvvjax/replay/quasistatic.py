@@ -22,12 +22,13 @@ bounds, and fades out over `fade_s` beyond that, so the cost is continuous in L 
 
 from __future__ import annotations
 
-from functools import partial, wraps
+from functools import partial
 from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
+from flax import struct
 
 from .._lookup import Lookup, make_lookup, search
 from ..analysis.databases import DB_INPUTS, STATE_CHANNELS
@@ -58,7 +59,6 @@ __all__ = [
     "Settings",
     "cost_terms",
     "input_index",
-    "jit_settings",
     "make_settings",
     "prepare",
     "replay",
@@ -102,8 +102,12 @@ class ReplayRecord(NamedTuple):
     time_end: jax.Array
 
 
-class Settings(NamedTuple):
-    """Static replay settings (hashable; `make_settings` fills in the plan).
+@struct.dataclass
+class Settings:
+    """Replay settings (`make_settings` fills in the plan). A PyTree: the plan, hop, fade,
+    stick lag and aircraft are static fields that key the compiled program; the offset bounds
+    and the reference window length are data, so that replays at another offset, or with
+    another reference length, reuse the program instead of compiling the replay again.
 
     Attributes:
         plan: window plan covering the longest window and the shortest hop.
@@ -116,17 +120,16 @@ class Settings(NamedTuple):
             window length L of the replay, so that inputs and vibration share windows (the
             paper). > 0 decouples them: L is then the length of the input averaging only,
             centred on each reference window.
-        (`jit_settings` passes offset_bounds and reference_revs to compiled programs as data.)
         aircraft: rotor constants for the derived features.
     """
 
-    plan: WindowPlan
-    hop_revs: float = 0.0
+    plan: WindowPlan = struct.field(pytree_node=False)
+    hop_revs: float = struct.field(pytree_node=False, default=0.0)
     offset_bounds: tuple[float, float] = (-1.0, 3.0)
-    fade_s: float = 0.25
-    stick_lag: bool = False
+    fade_s: float = struct.field(pytree_node=False, default=0.25)
+    stick_lag: bool = struct.field(pytree_node=False, default=False)
     reference_revs: float = 0.0
-    aircraft: Aircraft = UH60A
+    aircraft: Aircraft = struct.field(pytree_node=False, default=UH60A)
 
 
 def make_settings(batch: RecordBatch, *, max_window_revs: float = 12.0, min_window_revs: float = 4.0,
@@ -136,39 +139,6 @@ def make_settings(batch: RecordBatch, *, max_window_revs: float = 12.0, min_wind
     hop = hop_revs if hop_revs > 0 else (reference_revs if reference_revs > 0 else min_window_revs)
     plan = plan_windows(batch, max(max_window_revs, reference_revs), hop, edge="linear")
     return Settings(plan=plan, hop_revs=float(hop_revs), reference_revs=float(reference_revs), **kw)
-
-
-def jit_settings(fn=None, *, static_argnames=()):
-    """`jax.jit` for a function with a `settings=` keyword (`Settings`). The settings' static
-    part keys the compiled program; the offset bounds and the reference window length are
-    passed in as data, so that replays at another offset, or with another reference length,
-    reuse the program instead of compiling the replay again.
-
-    Args:
-        fn: the function (use as a decorator, with or without arguments).
-        static_argnames: its other static keyword arguments.
-
-    Returns:
-        the function, with the compiled program as its `jitted` attribute.
-    """
-    if fn is None:
-        return partial(jit_settings, static_argnames=static_argnames)
-
-    def joined(*args, settings, settings_data, **kw):
-        offset_bounds, reference_revs = settings_data
-        return fn(*args, settings=settings._replace(offset_bounds=tuple(offset_bounds),
-                                                    reference_revs=reference_revs), **kw)
-
-    jitted = jax.jit(joined, static_argnames=("settings", *static_argnames))
-
-    @wraps(fn)
-    def wrapper(*args, settings: Settings, **kw):
-        data = (settings.offset_bounds, settings.reference_revs)
-        return jitted(*args, settings=settings._replace(offset_bounds=(0.0, 0.0), reference_revs=0.0),
-                      settings_data=data, **kw)
-
-    wrapper.jitted = jitted
-    return wrapper
 
 
 def _prepare_one(az, cos_psi, sin_psi, rev, width, time, x, mask, harmonic, block):
@@ -243,7 +213,7 @@ def replay(model: dict, rec: ReplayRecord, offset_s, window_revs, stick_offset_s
         offset_s: input-to-vibration offset τ, s (> 0: inputs precede the vibration).
         window_revs: window length L, revolutions (within the settings' plan).
         stick_offset_s: extra offset of the stick inputs, s (used if `settings.stick_lag`).
-        settings: static `Settings`.
+        settings: `Settings`.
         apply: network function (params, x (..., n_in)) -> (...,); default: the MLP or RBF
             evaluator that matches the parameters (`networks.apply_for`).
 
@@ -257,7 +227,7 @@ def replay(model: dict, rec: ReplayRecord, offset_s, window_revs, stick_offset_s
     ref = settings.reference_revs
     if isinstance(ref, (int, float)):
         L_ref = L if ref <= 0 else jnp.asarray(ref, dt)
-    else:  # data (`jit_settings`): one compiled program for every reference length
+    else:  # data (traced): one compiled program for every reference length
         L_ref = jnp.where(ref > 0, jnp.asarray(ref, dt), L)
     hop = L_ref if settings.hop_revs <= 0 else jnp.asarray(settings.hop_revs, dt)
     a = rec.rev_start + hop * jnp.arange(W, dtype=dt)

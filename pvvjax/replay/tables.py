@@ -21,7 +21,7 @@ from ..data.batch import to_batch
 from ..data.campaign import Campaign
 from ..nets.sweep import heldout_models
 from .calibration import PARAMS, Bounds, calibrate, cost_grid, counter_costs, group_members
-from .quasistatic import FEATURES, CostWeights, ReplayRecord, Settings, jit_settings, make_settings, prepare, replay
+from .quasistatic import FEATURES, CostWeights, ReplayRecord, Settings, make_settings, prepare, replay
 
 __all__ = [
     "calibration_settings",
@@ -83,7 +83,7 @@ def _bounds(cfg: CalibrationConfig) -> Bounds:
     return Bounds(tuple(cfg.offset_bounds), tuple(cfg.window_bounds), tuple(cfg.stick_offset_bounds))
 
 
-@jit_settings
+@jax.jit
 def replay_all(m, r, th, *, settings):
     """Every counter's replay (leading axis N) at its θ (N, 3)."""
     return jax.vmap(lambda m, r, th: replay(m, r, th[0], th[1], th[2], settings=settings))(m, r, th)

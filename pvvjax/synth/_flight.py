@@ -85,6 +85,12 @@ def _alpha(dt, tau):
     return 1.0 - np.exp(-dt / tau)
 
 
+# The states and sticks `simulate` returns, in the order its step computes them.
+_OUTPUTS = ("airspeed_kt", "pitch_rate_dps", "roll_angle_deg", "roll_rate_dps", "yaw_rate_dps", "climb_rate_fpm",
+            "pitch_angle_deg", "nz_g", "rotor_rpm", "shaft_power_hp", "altitude_ft", "sideslip_deg",
+            "collective_pct", "lateral_pct", "longitudinal_pct", "pedal_pct", "pitch_accel_dps2")
+
+
 def simulate(init: dict, sched: dict, dt: float) -> dict:
     """Step the flight model for K conditions over N steps.
 
@@ -103,7 +109,6 @@ def simulate(init: dict, sched: dict, dt: float) -> dict:
     w, sig, rpm_set = init["w_lb"], init["sigma"], init["rpm_set"]
     v = init["v_kt"].astype(float).copy()
     climb0 = init["climb_fpm"]
-    coll_trim0, _, _, _ = trim_sticks(v, w, sig, rpm_set, climb0)
     phi = init["phi_deg"].astype(float).copy()
     n0 = 1.0 / np.cos(np.deg2rad(phi))
     coll_trim0 = collective_for_power(power_required_hp(v, w, sig, rpm_set, climb0, n0), rpm_set)
@@ -111,10 +116,7 @@ def simulate(init: dict, sched: dict, dt: float) -> dict:
     hc, omega = climb0.astype(float).copy(), rpm_set.astype(float).copy()
     pw = np.maximum(power_required_hp(v, w, sig, rpm_set, climb0, n0), 0.0)
     alt = np.full(K, 1000.0)
-    out = {k: np.zeros((K, N)) for k in (
-        "airspeed_kt", "pitch_rate_dps", "roll_angle_deg", "roll_rate_dps", "yaw_rate_dps", "climb_rate_fpm",
-        "pitch_angle_deg", "nz_g", "rotor_rpm", "shaft_power_hp", "altitude_ft", "sideslip_deg",
-        "collective_pct", "lateral_pct", "longitudinal_pct", "pedal_pct", "pitch_accel_dps2")}
+    out = {k: np.zeros((K, N)) for k in _OUTPUTS}
     a = {k: _alpha(dt, F[k]) for k in ("tau_q", "tau_p", "tau_h", "tau_P", "tau_beta", "tau_omega_on", "tau_omega_off")}
     n_prev = n0
     for i in range(N):
@@ -157,12 +159,7 @@ def simulate(init: dict, sched: dict, dt: float) -> dict:
         n_prev = np.maximum(n_kin, 0.1)
         r = np.rad2deg(G * np.tan(np.deg2rad(phi)) / v_fts)
         theta = 4.0 - 0.055 * v + gam
-        for k, val in (
-            ("airspeed_kt", v), ("pitch_rate_dps", q), ("roll_angle_deg", phi), ("roll_rate_dps", p),
-            ("yaw_rate_dps", r), ("climb_rate_fpm", hdot), ("pitch_angle_deg", theta), ("nz_g", nz),
-            ("rotor_rpm", omega), ("shaft_power_hp", pw), ("altitude_ft", alt), ("sideslip_deg", beta),
-            ("collective_pct", coll), ("lateral_pct", lat), ("longitudinal_pct", lon), ("pedal_pct", ped),
-            ("pitch_accel_dps2", qdot),
-        ):
+        for k, val in zip(_OUTPUTS, (v, q, phi, p, r, hdot, theta, nz, omega, pw, alt, beta, coll, lat, lon, ped,
+                                     qdot)):
             out[k][:, i] = val
     return out
