@@ -10,7 +10,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pvvjax._strict import to_dict
+from pvvjax.config import to_dict
 
 ROOT = Path(__file__).parents[1]
 

@@ -9,6 +9,7 @@ from test_replay import lagged_campaign, linear_apply, linear_model
 
 from pvvjax.analysis.databases import STATE_CHANNELS
 from pvvjax.data.batch import to_batch
+from pvvjax.replay import calibration
 from pvvjax.replay import quasistatic as R
 from pvvjax.replay.calibration import Bounds, calibrate, cost_grid, counter_costs, group_members
 
@@ -140,7 +141,7 @@ def test_bad_groups_and_parameters_are_errors(lagged):
 def test_levenberg_marquardt_reaches_optimistixs_minimum_and_keeps_a_flat_parameter():
     import optimistix as optx
 
-    from pvvjax.replay.calibration import _levenberg_marquardt
+    _levenberg_marquardt = calibration._levenberg_marquardt
 
     t = jnp.linspace(0.0, 3.0, 40)
     data = 2.0 * jnp.exp(-1.3 * t) + 0.01 * jnp.sin(7.0 * t)  # not exactly the model: a residual remains

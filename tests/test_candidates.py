@@ -5,6 +5,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from pvvjax.discovery import _model, candidates
 from pvvjax.discovery.candidates import Candidate, describe, from_key, interval_means, library, values, window_table
 
 
@@ -80,7 +81,7 @@ def test_operators_and_names():
 def test_names_tell_every_channels_candidates_apart():
     # A name shared by two candidates (the roll-rate channel and the rate of the roll angle
     # were both "roll rate") makes a round's proposals and runners-up unreadable.
-    from pvvjax.discovery.candidates import _WORDS
+    _WORDS = candidates._WORDS
 
     chans = [*_WORDS, "rotor_torque_pct"]  # and a channel without words of its own
     cands = [c for ch in chans for c in (
@@ -145,7 +146,7 @@ def test_library_leaves_out_the_model_inputs_as_plain_inputs(tiny):
 
 
 def test_rate_over_a_revolution_follows_the_maneuver_not_the_sensor_noise():
-    from pvvjax.discovery.candidates import _rate
+    _rate = candidates._rate
 
     rng = np.random.default_rng(1)
     t = np.arange(0, 20, 1 / 320)  # the synthetic campaigns' sample rate
@@ -162,7 +163,7 @@ def test_rate_over_a_revolution_follows_the_maneuver_not_the_sensor_noise():
 
 
 def test_rate_of_many_columns_equals_numpys_interpolation_column_by_column():
-    from pvvjax.discovery.candidates import _rate
+    _rate = candidates._rate
 
     rng = np.random.default_rng(4)
     t = np.cumsum(rng.uniform(0.002, 0.004, 3000))  # uneven samples
@@ -177,7 +178,7 @@ def test_rate_of_many_columns_equals_numpys_interpolation_column_by_column():
 
 
 def test_window_tables_of_several_offsets_equal_one_table_each(tiny):
-    from pvvjax.discovery._model import _Windows
+    _Windows = _model._Windows
     from pvvjax.discovery.candidates import window_tables
 
     c = _campaign(tiny)

@@ -10,9 +10,22 @@ import pandas as pd
 import pytest
 from conftest import discovery_config
 
-from pvvjax.discovery import floor_features, knn_floor, metrics
-from pvvjax.discovery._fits import _fit_tau, _lag_identified
-from pvvjax.discovery._model import _lag_windows, _Windows
+from pvvjax.discovery import (
+    _confirm,
+    _fits,
+    _model,
+    _propose,
+    _round,
+    _rules,
+    _workflow,
+    floor_features,
+    knn_floor,
+    metrics,
+    report,
+)
+
+_fit_tau, _lag_identified = _fits._fit_tau, _fits._lag_identified
+_lag_windows, _Windows = _model._lag_windows, _model._Windows
 
 
 def _windows(n_counters=3, W=12, seed=0):
@@ -68,8 +81,6 @@ def test_knn_floor_against_brute_force():
 
 def test_a_knee_of_the_models_own_inputs_joins_the_floor_and_is_not_named_through_a_channel_that_follows_it(
         monkeypatch):
-    from pvvjax.discovery import _rules
-    from pvvjax.discovery._propose import _propose
 
     # Own input x per condition; the map misses a knee of it (the floor). A measured channel
     # p follows x (a stick that tracks the speed): its knee stands in for the floor's unless
@@ -92,7 +103,8 @@ def test_a_knee_of_the_models_own_inputs_joins_the_floor_and_is_not_named_throug
 
     def run(resid, refine):
         monkeypatch.setattr(_rules, "FLOOR_REFINEMENTS", refine)
-        return _propose(win, None, resid, C, rows, (), x[:, None], discovery_config(proposals=1), seed=0, **kw)
+        return _propose._propose(win, None, resid, C, rows, (), x[:, None], discovery_config(proposals=1), seed=0,
+                                 **kw)
 
     floor_only = 0.3 * own_knees[:, 0] + noise
     proposals, absorbed, _ = run(floor_only, 0)
@@ -105,8 +117,7 @@ def test_a_knee_of_the_models_own_inputs_joins_the_floor_and_is_not_named_throug
 
 @pytest.mark.heavy
 def test_refine_recovers_a_knee_and_a_band_and_keeps_a_band_in_its_grid_cell(monkeypatch):
-    from pvvjax.discovery import _fits
-    from pvvjax.discovery._fits import _refine
+    _refine = _fits._refine
     from pvvjax.discovery.candidates import Candidate
 
     calls, residuals = [], _fits._refine_residuals
@@ -149,7 +160,7 @@ def test_refine_recovers_a_knee_and_a_band_and_keeps_a_band_in_its_grid_cell(mon
 
 
 def test_a_refined_candidate_is_kept_only_if_the_selections_design_credits_it_with_more_gain():
-    from pvvjax.discovery._fits import _keep_better
+    _keep_better = _fits._keep_better
     from pvvjax.discovery.candidates import Candidate
 
     # Rotor speed per condition; the residual holds a resonance band at 270 rpm (the effect)
@@ -175,7 +186,7 @@ def test_a_refined_candidate_is_kept_only_if_the_selections_design_credits_it_wi
 
 def test_a_proposed_band_brings_the_adjacent_cell_the_design_credits_more():
     from pvvjax.config import DiscoveryConfig
-    from pvvjax.discovery._propose import _neighbour_cells
+    _neighbour_cells = _propose._neighbour_cells
     from pvvjax.discovery.candidates import Candidate
     from pvvjax.discovery.selection import Selected, gains
 
@@ -240,7 +251,7 @@ def test_each_derived_feature_is_computed_from_the_channels_it_is_listed_with():
     # floor control): the lists against derive_features itself, channel by channel (a moved
     # channel moves exactly the features computed from it, through the MLF and μ as well).
     from pvvjax.data.features import derive_features
-    from pvvjax.discovery._model import _DERIVED_FROM, source_channels
+    _DERIVED_FROM, source_channels = _model._DERIVED_FROM, _model.source_channels
 
     state = dict(airspeed_kt=120.0, rotor_rpm=258.0, roll_angle_deg=20.0, pitch_rate_dps=5.0, gross_weight_lb=16000.0,
                  density_ratio=0.9)
@@ -255,7 +266,7 @@ def test_each_derived_feature_is_computed_from_the_channels_it_is_listed_with():
 def test_a_tries_floor_control_leaves_out_the_refinements_built_from_its_channels():
     # An effect acting through the model's own inputs is partly a knee of them (the pitch rate
     # inside the load factor, a mode of rotor speed): its control holds the other refinements.
-    from pvvjax.discovery._confirm import _control_refinements
+    _control_refinements = _confirm._control_refinements
     from pvvjax.discovery.candidates import Candidate
 
     knee = lambda ch: Candidate("threshold", (ch,), {"knee": 1.0, "above": True})  # noqa: E731
@@ -275,7 +286,7 @@ def test_airspeed_is_determined_by_advance_ratio_and_rotor_speed():
     from pvvjax.analysis.databases import DB_INPUTS
     from pvvjax.data.constants import KT_TO_FT_S, RPM_TO_RAD_S
     from pvvjax.data.features import advance_ratio
-    from pvvjax.discovery._model import _determined
+    _determined = _model._determined
 
     rng = np.random.default_rng(0)
     v, rpm = rng.uniform(0, 160, 50), rng.uniform(240, 275, 50)
@@ -463,7 +474,7 @@ def test_a_source_try_gets_the_p_value_of_its_retraining_by_condition_where_it_a
 
 def test_the_floor_control_is_the_model_retrained_with_its_refinements_as_inputs(monkeypatch):
     import pvvjax.discovery._confirm as C
-    from pvvjax.discovery._model import Model
+    Model = _model.Model
     from pvvjax.discovery.candidates import Candidate
 
     trained = []
@@ -480,7 +491,7 @@ def test_the_floor_control_is_the_model_retrained_with_its_refinements_as_inputs
 
 
 def test_candidates_the_selection_cannot_tell_apart_are_retrained_simplest_then_best():
-    from pvvjax.discovery._propose import _try_order
+    _try_order = _propose._try_order
 
     assert _try_order([(1, 0.1), (2, 0.2), (3, 0.3)]) == [(1, 0.1), (3, 0.3), (2, 0.2)]
     assert _try_order([(1, 0.5), (2, 0.3), (3, 0.1)]) == [(1, 0.5), (2, 0.3), (3, 0.1)]
@@ -489,7 +500,7 @@ def test_candidates_the_selection_cannot_tell_apart_are_retrained_simplest_then_
 
 def _choose_plain(tries, noise, alpha, min_shrink=0.05):
     """`_confirm._choose` of (shrink, gain, p) tries, each its own candidate without a control."""
-    from pvvjax.discovery._confirm import _choose
+    _choose = _confirm._choose
 
     return _choose([(*t, i, float("nan")) for i, t in enumerate(tries)], noise, alpha, min_shrink)
 
@@ -509,7 +520,7 @@ def test_confirmed_tries_the_retraining_cannot_tell_apart_are_told_apart_by_the_
 
 
 def test_a_try_far_below_the_best_shrink_is_not_tied_by_the_p_value_alone():
-    from pvvjax.discovery._confirm import _choose
+    _choose = _confirm._choose
 
     nan = float("nan")
     # Weight missing 52, round 1: blade loading (22.9 %) and a pitch-attitude knee (7.7 %,
@@ -541,7 +552,7 @@ def test_a_tie_with_a_try_the_selection_did_not_rank_is_decided_by_the_retrainin
 
 
 def test_of_tied_candidates_those_that_gain_beyond_their_floor_control_are_named():
-    from pvvjax.discovery._confirm import _choose
+    _choose = _confirm._choose
 
     nan = float("nan")
     # Pitch rate 51, round 1: (shrink, gain, p, candidate, shrink on top of its floor control).
@@ -564,7 +575,7 @@ def test_of_tied_candidates_those_that_gain_beyond_their_floor_control_are_named
 
 
 def test_a_weak_name_brings_its_runner_up_on_other_channels_which_beyond_its_floor_is_then_named():
-    from pvvjax.discovery._confirm import _choose, _rival
+    _choose, _rival = _confirm._choose, _confirm._rival
 
     nan = float("nan")
     # Pitch acceleration 31, round 1: the stick rate (a term) is the round's one confirmed try;
@@ -605,8 +616,8 @@ _BASE = dict(maneuvers=("level", "climb", "descent", "turn", "roll", "pushover",
 
 @pytest.mark.heavy
 def test_cli_on_a_world_without_hidden_effects_names_nothing(tmp_path):
-    from pvvjax._strict import from_dict
     from pvvjax.cli import main
+    from pvvjax.config import from_dict
     from pvvjax.data.campaign import write_campaign
     from pvvjax.synth import SynthConfig, generate
 
@@ -625,7 +636,7 @@ def test_cli_on_a_world_without_hidden_effects_names_nothing(tmp_path):
 
 
 def test_discovery_json_is_strict_json():
-    from pvvjax.discovery.report import _json_text
+    _json_text = report._json_text
 
     assert json.loads(_json_text({"p_value": 0.01}, "out/discovery.json")) == {"p_value": 0.01}
     with pytest.raises(ValueError, match="out/discovery.json: a value is not a finite number"):
@@ -633,7 +644,7 @@ def test_discovery_json_is_strict_json():
 
 
 def test_report_lists_the_other_confirmed_tries_of_an_effects_round():
-    from pvvjax.discovery.report import _also_confirmed
+    _also_confirmed = report._also_confirmed
 
     rounds = pd.DataFrame(dict(round=[1, 1, 1, 1, 2], name=["a", "b", "b", "c", "d"],
                                augment=["additive", "additive", "input", "input", "input"],
@@ -669,7 +680,6 @@ def test_nets_trained_on_the_windows_see_every_strided_window(monkeypatch, small
     from pvvjax import discovery as D
     from pvvjax.config import ExperimentConfig, TrainConfig
     from pvvjax.data.campaign import load_campaign
-    from pvvjax.discovery import _confirm, _model, _rules, _workflow
 
     calls, fit = [], D.fit_ensemble
 
@@ -714,7 +724,7 @@ def test_a_try_confirms_where_its_candidate_is_active_or_twice_min_shrink_over_a
     from dataclasses import replace as dc_replace
 
     from pvvjax.config import DiscoveryConfig
-    from pvvjax.discovery import _confirm as C
+    C = _confirm
     from pvvjax.discovery.candidates import Candidate
 
     win = _windows(n_counters=4, W=40, seed=3)
@@ -757,8 +767,8 @@ def test_parameter_free_candidates_are_also_tried_at_the_candidate_offsets(monke
 
     from pvvjax.config import DiscoveryConfig, ExperimentConfig
     from pvvjax.data.campaign import campaign_from_frames
-    from pvvjax.discovery import Model, _rules
-    from pvvjax.discovery._propose import _candidate_matrix, _unaligned_key
+    from pvvjax.discovery import Model
+    _candidate_matrix, _unaligned_key = _propose._candidate_matrix, _propose._unaligned_key
     from pvvjax.discovery.candidates import values, window_table
 
     counters, recs = tiny_records(seconds=10.0)
@@ -824,7 +834,6 @@ def test_discover_takes_a_campaign_folder_and_a_bare_discovery_config(tmp_path, 
 
     from pvvjax import discovery as D
     from pvvjax.config import ExperimentConfig
-    from pvvjax.discovery import _workflow
 
     folder = write_tiny(tmp_path / "c")
     seen = []
@@ -843,8 +852,8 @@ def test_discover_takes_a_campaign_folder_and_a_bare_discovery_config(tmp_path, 
 def test_a_gains_column_is_its_band_in_units_of_its_gain_unit():
     # The nets train a gain column of u·band as a gain in steps of 1/u (u = gain_unit): the
     # selection's bands in steps of GAIN_UNIT, the probe's (no unit) in 1.
-    from pvvjax.discovery import Model, _rules
-    from pvvjax.discovery._model import _inputs
+    from pvvjax.discovery import Model
+    _inputs = _model._inputs
     from pvvjax.discovery.candidates import Candidate
 
     win = _windows()
@@ -871,8 +880,8 @@ def test_a_try_must_confirm_again_on_top_of_the_floor_control_or_beat_it_alone(
     # training, replay and the confirmations are the workflow's own.
     from pvvjax.config import ExperimentConfig, TrainConfig
     from pvvjax.data.campaign import load_campaign
-    from pvvjax.discovery import _round, _workflow, discover
-    from pvvjax.discovery._model import source_channels
+    from pvvjax.discovery import discover
+    source_channels = _model.source_channels
     from pvvjax.discovery.report import write_discovery
     from pvvjax.discovery.selection import Selected
 
@@ -942,9 +951,9 @@ def test_a_weak_name_brings_its_runner_up_on_other_channels_which_is_retrained_a
     # is named. Proposal, runners-up and shrinks are forced; training, replay, the controls and
     # the choice are the workflow's own.
     from pvvjax.config import ExperimentConfig, TrainConfig
-    from pvvjax.discovery import _round, _workflow, discover
-    from pvvjax.discovery._model import source_channels
-    from pvvjax.discovery._propose import _unaligned_key
+    from pvvjax.discovery import discover
+    source_channels = _model.source_channels
+    _unaligned_key = _propose._unaligned_key
     from pvvjax.discovery.selection import Selected
 
     who = {}
@@ -987,7 +996,7 @@ def test_a_weak_name_brings_its_runner_up_on_other_channels_which_is_retrained_a
 
 def test_each_operator_is_added_in_the_ways_the_config_allows():
     from pvvjax.config import DiscoveryConfig
-    from pvvjax.discovery._round import _modes
+    _modes = _round._modes
 
     d = DiscoveryConfig()
     assert _modes("lag", d) == ("lag",) and _modes("resonance", d) == ("gain",)
@@ -1006,7 +1015,7 @@ def test_an_additive_term_is_refitted_on_the_residual_of_the_nets_its_refit_name
     from pvvjax.analysis.databases import DB_INPUTS
     from pvvjax.config import ExperimentConfig, TrainConfig
     from pvvjax.data.campaign import load_campaign
-    from pvvjax.discovery import Model, _confirm, _model, _rules, _workflow
+    from pvvjax.discovery import Model
     from pvvjax.discovery.candidates import from_key
 
     monkeypatch.setattr(_rules, "TRAIN_STRIDE", 16)
@@ -1050,7 +1059,7 @@ def test_only_the_named_term_is_refitted_on_window_nets_and_kept_if_it_confirms(
     # try where that model confirms too. The proposal and the confirmations' verdicts are
     # forced; the fits, training and replay are the workflow's own.
     from pvvjax.config import ExperimentConfig, TrainConfig
-    from pvvjax.discovery import _round, _rules, _workflow, discover
+    from pvvjax.discovery import discover
     from pvvjax.discovery.report import write_discovery
     from pvvjax.discovery.selection import Selected
 
@@ -1105,7 +1114,7 @@ def test_a_named_input_gives_way_to_its_proposals_term_where_they_tie(
     # alone, and not where it is far below (0.01 against 0.20). The fits, training and replay
     # are the workflow's own.
     from pvvjax.config import ExperimentConfig, TrainConfig
-    from pvvjax.discovery import _round, _workflow, discover
+    from pvvjax.discovery import discover
     from pvvjax.discovery.report import write_discovery
     from pvvjax.discovery.selection import Selected
 
@@ -1145,7 +1154,7 @@ def test_every_confirmed_inputs_term_logs_the_p_of_the_way_it_was_chosen(monkeyp
     # (confirms): both terms log `p_input_better`, the p of the way chosen for whichever input
     # a round names.
     from pvvjax.config import ExperimentConfig, TrainConfig
-    from pvvjax.discovery import _round, _workflow, discover
+    from pvvjax.discovery import discover
     from pvvjax.discovery.selection import Selected
 
     def propose(win, yhat, resid, M, rows, own, floor, d, seed, complexity, keys, is_floor):
@@ -1180,7 +1189,7 @@ def test_a_term_on_top_of_itself_keeps_little_of_its_coefficient_and_on_top_of_a
     from pvvjax.analysis.databases import DB_INPUTS
     from pvvjax.config import ExperimentConfig, TrainConfig
     from pvvjax.data.campaign import load_campaign
-    from pvvjax.discovery import Model, _confirm, _round, _workflow
+    from pvvjax.discovery import Model
     from pvvjax.discovery.candidates import from_key
 
     d = discovery_config(seeds=1, folds=3)
@@ -1207,8 +1216,8 @@ def test_of_two_tied_channels_the_term_that_keeps_more_on_top_of_the_other_is_na
     # by more than the margin, and its row logs both. Training, replay and the choice are
     # the workflow's own.
     from pvvjax.config import ExperimentConfig, TrainConfig
-    from pvvjax.discovery import _round, _rules, _workflow, discover
-    from pvvjax.discovery._model import source_channels
+    from pvvjax.discovery import discover
+    source_channels = _model.source_channels
     from pvvjax.discovery.selection import Selected
 
     who = {}

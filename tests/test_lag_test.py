@@ -7,8 +7,9 @@ import pandas as pd
 import pytest
 from conftest import discovery_config
 
-from pvvjax.discovery import delag
-from pvvjax.discovery._model import _lag_windows, _Windows
+from pvvjax.discovery import _confirm, _lag, _model, _rules, delag
+
+_lag_windows, _Windows = _model._lag_windows, _model._Windows
 
 
 def _slow_windows(n_counters=4, W=160, dt=0.25):
@@ -37,7 +38,7 @@ def test_sign_flip_test_against_exact_enumeration():
     # difference of squared errors; the random sign flips estimate it.
     from itertools import product
 
-    from pvvjax.discovery._confirm import _paired_sign_flip
+    _paired_sign_flip = _confirm._paired_sign_flip
 
     rng = np.random.default_rng(3)
     rows = pd.DataFrame([dict(counter=c, window=w, condition=f"c{c}", maneuver="level", weight=1.0, measured_g=0.0)
@@ -63,7 +64,6 @@ def test_lag_test_is_judged_by_the_learned_tau_and_adds_the_slow_lag_against_the
     # the pull-ups' step, where a lag acts) is reported.
     from pvvjax import discovery as D
     from pvvjax.config import ExperimentConfig
-    from pvvjax.discovery import _lag
 
     rng = np.random.default_rng(0)
     rows = pd.DataFrame([dict(counter=c, window=w, condition=f"c{c}", maneuver="pullup" if c % 2 else "level",
@@ -149,7 +149,6 @@ def test_discover_names_a_long_lag_first_with_nets_trained_through_it(monkeypatc
     from pvvjax import discovery as D
     from pvvjax.config import ExperimentConfig, from_dict
     from pvvjax.data.campaign import campaign_from_frames
-    from pvvjax.discovery import _lag, _rules
     from pvvjax.discovery.report import write_discovery
     from pvvjax.synth import SynthConfig, generate
 

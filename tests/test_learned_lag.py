@@ -10,8 +10,12 @@ import pandas as pd
 import pytest
 from conftest import lag_loop
 
-from pvvjax.discovery._learned import fit_learned_lag
-from pvvjax.discovery._model import _lag_windows, _Windows, lagged_windows, window_layout
+from pvvjax.discovery import _learned, _model
+
+fit_learned_lag = _learned.fit_learned_lag
+_lag_windows, _Windows = _model._lag_windows, _model._Windows
+lagged_windows, window_layout = _model.lagged_windows, _model.window_layout
+
 
 
 def _windows(first_k=(0, 3, 1), n=(40, 30, 25), dt=0.25, seed=0):

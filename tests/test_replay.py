@@ -9,12 +9,14 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pvvjax._lookup import make_lookup, search
+from pvvjax import _lookup
 from pvvjax.analysis.databases import STATE_CHANNELS
 from pvvjax.analysis.harmonics import plan_windows, record_columns, stack_columns, window_sums, with_prefix
 from pvvjax.data.batch import to_batch
 from pvvjax.data.campaign import campaign_from_frames, load_campaign
 from pvvjax.replay import quasistatic as R
+
+make_lookup, search = _lookup.make_lookup, _lookup.search
 
 SPR, RPM = 64, 257.8
 

@@ -4,6 +4,7 @@ yields nothing, and within-condition correlation does not pass for an effect."""
 import numpy as np
 import pytest
 
+from pvvjax.discovery import selection
 from pvvjax.discovery.selection import cv_sse, forward_select
 
 
@@ -58,7 +59,8 @@ def test_cv_sse_and_errors():
 
 
 def test_vectorised_scores_equal_one_least_squares_per_candidate():
-    from pvvjax.discovery.selection import _folds, _scores
+    _folds = selection._folds
+    _scores = selection._scores
 
     C, groups, noise = _data(n_cond=30, per=10, K=12, seed=5)
     y = 0.02 * C[:, 2] + noise
@@ -80,7 +82,8 @@ def test_base_covariates_absorb_what_they_explain():
 
 
 def test_heldout_errors_equal_a_least_squares_fit_per_fold():
-    from pvvjax.discovery.selection import _Design, _folds
+    _Design = selection._Design
+    _folds = selection._folds
 
     C, groups, noise = _data(n_cond=30, per=10, K=6, seed=7)
     y = 0.02 * C[:, 1] + noise
@@ -95,7 +98,9 @@ def test_heldout_errors_equal_a_least_squares_fit_per_fold():
 
 
 def test_parsimony_names_the_simpler_of_two_equivalent_candidates():
-    from pvvjax.discovery.selection import _Design, _folds, equivalent
+    from pvvjax.discovery.selection import equivalent
+    _Design = selection._Design
+    _folds = selection._folds
 
     C, groups, noise = _data(seed=8)
     rng = np.random.default_rng(0)
@@ -134,7 +139,7 @@ def test_gain_is_what_forward_select_credits_its_first_pick_with():
     assert first.index == 4
     assert gain(y, C[:, 4], groups, base=base, seed=3) == pytest.approx(first.gain, rel=1e-9)
     # Independent reference: the held-out SSE of explicit least-squares fits, same folds.
-    from pvvjax.discovery.selection import _folds
+    _folds = selection._folds
 
     fid = _folds(groups, 5, 3)
     with_c = cv_sse(y, np.column_stack([base, C[:, 4]]), fid)
@@ -143,7 +148,8 @@ def test_gain_is_what_forward_select_credits_its_first_pick_with():
 
 
 def test_gains_of_many_columns_equal_one_least_squares_fit_each():
-    from pvvjax.discovery.selection import _folds, gains
+    from pvvjax.discovery.selection import gains
+    _folds = selection._folds
 
     C, groups, noise = _data(seed=7)
     y = 0.03 * C[:, 2] - 0.01 * C[:, 9] + noise

@@ -12,7 +12,7 @@ from pvvjax.analysis.databases import OUTPUT
 from pvvjax.cli import main
 from pvvjax.config import ConfigError
 from pvvjax.data.campaign import load_campaign, validate_campaign
-from pvvjax.synth import EFFECTS, EffectConfig, SynthConfig, generate, load_synth_config, write_synthetic
+from pvvjax.synth import EFFECTS, EffectConfig, SynthConfig, _generate, generate, load_synth_config, write_synthetic
 
 PAPER = {"T1-level-135": 0.10, "T1-descent-160": 0.25, "T1-climb-62": 0.12, "T1-turn45-145": 0.13}
 
@@ -196,7 +196,7 @@ def test_concurrent_callers_generate_a_cached_campaign_once(tmp_path, monkeypatc
     import threading
     import time
 
-    from pvvjax.synth import _generate, cached_campaign
+    from pvvjax.synth import cached_campaign
 
     calls, write = [], _generate.write_synthetic
 
