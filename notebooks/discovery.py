@@ -41,6 +41,7 @@ from pvvjax.config import (
     ExperimentConfig,
     OffsetConfig,
     SelectionConfig,
+    TrainConfig,
     from_dict,
 )
 from pvvjax.data.campaign import campaign_from_frames
@@ -67,8 +68,11 @@ len(campaign), len(campaign.conditions())
 # refitted on nets trained on the replay windows).
 
 # %%
+# Light settings for a notebook: 3 seeds, a coarser offset grid, and at most 2000 training
+# steps (the retrainings stop there; the verdict is the one 6000 give).
 fast = dict(ensemble=EnsembleConfig(seeds=3), offset=OffsetConfig(step_s=0.25))
-cfg = ExperimentConfig(discovery=DiscoveryConfig(max_effects=1, selection=SelectionConfig(proposals=2), **fast))
+cfg = ExperimentConfig(train=TrainConfig(max_steps=2000),
+                       discovery=DiscoveryConfig(max_effects=1, selection=SelectionConfig(proposals=2), **fast))
 res = discover(campaign, cfg, name="notebook-world")
 
 # %% [markdown]
