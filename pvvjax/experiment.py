@@ -54,7 +54,8 @@ def resolve_campaign(cfg, campaign_dir=None, log=print):
         folder = cached_campaign(scfg)
         log(f"embedded synthetic campaign: {folder} ({time.perf_counter() - t0:.1f} s)")
     t0 = time.perf_counter()
-    campaign = load_campaign(folder, cfg.campaign.columns, cfg.analysis.window_revs, progress=progress_bar("loading"))
+    campaign = load_campaign(folder, cfg.campaign.columns, cfg.analysis.window_revs, progress=progress_bar("loading"),
+                             harmonic=cfg.analysis.harmonic)
     log(f"loaded {len(campaign)} counters, {len(campaign.conditions())} conditions ({time.perf_counter() - t0:.1f} s)")
     return campaign, Path(folder)
 
@@ -181,14 +182,12 @@ def prepare_sweep(config_path, out=None):
     from tqdm.auto import tqdm
 
     from .analysis.databases import build_databases
-    from .io import write_config
     from .nets.sweep import run_sweep
 
     enable_compilation_cache()
     out = Path(out) if out else Path(cfg.out_dir) / cfg.name / "sweep"
     campaign, _ = resolve_campaign(cfg)
     dbs = build_databases(campaign, cfg.analysis)
-    write_config(cfg, out / "config.toml")
     res = run_sweep(cfg, dbs, out, progress=lambda **kw: tqdm(desc="nets", unit="net", **kw))
     return cfg, dbs, res, out
 
@@ -211,8 +210,9 @@ def run_main_job(cfg, source: str | Path = "") -> Path:
     use_deterministic_gpu()
     import pandas as pd
 
+    from ._strict import to_dict
     from .analysis.databases import build_databases
-    from .io import write_table
+    from .io import claim_folder, write_table
     from .paper.comparison import database_checks
 
     out = Path(cfg.out_dir) / cfg.name
@@ -225,6 +225,7 @@ def run_main_job(cfg, source: str | Path = "") -> Path:
     step = lambda name, text: print(f"[{stages.index(name) + 1}/{len(stages)}] {text}")  # noqa: E731
     step("campaign", f"campaign ({'embedded synthetic' if not cfg.campaign.path else cfg.campaign.path})")
     campaign, _ = resolve_campaign(cfg)
+    claim_folder(out, to_dict(cfg), campaign.fingerprint)
     step("databases", "harmonic analysis, peak PVV, databases 1-3")
     dbs = build_databases(campaign, cfg.analysis)
     write_databases(dbs, out / "databases", cfg)
@@ -341,7 +342,8 @@ def _run_discovery(cfg, out: Path):
     scfg = load_synth_config(cfg.run.discovery_scenario)
     folder = cached_campaign(scfg)
     enable_compilation_cache()
-    res = discover(load_campaign(folder, cfg.campaign.columns, cfg.analysis.window_revs), cfg, name=str(folder))
+    res = discover(load_campaign(folder, cfg.campaign.columns, cfg.analysis.window_revs,
+                                harmonic=cfg.analysis.harmonic), cfg, name=str(folder))
     write_discovery(res, out, cfg)
     truth_file = folder.parent / f"{folder.name}.truth.json"
     hidden = []

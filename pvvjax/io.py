@@ -13,9 +13,72 @@ import pyarrow.parquet as pq
 
 from ._strict import to_dict
 
-__all__ = ["markdown_table", "read_table", "write_config", "write_table"]
+__all__ = ["OWNER_FILE", "ResultsFolderError", "claim_folder", "markdown_table", "read_table", "write_config",
+           "write_table"]
 
 _META_KEY = b"pvvjax.config"
+OWNER_FILE = "owner.json"
+
+
+class ResultsFolderError(ValueError):
+    """A results folder that holds the results of other settings or another campaign."""
+
+
+def _flat(tree, prefix=""):
+    if isinstance(tree, dict):
+        out = {}
+        for k, v in tree.items():
+            out.update(_flat(v, f"{prefix}{k}."))
+        return out
+    return {prefix[:-1]: tree}
+
+
+def claim_folder(out: str | Path, settings: dict, campaign: str) -> Path:
+    """Make `out` the results folder of these settings and campaign, or refuse.
+
+    A folder belongs to the settings that first wrote into it (recorded in `owner.json`):
+    the same settings and campaign again resume or rerun there; anything else is refused,
+    naming what differs, so that the rows of two configs never mix in one table.
+
+    Args:
+        out: the results folder (created if missing).
+        settings: the config sections that decide its results (`to_dict` form).
+        campaign: the campaign's content fingerprint.
+
+    Raises:
+        ResultsFolderError: `out` is a file, holds other settings' results, or holds files
+            not written under an owner record.
+    """
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise ResultsFolderError(f"{out}: is a file, not a folder; give a folder for the results")
+    record = json.loads(json.dumps({"settings": settings, "campaign": campaign}, sort_keys=True, default=str))
+    owner = out / OWNER_FILE
+    if owner.exists():
+        try:
+            old = json.loads(owner.read_text())
+        except ValueError:
+            old = {}
+        if old == record:
+            return out
+        was, now = _flat(old.get("settings", {})), _flat(record["settings"])
+        diffs = [f"{k}: {was.get(k, '(unset)')!r} there, {now.get(k, '(unset)')!r} now"
+                 for k in sorted(set(was) | set(now)) if was.get(k) != now.get(k)]
+        if old.get("campaign") != campaign:
+            diffs.append(f"campaign content: fingerprint {old.get('campaign')} there, {campaign} now")
+        shown = "; ".join(diffs[:5]) + (f"; and {len(diffs) - 5} more" if len(diffs) > 5 else "")
+        raise ResultsFolderError(f"{out}: holds the results of other settings ({shown}); give another output "
+                                 "folder, or delete this one to start over")
+    parent = next((p for p in out.resolve().parents if (p / OWNER_FILE).exists()), None)
+    if out.exists() and any(out.iterdir()) and parent is not None:
+        raise ResultsFolderError(f"{out}: is part of the results folder {parent}, written there with its settings; "
+                                 "give another output folder")
+    if out.exists() and any(out.iterdir()):
+        raise ResultsFolderError(f"{out}: is not empty and has no {OWNER_FILE} (results of an older pvvjax, or "
+                                 "not pvvjax's); give another output folder, or delete this one")
+    out.mkdir(parents=True, exist_ok=True)
+    owner.write_text(json.dumps(record, indent=1, sort_keys=True))
+    return out
 
 
 def write_table(df: pd.DataFrame, stem: str | Path, config=None) -> tuple[Path, Path]:

@@ -141,19 +141,23 @@ def test_main_job_with_networks_reports_table1_beside_the_paper(tmp_path, small_
     # The replay and calibrate commands on the same config use the main job's nets (the sweep
     # resumes): a replay at a given offset, and one offset per maneuver kind (the study's fit),
     # each within a step of the brute-force grid's best, with the first group's cost map.
+    # Their results go to folders of their own: the main job's replay folder holds its settings'.
     out = tmp_path / "p"
-    assert main(["replay", str(cfg), "--offset", "0.5", "--plots", "1"]) == 0
-    summary = pd.read_csv(out / "replay" / "summary.csv")
+    assert main(["replay", str(cfg), "--offset", "0.5", "--plots", "1"]) == 2
+    assert "part of the results folder" in capsys.readouterr().err
+    assert main(["replay", str(cfg), "--offset", "0.5", "--plots", "1", "--out", str(tmp_path / "replay")]) == 0
+    summary = pd.read_csv(tmp_path / "replay" / "summary.csv")
     assert set(summary.maneuver) == set(kinds.maneuver) and (summary.offset_s == 0.5).all()
-    assert set(summary.database) == {"db1", "db3"} and len(list((out / "replay").glob("replay_*.png"))) == 1
-    assert main(["calibrate", str(cfg), "--groups", "maneuver", "--free", "offset_s"]) == 0
-    cal = pd.read_csv(out / "calibration" / "calibration.csv")
+    assert set(summary.database) == {"db1", "db3"} and len(list((tmp_path / "replay").glob("replay_*.png"))) == 1
+    assert main(["calibrate", str(cfg), "--groups", "maneuver", "--free", "offset_s", "--out",
+                 str(tmp_path / "calibration")]) == 0
+    cal = pd.read_csv(tmp_path / "calibration" / "calibration.csv")
     fit = pd.read_csv(out / "studies" / "offset_per_kind_fit.csv")
     assert set(cal.group) == set(kinds.maneuver) and (cal.groups == "maneuver").all()
     assert cal.offset_s.between(-1.0, 3.0).all() and cal.within_one_grid_step.all()
     pd.testing.assert_series_equal(cal.sort_values(["database", "group"]).offset_s.reset_index(drop=True),
                                    fit.sort_values(["database", "group"]).offset_s.reset_index(drop=True))
-    assert (out / "calibration" / f"cost_map_db1_{cal.group[0]}.png").exists()
+    assert (tmp_path / "calibration" / f"cost_map_db1_{cal.group[0]}.png").exists()
 
 
 def test_api_reference_is_current_and_covers_every_public_module():

@@ -5,6 +5,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+from .._strict import to_dict
 from ..experiment import (
     campaign_plots,
     database_summary,
@@ -15,6 +16,7 @@ from ..experiment import (
     run_main_job,
     write_databases,
 )
+from ..io import claim_folder
 
 
 def _experiment(args):
@@ -28,13 +30,15 @@ def cmd_validate(args) -> int:
 
     cfg = _experiment(args)
     problems = validate_campaign(args.campaign, cfg.campaign.columns, cfg.analysis.window_revs,
-                                 progress=progress_bar("validating"))
-    if problems:
-        print(f"{args.campaign}: {len(problems)} problem(s)")
-        for p in problems:
-            print(f"  - {p}")
+                                 progress=progress_bar("validating"), harmonic=cfg.analysis.harmonic)
+    errors = [p for p in problems if not p.warning]
+    if errors:
+        print(f"{args.campaign}: {len(errors)} problem(s)")
+    for p in problems:
+        print(f"  - {p}")
+    if errors:
         return 1
-    print(f"{args.campaign}: valid")
+    print(f"{args.campaign}: valid" + (f" ({len(problems)} warning(s))" if problems else ""))
     return 0
 
 
@@ -198,6 +202,7 @@ def cmd_replay(args) -> int:
     tau = rc.offset_s if args.offset is None else args.offset
     L = rc.window_revs if args.window is None else args.window
     out = Path(args.out) if args.out else Path(cfg.out_dir) / cfg.name / "replay"
+    claim_folder(out, dict(config=to_dict(cfg), offset_s=tau, window_revs=L, counters=args.counters), "")
     info, batch, recs, models = _replay_inputs(args, cfg)
     theta = (tau, L, rc.stick_offset_s)
     windows = replay_windows(info, recs, models, theta, settings_at(batch, theta, rc.hop_revs))
@@ -234,6 +239,7 @@ def cmd_calibrate(args) -> int:
         cc = dataclasses.replace(cc, groups=args.groups or cc.groups, free=tuple(args.free or cc.free))
         cfg = cfg.with_(calibration=cc)
     out = Path(args.out) if args.out else Path(cfg.out_dir) / cfg.name / "calibration"
+    claim_folder(out, dict(config=to_dict(cfg), counters=args.counters), "")
     info, batch, recs, models = _replay_inputs(args, cfg)
     init = (cfg.replay.offset_s, cfg.replay.window_revs, cfg.replay.stick_offset_s)
     table = calibration_table(info, batch, recs, models, cc, init)
@@ -323,6 +329,9 @@ def cmd_discover(args) -> int:
         campaign, folder = resolve_campaign(cfg, args.campaign)
     else:
         campaign, folder = resolve_campaign(cfg)
+    claim_folder(args.out, dict(discovery=to_dict(cfg.discovery), train=to_dict(cfg.train),
+                                analysis=to_dict(cfg.analysis), columns=to_dict(cfg.campaign)["columns"]),
+                 campaign.fingerprint)
     t0 = time.perf_counter()
     res = discover(campaign, cfg, name=str(folder))
     report = write_discovery(res, args.out, cfg)

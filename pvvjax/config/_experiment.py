@@ -71,7 +71,9 @@ def load_config(path: str | Path, cls: type = ExperimentConfig):
         raise ConfigError(f"{path}: {e}") from None
 
 
-def config_hash(cfg) -> str:
-    """A short stable hash of a config's content (for result tables and caches)."""
-    blob = json.dumps(to_dict(cfg), sort_keys=True, default=str).encode()
-    return hashlib.sha256(blob).hexdigest()[:12]
+def config_hash(cfg, data: str = "") -> str:
+    """A short stable hash of a config's content and of the data fingerprint it ran on
+    (for result tables and caches): a result of the same config on changed data hashes
+    differently."""
+    blob = json.dumps(to_dict(cfg), sort_keys=True, default=str) + (f"|{data}" if data else "")
+    return hashlib.sha256(blob.encode()).hexdigest()[:12]

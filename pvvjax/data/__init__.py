@@ -1,6 +1,7 @@
 """Flight-test campaigns and what is derived from them at load time.
 
-`campaign` reads, validates and writes a campaign folder (data-contract §1); `batch` pads
+`campaign` reads, validates and writes a campaign folder (data-contract §1), `plausibility`
+holds the physical rules beyond ranges; `batch` pads
 its records into arrays with a mask; `features` derives μ, MLF, C_W and C_W/σ·n; `units`
 converts foreign columns; `constants` holds the aircraft's rotor constants.
 """
@@ -11,6 +12,7 @@ from .campaign import (
     REQUIRED_CHANNELS,
     Campaign,
     CampaignError,
+    CampaignWarning,
     Problem,
     campaign_from_frames,
     load_campaign,
@@ -27,6 +29,8 @@ from .features import (
     thrust_coefficient,
     tip_speed_ft_s,
 )
+from .fingerprint import campaign_files, campaign_fingerprint, frames_fingerprint
+from .plausibility import LIMITS, MIN_SAMPLES_PER_CYCLE, plausibility
 from .units import CANONICAL_UNITS, KNOWN_UNITS, ColumnMap, conversion_factor
 
 __all__ = [
@@ -35,13 +39,16 @@ __all__ = [
     "CANONICAL_UNITS",
     "Campaign",
     "CampaignError",
+    "CampaignWarning",
     "ColumnMap",
     "DEG_TO_RAD",
     "DERIVED_FEATURES",
     "FPM_TO_FT_S",
     "KNOWN_UNITS",
     "KT_TO_FT_S",
+    "LIMITS",
     "MANEUVERS",
+    "MIN_SAMPLES_PER_CYCLE",
     "Problem",
     "REQUIRED_CHANNELS",
     "RPM_TO_RAD_S",
@@ -49,11 +56,15 @@ __all__ = [
     "UH60A",
     "advance_ratio",
     "blade_loading",
+    "campaign_files",
+    "campaign_fingerprint",
     "campaign_from_frames",
     "conversion_factor",
     "derive_features",
+    "frames_fingerprint",
     "load_campaign",
     "maneuver_load_factor",
+    "plausibility",
     "sample_widths",
     "thrust_coefficient",
     "tip_speed_ft_s",

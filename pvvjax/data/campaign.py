@@ -9,8 +9,12 @@ record lacks it. Rows are numbered from 1 (the first data row under the CSV head
 
 from __future__ import annotations
 
+import csv
 import dataclasses
+import functools
+import io
 import sys
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Mapping
@@ -23,13 +27,17 @@ from .checks import (
     RANGES,
     REQUIRED_CHANNELS,
     Problem,
+    _check_length,
     _check_record,
     _check_values,
     _first_bad,
+    _gappy_channels,
     _integrate_azimuth,
     _numeric,
 )
 from .constants import UH60A, Aircraft
+from .fingerprint import campaign_fingerprint, frames_fingerprint
+from .plausibility import plausibility
 from .units import ColumnMap
 
 if sys.version_info >= (3, 11):
@@ -40,6 +48,7 @@ else:  # pragma: no cover
 __all__ = [
     "Campaign",
     "CampaignError",
+    "CampaignWarning",
     "MANEUVERS",
     "Problem",
     "REQUIRED_CHANNELS",
@@ -54,11 +63,15 @@ MANEUVERS = ("level", "climb", "descent", "turn", "roll", "pushover", "pullup", 
 COUNTER_COLUMNS = ("counter", "maneuver", "condition", "segment", "description")
 
 
+class CampaignWarning(UserWarning):
+    """A suspicious but possible value in a campaign (the campaign is loaded)."""
+
+
 class CampaignError(ValueError):
-    """A campaign folder with problems; `.problems` lists them all."""
+    """A campaign folder with problems; `.problems` lists them all (its errors)."""
 
     def __init__(self, problems: list[Problem]):
-        self.problems = list(problems)
+        self.problems = [p for p in problems if not p.warning]
         lines = "\n".join(f"  - {p}" for p in self.problems)
         super().__init__(f"{len(self.problems)} problem(s) in campaign:\n{lines}")
 
@@ -75,6 +88,9 @@ class Campaign:
         aircraft: rotor constants (UH-60A unless `campaign.toml` overrides them).
         source: where the campaign was read from.
         provenance: the `[provenance]` table of `campaign.toml`, if any.
+        fingerprint: content hash of the campaign (of its folder's files where it was read
+            from one, else of its tables): results record it, so that a changed campaign is
+            never taken for this one.
     """
 
     counters: pd.DataFrame
@@ -82,6 +98,11 @@ class Campaign:
     aircraft: Aircraft = Aircraft()
     source: str = ""
     provenance: dict = field(default_factory=dict)
+    folder_fingerprint: str = field(default="", repr=False)
+
+    @functools.cached_property
+    def fingerprint(self) -> str:
+        return self.folder_fingerprint or frames_fingerprint(self.counters, self.records)
 
     def __len__(self) -> int:
         return len(self.counters)
@@ -107,17 +128,67 @@ class Campaign:
     def subset(self, counters) -> "Campaign":
         counters = list(counters)
         return dataclasses.replace(
-            self, counters=self.counters.loc[counters], records={c: self.records[c] for c in counters}
+            self, counters=self.counters.loc[counters], records={c: self.records[c] for c in counters},
+            folder_fingerprint="",
         )
 
 
 # --------------------------------------------------------------------------- reading
 
 
-def _read_table(path: Path) -> pd.DataFrame:
-    if path.suffix == ".parquet":
-        return pd.read_parquet(path)
-    return pd.read_csv(path)
+_BOMS = {b"\xff\xfe": "UTF-16", b"\xfe\xff": "UTF-16", b"\x00\x00\xfe\xff": "UTF-32"}
+
+
+def _header_problem(path: Path) -> str | None:
+    """What is wrong with a CSV file before pandas reads it (pandas would guess or rename)."""
+    head = path.read_bytes()[:65536]
+    for bom, name in _BOMS.items():
+        if head.startswith(bom):
+            return f"{name} text; save it as UTF-8 CSV"
+    text = head.decode("utf-8-sig", errors="replace")
+    if not text.strip():
+        return "file is empty"
+    names = next(csv.reader(io.StringIO(text.splitlines()[0])))
+    if len(names) == 1:
+        for sep, what in ((";", "semicolons"), ("\t", "tabs"), ("|", "vertical bars")):
+            if sep in names[0]:
+                return f"columns separated by {what}, not commas; save it as comma-separated CSV"
+    stripped = [n.strip() for n in names]
+    blank = [i + 1 for i, n in enumerate(stripped) if not n]
+    if blank:
+        return f"column {blank[0]} has no name in the header"
+    seen: dict[str, int] = {}
+    for i, n in enumerate(stripped):
+        if n in seen:
+            return f"column {n!r} appears twice in the header (columns {seen[n] + 1} and {i + 1})"
+        seen[n] = i
+    return None
+
+
+def _read_table(path: Path, file: str, problems: list, **kwargs) -> pd.DataFrame | None:
+    """A CSV or Parquet file as a DataFrame, or None with one problem saying what is wrong."""
+    try:
+        if path.suffix == ".parquet":
+            try:
+                return pd.read_parquet(path)
+            except OSError:
+                raise
+            except Exception as e:  # pyarrow's errors for truncated or foreign files
+                problems.append(Problem(file, None, None, f"not a readable Parquet file (truncated?): {e}"))
+                return None
+        what = _header_problem(path)
+        if what is None:
+            df = pd.read_csv(path, encoding="utf-8-sig", **kwargs)
+            df.columns = [str(c).strip() for c in df.columns]
+            return df
+    except FileNotFoundError:
+        what = "cannot read: a link to a missing file" if path.is_symlink() else "cannot read: file not found"
+    except (OSError, UnicodeDecodeError) as e:
+        what = f"cannot read: {e.strerror if isinstance(e, OSError) and e.strerror else e}"
+    except pd.errors.ParserError as e:
+        what = f"not a valid CSV file: {str(e).strip()}"
+    problems.append(Problem(file, None, None, what))
+    return None
 
 
 def _apply_mapping(df: pd.DataFrame, mapping: Mapping[str, ColumnMap], file: str, problems: list) -> pd.DataFrame:
@@ -180,13 +251,16 @@ class _AircraftTable:
         return Aircraft(**dataclasses.asdict(self))
 
 
-def _read_counters(folder: Path, mapping, problems: list) -> pd.DataFrame | None:
+def _read_counters(folder: Path, problems: list) -> pd.DataFrame | None:
     path = folder / "counters.csv"
     if not path.exists():
         problems.append(Problem("counters.csv", None, None, "file missing"))
         return None
-    df = pd.read_csv(path, dtype={"counter": str, "condition": str})
-    return _check_counters(df, mapping, problems)
+    df = _read_table(path, "counters.csv", problems, dtype={"counter": str, "condition": str})
+    if df is not None and df.empty:
+        problems.append(Problem("counters.csv", None, None, "no counters: the file has a header and no rows"))
+        return None
+    return df
 
 
 def _check_counters(df: pd.DataFrame, mapping, problems: list) -> pd.DataFrame | None:
@@ -232,6 +306,16 @@ def _check_counters(df: pd.DataFrame, mapping, problems: list) -> pd.DataFrame |
     return df
 
 
+def _check_mapping(mapping: Mapping[str, ColumnMap], present: set, problems: list) -> None:
+    """A mapped column that no file has (a typo, or another campaign's name): one problem
+    listing the columns that are there."""
+    for src, m in mapping.items():
+        if src not in present:
+            there = ", ".join(sorted(str(c) for c in present))
+            problems.append(Problem("campaign.columns", src, None,
+                                    f"maps to {m.to!r} but no file has a column {src!r}; columns there: {there}"))
+
+
 def _timeseries_files(folder: Path, problems: list) -> dict[str, Path]:
     ts = folder / "timeseries"
     if not ts.is_dir():
@@ -249,31 +333,60 @@ def _timeseries_files(folder: Path, problems: list) -> dict[str, Path]:
     return files
 
 
-def _read(folder, mapping, window_revs, progress=None) -> tuple[Campaign | None, list[Problem]]:
+def _read(folder, mapping, window_revs, harmonic, progress=None) -> tuple[Campaign | None, list[Problem]]:
     folder = Path(folder)
     problems: list[Problem] = []
     if not folder.is_dir():
         return None, [Problem(str(folder), None, None, "campaign folder not found")]
     aircraft, provenance = _read_campaign_toml(folder, problems)
-    counters = _read_counters(folder, mapping or {}, problems)
+    counters = _read_counters(folder, problems)
     files = _timeseries_files(folder, problems)
+    if counters is None:
+        return None, problems
+    columns = set(counters.columns)
+    counters = _check_counters(counters, mapping or {}, problems)
     if counters is None:
         return None, problems
     raw: dict[str, pd.DataFrame] = {}
     items = files.items() if progress is None else progress(files.items(), total=len(files))
-    for name, p in items:
-        try:
-            raw[name] = _read_table(p)
-        except Exception as e:  # unreadable file: report, keep validating the rest
-            problems.append(Problem(f"timeseries/{p.name}", None, None, f"cannot read: {e}"))
+    for name, p in items:  # an unreadable file is reported; the rest are still checked
+        df = _read_table(p, f"timeseries/{p.name}", problems)
+        if df is not None:
+            raw[name] = df
+    _check_mapping(mapping or {}, columns.union(*(df.columns for df in raw.values())), problems)
     fnames = {name: f"timeseries/{p.name}" for name, p in files.items()}
-    campaign = _assemble(counters, raw, fnames, mapping, window_revs, problems, aircraft, provenance, str(folder))
-    return campaign, problems
+    campaign = _assemble(counters, raw, fnames, mapping, (window_revs, harmonic), problems, aircraft, provenance,
+                         str(folder))
+    if campaign is not None:
+        campaign = dataclasses.replace(campaign, folder_fingerprint=campaign_fingerprint(folder))
+    return campaign, _collapsed(problems)
+
+
+def _collapsed(problems: list[Problem], at_least: int = 3) -> list[Problem]:
+    """The same whole-file problem in many time series (a column missing everywhere) as one
+    line that counts the files, in the place of its first occurrence."""
+    key = lambda p: (p.column, p.message, p.warning)  # noqa: E731
+    files: dict = {}
+    for p in problems:
+        if p.row is None and p.file.startswith("timeseries/"):
+            files.setdefault(key(p), []).append(p.file)
+    out, done = [], set()
+    for p in problems:
+        k = key(p)
+        many = p.row is None and p.file.startswith("timeseries/") and len(files.get(k, ())) >= at_least
+        if not many:
+            out.append(p)
+        elif k not in done:
+            done.add(k)
+            out.append(Problem(f"{len(files[k])} time series ({p.file}, …)", p.column, None, p.message, p.warning))
+    return out
 
 
 def _assemble(counters: pd.DataFrame, raw: Mapping[str, pd.DataFrame], fnames: Mapping[str, str], mapping,
-              window_revs: float, problems: list, aircraft: Aircraft, provenance: dict, source: str) -> Campaign | None:
-    """Check every record against its counter row and build the campaign (None on problems)."""
+              analysis: tuple, problems: list, aircraft: Aircraft, provenance: dict, source: str) -> Campaign | None:
+    """Check every record against its counter row and build the campaign (None on errors).
+    `analysis`: (window_revs, harmonic or None for the aircraft's blade count)."""
+    window_revs, harmonic = analysis
     names = list(dict.fromkeys(counters["counter"]))
     for i, name in enumerate(counters["counter"]):
         if name not in fnames:
@@ -284,6 +397,7 @@ def _assemble(counters: pd.DataFrame, raw: Mapping[str, pd.DataFrame], fnames: M
             problems.append(Problem(f, None, None, f"no counter {name!r} in counters.csv"))
     constant_cols = [c for c in counters.columns if c not in COUNTER_COLUMNS]
     records: dict[str, pd.DataFrame] = {}
+    counters_ok = not any(p.file == "counters.csv" and not p.warning for p in problems)
     by_name = counters.drop_duplicates("counter").set_index("counter")
     for name in names:
         if name not in raw:
@@ -292,18 +406,25 @@ def _assemble(counters: pd.DataFrame, raw: Mapping[str, pd.DataFrame], fnames: M
         df = _apply_mapping(raw[name], mapping or {}, file, problems)
         row = by_name.loc[name]
         consts = {c: row[c] for c in constant_cols if pd.notna(row[c])}
-        if not _check_record(df, file, consts, window_revs, problems):
+        if not _check_record(df, file, consts, problems):
             continue
-        df = df.copy()
+        df = df.drop(columns=_gappy_channels(df, file, problems))
         for c, v in consts.items():
             df[c] = float(v) if isinstance(v, (int, float, np.number)) else v
+        if counters_ok:  # plausibility of values that passed their checks (counters' constants too)
+            found = plausibility(df, file, aircraft, harmonic or aircraft.blades, str(row.get("maneuver", "")))
+            problems.extend(found)
+            if any(not p.warning for p in found):
+                continue
+        if not _check_length(df, file, window_revs, problems):
+            continue
         if "azimuth_deg" not in df.columns:
             df["azimuth_deg"] = _integrate_azimuth(_numeric(df["time_s"]), _numeric(df["rotor_rpm"]))
         for c in df.columns:
             if c in REQUIRED_CHANNELS or c == "azimuth_deg":
                 df[c] = df[c].astype(np.float64)
         records[name] = df.reset_index(drop=True)
-    if problems:
+    if any(not p.warning for p in problems):
         return None
     table = by_name.copy()
     table.index.name = "counter"
@@ -312,25 +433,35 @@ def _assemble(counters: pd.DataFrame, raw: Mapping[str, pd.DataFrame], fnames: M
 
 def campaign_from_frames(counters: pd.DataFrame, records: Mapping[str, pd.DataFrame], *,
                          aircraft: Aircraft = Aircraft(), mapping: Mapping[str, ColumnMap] | None = None,
-                         window_revs: float = 8.0, source: str = "<memory>") -> Campaign:
+                         window_revs: float = 8.0, harmonic: int | None = None,
+                         source: str = "<memory>") -> Campaign:
     """Build a campaign from in-memory tables with the same checks as `load_campaign`.
 
     Raises:
         CampaignError: listing every problem.
     """
     problems: list[Problem] = []
+    _check_mapping(mapping or {}, set(counters.columns).union(*(df.columns for df in records.values())), problems)
     counters = _check_counters(counters.copy(), mapping or {}, problems)
     campaign = None
     if counters is not None:
         fnames = {name: f"timeseries/{name}" for name in records}
-        campaign = _assemble(counters, records, fnames, mapping, window_revs, problems, aircraft, {}, source)
-    if problems:
+        campaign = _assemble(counters, records, fnames, mapping, (window_revs, harmonic), problems, aircraft, {},
+                             source)
+    return _checked(campaign, problems)
+
+
+def _checked(campaign, problems):
+    """The campaign, its warnings issued as `CampaignWarning`s; a `CampaignError` on errors."""
+    if any(not p.warning for p in problems):
         raise CampaignError(problems)
+    for p in problems:
+        warnings.warn(str(dataclasses.replace(p, warning=False)), CampaignWarning, stacklevel=3)
     return campaign
 
 
 def validate_campaign(folder, mapping: Mapping[str, ColumnMap] | None = None, window_revs: float = 8.0,
-                      progress=None) -> list[Problem]:
+                      progress=None, harmonic: int | None = None) -> list[Problem]:
     """Check a campaign folder against data-contract §1.
 
     Args:
@@ -338,24 +469,24 @@ def validate_campaign(folder, mapping: Mapping[str, ColumnMap] | None = None, wi
         mapping: foreign column name -> `ColumnMap` (from the experiment config).
         window_revs: analysis window length; a record shorter than one window is refused.
         progress: optional wrapper `progress(iterable, total=n)` (e.g. a tqdm factory).
+        harmonic: harmonic order analysed, per rev (default: the aircraft's blade count);
+            a record sampled too slowly to resolve it is refused.
 
     Returns:
-        Every problem found (empty for a valid campaign).
+        Every problem found, errors and warnings (`Problem.warning`); a campaign is valid when
+        none is an error.
     """
-    return _read(folder, mapping, window_revs, progress)[1]
+    return _read(folder, mapping, window_revs, harmonic, progress)[1]
 
 
 def load_campaign(folder, mapping: Mapping[str, ColumnMap] | None = None, window_revs: float = 8.0,
-                  progress=None) -> Campaign:
+                  progress=None, harmonic: int | None = None) -> Campaign:
     """Load a campaign folder (arguments as `validate_campaign`).
 
     Raises:
-        CampaignError: listing every problem.
+        CampaignError: listing every error. Warnings are issued as `CampaignWarning`s.
     """
-    campaign, problems = _read(folder, mapping, window_revs, progress)
-    if problems:
-        raise CampaignError(problems)
-    return campaign
+    return _checked(*_read(folder, mapping, window_revs, harmonic, progress))
 
 
 # --------------------------------------------------------------------------- writing

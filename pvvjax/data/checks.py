@@ -24,6 +24,7 @@ RANGES: dict[str, tuple[float | None, float | None, bool]] = {
     "longitudinal_pct": (0.0, 100.0, True),
     "pedal_pct": (0.0, 100.0, True),
     "rotor_rpm": (0.0, None, False),
+    "airspeed_kt": (0.0, None, True),
     "density_ratio": (0.3, 1.3, True),
     "roll_angle_deg": (-90.0, 90.0, True),
     "gross_weight_lb": (0.0, None, False),
@@ -33,15 +34,17 @@ UNIFORM_TOLERANCE = 0.01  # sample spacing may vary by less than 1 %
 
 @dataclass(frozen=True)
 class Problem:
-    """One thing wrong with a campaign: where it is and what it is."""
+    """One thing wrong with a campaign: where it is and what it is. A warning (suspicious,
+    not impossible) is reported but does not refuse the campaign."""
 
     file: str
     column: str | None
     row: int | None
     message: str
+    warning: bool = False
 
     def __str__(self) -> str:
-        where = self.file
+        where = ("warning: " if self.warning else "") + self.file
         if self.column:
             where += f", column {self.column!r}"
         if self.row is not None:
@@ -87,6 +90,22 @@ def _check_values(df: pd.DataFrame, columns, file: str, problems: list) -> None:
             problems.append(Problem(file, col, row, f"value {vals[row - 1]:g} outside the physical range {span}"))
 
 
+def _gappy_channels(df: pd.DataFrame, file: str, problems: list) -> list[str]:
+    """Optional numeric channels with missing or infinite values: each is reported (a warning
+    naming its first gap) and left out of the record, so that no gap reaches the analysis."""
+    known = set(REQUIRED_CHANNELS) | {"azimuth_deg", "shaft_power_hp", "pedal_pct"}
+    out = []
+    for col in df.columns:
+        if col in known or not pd.api.types.is_numeric_dtype(df[col]):
+            continue
+        row = _first_bad(~np.isfinite(df[col].to_numpy(dtype=float)))
+        if row is not None:
+            problems.append(Problem(file, col, row, "gap (missing, NaN or infinite value): this optional channel "
+                                    "is left out of the record", warning=True))
+            out.append(col)
+    return out
+
+
 def _unwrap_azimuth(az_deg: np.ndarray) -> np.ndarray:
     return np.unwrap(az_deg, period=360.0)
 
@@ -98,8 +117,8 @@ def _integrate_azimuth(time_s: np.ndarray, rpm: np.ndarray) -> np.ndarray:
     return np.mod(np.concatenate([[0.0], np.cumsum(inc)]), 360.0)
 
 
-def _check_record(df: pd.DataFrame, file: str, constants: dict, window_revs: float, problems: list) -> bool:
-    """Check one time series; returns True when it is usable."""
+def _check_record(df: pd.DataFrame, file: str, constants: dict, problems: list) -> bool:
+    """Check one time series' columns, values and sampling; returns True when they are usable."""
     n_before = len(problems)
     for col in REQUIRED_CHANNELS:
         if col in df.columns and col in constants:
@@ -130,8 +149,14 @@ def _check_record(df: pd.DataFrame, file: str, constants: dict, window_revs: flo
             f"sampling not uniform: step {dt[row - 1]:g} s vs median {med:g} s (tolerance 1 %)",
         ))
         return False
-    rpm = _numeric(df["rotor_rpm"]) if "rotor_rpm" in df.columns else np.full(len(t), constants["rotor_rpm"])
-    revs = float(np.sum(0.5 * (rpm[1:] + rpm[:-1]) * dt) / 60.0 + rpm[-1] / 60.0 * med)
+    return True
+
+
+def _check_length(df: pd.DataFrame, file: str, window_revs: float, problems: list) -> bool:
+    """A record (constants broadcast) that covers at least one analysis window."""
+    t, rpm = _numeric(df["time_s"]), _numeric(df["rotor_rpm"])
+    dt = np.diff(t)
+    revs = float(np.sum(0.5 * (rpm[1:] + rpm[:-1]) * dt) / 60.0 + rpm[-1] / 60.0 * np.median(dt))
     if revs < window_revs:
         problems.append(Problem(
             file, "time_s", None,

@@ -189,7 +189,8 @@ def _workflow_inputs(caller: str, campaign, cfg, name: str = "") -> tuple[Campai
         raise TypeError(f"{caller}: cfg must be an ExperimentConfig or a DiscoveryConfig, got {type(cfg).__name__}")
     if isinstance(campaign, (str, os.PathLike)):
         name = name or str(campaign)
-        campaign = load_campaign(campaign, cfg.campaign.columns, cfg.analysis.window_revs)
+        campaign = load_campaign(campaign, cfg.campaign.columns, cfg.analysis.window_revs,
+                                 harmonic=cfg.analysis.harmonic)
     elif not isinstance(campaign, Campaign):
         raise TypeError(f"{caller}: campaign must be a Campaign or a campaign folder, got {type(campaign).__name__}")
     return campaign, cfg, name

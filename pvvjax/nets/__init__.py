@@ -19,13 +19,16 @@ from .networks import (
 )
 from .sweep import (
     N_INPUTS,
+    SWEEP_AXES,
     collect,
+    databases_fingerprint,
     heldout_models,
     load_params,
     net_table,
     run_sweep,
     save_params,
     stack_data,
+    sweep_settings,
     train_nets,
 )
 from .train import (
@@ -51,6 +54,7 @@ __all__ = [
     "Data",
     "Fit",
     "N_INPUTS",
+    "SWEEP_AXES",
     "TRAINABLE",
     "TrainState",
     "TrainingError",
@@ -58,6 +62,7 @@ __all__ = [
     "architecture_name",
     "attach_measured",
     "collect",
+    "databases_fingerprint",
     "condition_folds",
     "descend",
     "done",
@@ -83,6 +88,7 @@ __all__ = [
     "search_architecture",
     "split_masks",
     "stack_data",
+    "sweep_settings",
     "table1",
     "train_nets",
 ]

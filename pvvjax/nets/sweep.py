@@ -33,19 +33,23 @@ import pandas as pd
 from .._strict import to_dict
 from ..analysis.databases import DB_INPUTS, OUTPUT
 from ..config import ExperimentConfig, config_hash
+from ..io import claim_folder, write_config
 from ..realtime.npnet import read_npz
 from . import train as _train
 from .networks import architecture_name, mlp_apply, mlp_init, n_weights, rbf_apply, rbf_fit, scaling
 
 __all__ = [
     "N_INPUTS",
+    "SWEEP_AXES",
     "collect",
+    "databases_fingerprint",
     "heldout_models",
     "load_params",
     "net_table",
     "run_sweep",
     "save_params",
     "stack_data",
+    "sweep_settings",
     "train_nets",
 ]
 
@@ -55,8 +59,33 @@ N_INPUTS = max(len(v) for v in DB_INPUTS.values())  # every database padded to t
 # --------------------------------------------------------------------------- planning
 
 
-def net_table(cfg: ExperimentConfig) -> pd.DataFrame:
-    """One row per net of the sweep, with a stable id (same config -> same ids)."""
+def databases_fingerprint(dbs: dict, databases) -> str:
+    """Content hash (16 hex digits) of the named database tables: the data a sweep's nets
+    are trained on, which changes whenever the campaign's content changes what they hold."""
+    h = hashlib.sha256()
+    for db in databases:
+        h.update(db.encode() + b"\0" + ",".join(map(str, dbs[db].columns)).encode())
+        h.update(pd.util.hash_pandas_object(dbs[db], index=False).to_numpy().tobytes())
+    return h.hexdigest()[:16]
+
+
+# The sweep's axes: they decide which nets exist, not how each is trained, so a sweep grows
+# (or narrows) in its folder; every other setting is the folder's own.
+SWEEP_AXES = ("databases", "hidden", "centers", "seeds", "test_folds")
+
+
+def sweep_settings(cfg: ExperimentConfig) -> dict:
+    """The settings that decide how each net of a sweep is trained: what its folder is
+    claimed for (`io.claim_folder`). The axes (`SWEEP_AXES`) are not among them."""
+    campaign = {k: v for k, v in to_dict(cfg.campaign).items() if k != "path"}  # the content counts, not where
+    sweep = {k: v for k, v in to_dict(cfg.sweep).items() if k not in SWEEP_AXES}
+    return dict(sweep=sweep, train=to_dict(cfg.train), analysis=to_dict(cfg.analysis), campaign=campaign,
+                seed=cfg.seed)
+
+
+def net_table(cfg: ExperimentConfig, data: str = "") -> pd.DataFrame:
+    """One row per net of the sweep, with a stable id: the same config and data (the
+    `databases_fingerprint`) give the same ids, and nothing else does."""
     sw, tr = cfg.sweep, cfg.train
     archs = sw.hidden if sw.family == "mlp" else tuple((c,) for c in sw.centers)
     rows = []
@@ -66,7 +95,7 @@ def net_table(cfg: ExperimentConfig) -> pd.DataFrame:
                 for fold in sw.fold_list:
                     key = dict(db=db, family=sw.family, hidden=list(hidden), seed=seed, fold=fold, k=sw.folds,
                                split_seed=sw.split_seed, train=to_dict(tr), analysis=to_dict(cfg.analysis),
-                               campaign=to_dict(cfg.campaign), exp_seed=cfg.seed)
+                               campaign=sweep_settings(cfg)["campaign"], exp_seed=cfg.seed, data=data)
                     net_id = hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:16]
                     rows.append(dict(net_id=net_id, database=db, family=sw.family, hidden="-".join(map(str, hidden)),
                                      architecture=architecture_name(len(DB_INPUTS[db]), hidden) if sw.family == "mlp"
@@ -258,24 +287,28 @@ def _atomic_parquet(df: pd.DataFrame, path: Path):
 
 
 def run_sweep(cfg: ExperimentConfig, dbs: dict, out: Path, *, progress=None, log=print) -> pd.DataFrame:
-    """Train every net of `cfg.sweep` not yet finished in `out`; return all result rows.
+    """Train every net of `cfg.sweep` not yet finished in `out`; return the rows of its nets
+    (`out/results.parquet` holds every net the folder has: a sweep grows there).
 
     Args:
         cfg: experiment config (sweep, train, analysis).
         dbs: databases (`build_databases`).
-        out: sweep folder (created; reused to resume).
+        out: sweep folder (created; reused to resume). It belongs to this config's sweep
+            settings and data (`io.claim_folder`): other settings are refused there.
         progress: optional tqdm-like factory `progress(total=, initial=)`.
     """
-    out = Path(out)
+    data_key = databases_fingerprint(dbs, [db for db in DB_INPUTS if db in dbs])
+    out = claim_folder(out, sweep_settings(cfg), data_key)
+    write_config(cfg, out / "config.toml")  # what `export` and `replay` read the sweep's settings from
     (out / "parts").mkdir(parents=True, exist_ok=True)
     (out / "params").mkdir(exist_ok=True)
-    nets = net_table(cfg)
+    nets = net_table(cfg, data_key)
     done_ids = set(collect(out).get("net_id", pd.Series(dtype=str)))
     todo = nets[~nets.net_id.isin(done_ids)].reset_index(drop=True)
     log(f"sweep: {len(nets)} nets, {len(nets) - len(todo)} already finished, {len(todo)} to train")
     data = stack_data(dbs, cfg.sweep.databases, cfg.sweep.folds, cfg.sweep.split_seed)
     bar = progress(total=len(nets), initial=len(nets) - len(todo)) if progress else None
-    chash = config_hash(cfg)
+    chash = config_hash(cfg, data_key)
     sw = cfg.sweep
     # One program per depth: on CPU a training step costs about the same for 30 nets as for
     # 300 (kernel overheads dominate), so fewer, larger batches beat less padding.
@@ -317,7 +350,7 @@ def run_sweep(cfg: ExperimentConfig, dbs: dict, out: Path, *, progress=None, log
         bar.close()
     results = collect(out)
     _atomic_parquet(results, out / "results.parquet")
-    return results
+    return results[results.net_id.isin(nets.net_id)].reset_index(drop=True) if len(results) else results
 
 
 def collect(out: Path) -> pd.DataFrame:

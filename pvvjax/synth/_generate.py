@@ -14,6 +14,7 @@ from typing import Literal
 import numpy as np
 import pandas as pd
 
+from .._cache import cache_dir
 from .._strict import to_dict
 from ..config import config_hash, load_config
 from ..data.campaign import write_campaign
@@ -243,11 +244,7 @@ def write_synthetic(out, cfg: SynthConfig = SynthConfig(), truth_path=None) -> t
 
 def default_cache_dir() -> Path:
     """`$PVVJAX_CACHE`, else `.cache/` of the source checkout, else `~/.cache/pvvjax`."""
-    env = os.environ.get("PVVJAX_CACHE")
-    if env:
-        return Path(env)
-    root = Path(__file__).resolve().parents[2]
-    return root / ".cache" if (root / "pyproject.toml").exists() else Path.home() / ".cache" / "pvvjax"
+    return cache_dir()
 
 
 def cached_campaign(cfg: SynthConfig = SynthConfig(), cache_dir=None) -> Path:

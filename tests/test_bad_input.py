@@ -1,0 +1,264 @@
+"""The bad-input suite: every kind of bad campaign file, column mapping and config a user can
+hand the CLI, each run through `pvvjax` as a user would. Each asserts the exit status, that
+the message names the file and the column (or key), and that no traceback is printed.
+`docs/data-contract.md` ("Bad input") lists the same kinds."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import tiny_records, write_tiny
+
+from pvvjax.cli import main
+
+DOCS = Path(__file__).parents[1] / "docs" / "data-contract.md"
+
+
+def _records(fn):
+    """A case that edits the tiny campaign's first record (`fn(df) -> df`) before writing it."""
+    def make(folder):
+        c, r = tiny_records()
+        r["C1"] = fn(r["C1"].copy())
+        return write_tiny(folder, c, r)
+    return make
+
+
+def _counters(fn):
+    def make(folder):
+        c, r = tiny_records()
+        return write_tiny(folder, fn(c.copy()), r)
+    return make
+
+
+def _file(name, edit):
+    """A case that edits one written file's bytes or path (`edit(path)`)."""
+    def make(folder):
+        write_tiny(folder)
+        edit(folder / name)
+        return folder
+    return make
+
+
+def _set(column, value, row=None):
+    def fn(df):
+        if row is None:
+            df[column] = value
+        else:
+            df[column] = df[column].astype(float)
+            df.loc[row - 1, column] = value
+        return df
+    return fn
+
+
+def _scaled(column, factor):
+    def fn(df):
+        df[column] = df[column] * factor
+        return df
+    return fn
+
+
+def _text(replace):
+    return lambda p: p.write_text(replace(p.read_text()))
+
+
+def _symlink_to_nothing(p):
+    p.unlink()
+    p.symlink_to(p.parent / "elsewhere.csv")
+
+
+def _directory(p):
+    p.unlink()
+    p.mkdir()
+
+
+def _truncated_parquet(folder):
+    c, r = tiny_records()
+    write_tiny(folder, c, r, fmt="parquet")
+    p = folder / "timeseries" / "C1.parquet"
+    p.write_bytes(p.read_bytes()[: p.stat().st_size // 2])
+    return folder
+
+
+def _fractions(df):
+    for s in ("collective_pct", "lateral_pct", "longitudinal_pct"):
+        df[s] = df[s] / 100.0
+    return df
+
+
+def _slow(df):
+    return df.iloc[::25].reset_index(drop=True)  # 11 samples per revolution: < 3 per 4/rev cycle
+
+
+def _gap(df):
+    df["altitude_ft"] = 1000.0
+    df.loc[4, "altitude_ft"] = np.nan
+    return df
+
+
+# (kind as the docs list it, make(folder), exit status, file named, column or key named,
+# config text or None). Exit 1: `validate` found errors; 0: warnings only.
+CAMPAIGN = {
+    "az_g of 1e30": (_records(_set("az_g", 1e30, row=3)), 1, "C1.csv", "az_g", "row 3"),
+    "az_g of 1e39 (beyond float32)": (_records(_set("az_g", 1e39, row=3)), 1, "C1.csv", "az_g", "row 3"),
+    "acceleration in m/s²": (_records(_scaled("az_g", 9.80665)), 1, "C1.csv", "az_g", "m/s²"),
+    "the vibration without its 1 g mean": (_records(lambda d: d.assign(az_g=d.az_g - 1.0)), 1, "C1.csv", "az_g",
+                                           "1 g mean"),
+    "time in milliseconds": (_records(_scaled("time_s", 1000.0)), 1, "C1.csv", "time_s", "milliseconds"),
+    "sampling too slow for the harmonic": (_records(_slow), 1, "C1.csv", "time_s", "samples per cycle"),
+    "sticks as fractions": (_records(_fractions), 1, "C1.csv", "collective_pct", "fraction"),
+    "negative airspeed": (_records(_set("airspeed_kt", -5.0, row=2)), 1, "C1.csv", "airspeed_kt", "row 2"),
+    "airspeed beyond any rotor (advance ratio > 0.6)": (_records(_set("airspeed_kt", 400.0, row=2)), 1, "C1.csv",
+                                                         "airspeed_kt", "advance ratio"),
+    "rotor speed in rad/s": (_records(_scaled("rotor_rpm", np.pi / 30)), 1, "C1.csv", "rotor_rpm", "nominal"),
+    "climb rate beyond ±10 000 ft/min": (_records(_set("climb_rate_fpm", 20000.0, row=7)), 1, "C1.csv",
+                                         "climb_rate_fpm", "row 7"),
+    "pitch rate beyond ±200 deg/s": (_records(_set("pitch_rate_dps", 500.0, row=2)), 1, "C1.csv", "pitch_rate_dps",
+                                     "row 2"),
+    "weight in newtons": (_counters(lambda c: c.assign(gross_weight_lb=16000 * 4.448)), 1, "C1.csv",
+                          "gross_weight_lb", "blade loading"),
+    "weight in kg (a warning)": (_counters(lambda c: c.assign(gross_weight_lb=16000 / 2.2046)), 0, "C1.csv",
+                                 "gross_weight_lb", "warning"),
+    "level flight far from 1 g (a warning)": (_records(lambda d: d.assign(az_g=d.az_g - 0.4)), 0, "C1.csv", "az_g",
+                                              "warning"),
+    "a gap in an optional channel (a warning; the channel is left out)": (_records(_gap), 0, "C1.csv",
+                                                                          "altitude_ft", "row 5"),
+    "NaN in a required channel": (_records(_set("rotor_rpm", np.nan, row=4)), 1, "C1.csv", "rotor_rpm", "row 4"),
+    "non-numeric value": (_records(lambda d: d.assign(airspeed_kt=["fast"] + list(d.airspeed_kt[1:]))), 1,
+                          "C1.csv", "airspeed_kt", "'fast'"),
+    "time not increasing": (_records(_set("time_s", 0.0, row=5)), 1, "C1.csv", "time_s", "row 5"),
+    "time not uniform": (_records(_set("time_s", 0.0186, row=6)), 1, "C1.csv", "time_s", "not uniform"),
+    "record shorter than one window": (_records(lambda d: d.iloc[:200]), 1, "C1.csv", "time_s", "revolutions"),
+    "stick outside 0–100 %": (_records(_set("lateral_pct", 140.0, row=9)), 1, "C1.csv", "lateral_pct", "row 9"),
+    "density ratio outside 0.3–1.3": (_counters(lambda c: c.assign(density_ratio=[1.0, 0.1])), 1, "counters.csv",
+                                      "density_ratio", "row 2"),
+    "missing required column": (_records(lambda d: d.drop(columns="climb_rate_fpm")), 1, "C1.csv",
+                                "climb_rate_fpm", "missing"),
+    "a channel in both places": (_records(lambda d: d.assign(gross_weight_lb=16000.0)), 1, "C1.csv",
+                                 "gross_weight_lb", "one place"),
+    "duplicate counter": (_counters(lambda c: c.assign(counter=["C1", "C1"])), 1, "counters.csv", "counter",
+                          "duplicate"),
+    "unknown maneuver": (_counters(lambda c: c.assign(maneuver=["level", "hover taxi"])), 1, "counters.csv",
+                         "maneuver", "row 2"),
+    "segment not an integer ≥ 1": (_counters(lambda c: c.assign(segment=[1, 0.5])), 1, "counters.csv", "segment",
+                                   "row 2"),
+    "counter without its file": (_file("timeseries/C2.csv", Path.unlink), 1, "counters.csv", "counter", "C2"),
+    "file without its counter": (_file("timeseries/C3.csv", lambda p: p.write_text("time_s\n0\n")), 1, "C3.csv",
+                                 "", "no counter"),
+    "empty counters.csv": (_file("counters.csv", lambda p: p.write_text("")), 1, "counters.csv", "", "empty"),
+    "counters.csv with a header only": (_file("counters.csv", _text(lambda t: t.splitlines()[0] + "\n")), 1,
+                                        "counters.csv", "", "no rows"),
+    "semicolon-separated file": (_file("counters.csv", _text(lambda t: t.replace(",", ";"))), 1, "counters.csv", "",
+                                 "semicolons"),
+    "tab-separated file": (_file("timeseries/C1.csv", _text(lambda t: t.replace(",", "\t"))), 1, "C1.csv", "",
+                           "tabs"),
+    "duplicated header": (_file("timeseries/C1.csv", _text(lambda t: t.replace("pitch_rate_dps", "az_g", 1))), 1,
+                          "C1.csv", "az_g", "twice"),
+    "blank header": (_file("timeseries/C1.csv", _text(lambda t: t.replace("pitch_rate_dps", " ", 1))), 1, "C1.csv",
+                     "column 5", "no name"),
+    "UTF-16 file": (_file("counters.csv", lambda p: p.write_bytes(p.read_text().encode("utf-16"))), 1,
+                    "counters.csv", "", "UTF-16"),
+    "a link to a missing file": (_file("timeseries/C1.csv", _symlink_to_nothing), 1, "C1.csv", "", "missing file"),
+    "a folder in the place of a file": (_file("timeseries/C1.csv", _directory), 1, "C1.csv", "", "cannot read"),
+    "truncated Parquet file": (_truncated_parquet, 1, "C1.parquet", "", "Parquet"),
+    "campaign.toml not TOML": (_file("campaign.toml", lambda p: p.write_text("[aircraft\n")), 1, "campaign.toml", "",
+                               "TOML"),
+    "campaign.toml unknown key": (_file("campaign.toml", lambda p: p.write_text("[rotor]\nblades = 4\n")), 1,
+                                  "campaign.toml", "rotor", "unknown key"),
+    "campaign.toml bad aircraft value": (_file("campaign.toml", lambda p: p.write_text("[aircraft]\nblades = 0\n")),
+                                         1, "campaign.toml", "blades", "> 0"),
+}
+
+MAPPING = {
+    "mapping that matches no column": ('[campaign.columns.IAS]\nto = "airspeed_kt"\nunit = "kt"\n', "campaign.columns",
+                                       "'IAS'", "columns there"),
+    "mapping with a unit of the wrong dimension": ('[campaign.columns.az_g]\nto = "az_g"\nunit = "kt"\n', "az_g",
+                                                   "unit", ""),
+    "mapping onto a column the file has": ('[campaign.columns.airspeed_kt]\nto = "rotor_rpm"\n', "C1.csv",
+                                           "airspeed_kt", "also has"),
+}
+
+CLI_KINDS: dict[str, str] = {}
+
+CONFIG = {
+    "unknown config key": ("[analysis]\nwindow_revz = 8.0\n", "analysis.window_revz"),
+    "mistyped config value": ("[analysis]\nwindow_revs = \"eight\"\n", "analysis.window_revs"),
+    "config out of range": ("[analysis]\nharmonic = 0\n", "harmonic"),
+    "config file not TOML": ("[analysis\n", "cfg.toml"),
+}
+
+
+def _run(argv, capsys):
+    code = main(argv)
+    out = capsys.readouterr()
+    text = out.out + out.err
+    assert "Traceback" not in text, text
+    return code, text
+
+
+@pytest.mark.parametrize("kind", list(CAMPAIGN))
+def test_bad_campaign_is_refused_naming_file_and_column(kind, tmp_path, capsys):
+    make, status, file, column, detail = CAMPAIGN[kind]
+    folder = make(tmp_path / "c")
+    code, text = _run(["validate", str(folder)], capsys)
+    assert code == status, text
+    line = next((ln for ln in text.splitlines() if file in ln and column in ln and detail in ln), None)
+    assert line is not None, (file, column, detail, text)
+    if column:
+        assert f"'{column}'" in line or column in line
+
+
+def test_a_gap_in_an_optional_channel_is_left_out_of_the_loaded_record(tmp_path):
+    from pvvjax.data import CampaignWarning, load_campaign
+
+    folder = CAMPAIGN["a gap in an optional channel (a warning; the channel is left out)"][0](tmp_path / "c")
+    with pytest.warns(CampaignWarning, match="altitude_ft"):
+        camp = load_campaign(folder)
+    assert "altitude_ft" not in camp.records["C1"] and "altitude_ft" not in camp.numeric_channels()
+
+
+def test_a_column_missing_everywhere_is_one_line(tmp_path, capsys):
+    c, r = tiny_records(n_counters=4)
+    folder = write_tiny(tmp_path / "c", c, {k: v.drop(columns="pitch_rate_dps") for k, v in r.items()})
+    code, text = _run(["validate", str(folder)], capsys)
+    lines = [ln for ln in text.splitlines() if "pitch_rate_dps" in ln]
+    assert code == 1 and len(lines) == 1 and "4 time series" in lines[0], text
+
+
+@pytest.mark.parametrize("kind", list(MAPPING))
+def test_bad_column_mapping_is_refused_naming_it(kind, tmp_path, capsys):
+    toml, file, column, detail = MAPPING[kind]
+    folder = write_tiny(tmp_path / "c")
+    (tmp_path / "cfg.toml").write_text(toml)
+    code, text = _run(["validate", str(folder), "--config", str(tmp_path / "cfg.toml")], capsys)
+    assert code in (1, 2), text
+    assert any(file in ln and column in ln and detail in ln for ln in text.splitlines()), text
+
+
+@pytest.mark.parametrize("kind", list(CONFIG))
+def test_bad_config_is_refused_naming_the_key(kind, tmp_path, capsys):
+    toml, key = CONFIG[kind]
+    (tmp_path / "cfg.toml").write_text(toml)
+    code, text = _run(["build-db", str(write_tiny(tmp_path / "c")), "--config", str(tmp_path / "cfg.toml"),
+                       "--out", str(tmp_path / "o")], capsys)
+    assert code == 2 and key in text, text
+
+
+def test_a_utf8_byte_order_mark_is_read(tmp_path, capsys):
+    folder = write_tiny(tmp_path / "c")
+    p = folder / "counters.csv"
+    p.write_bytes(b"\xef\xbb\xbf" + p.read_bytes())  # as Excel writes CSV
+    code, text = _run(["validate", str(folder)], capsys)
+    assert code == 0 and "valid" in text, text
+
+
+def test_the_docs_list_every_kind():
+    text = DOCS.read_text()
+    table = text[text.index("| kind | verdict |"):].split("\n\n")[0]
+    listed = set(re.findall(r"^\| (.+?) \|", table, flags=re.M)) - {"kind"}
+    kinds = set(CAMPAIGN) | set(MAPPING) | set(CONFIG) | set(CLI_KINDS)
+    assert kinds == listed, (kinds - listed, listed - kinds)
+    assert len(kinds) >= 40
+
