@@ -11,6 +11,8 @@ import re
 MODULES = [
     "data.campaign",
     "data.checks",
+    "data.plausibility",
+    "data.fingerprint",
     "data.units",
     "data.batch",
     "data.constants",
