@@ -180,7 +180,53 @@ MAPPING = {
                                            "airspeed_kt", "also has"),
 }
 
-CLI_KINDS: dict[str, str] = {}
+def _cli_out_is_a_file(tmp_path):
+    (tmp_path / "f").write_text("x")
+    return ["build-db", "--campaign", str(write_tiny(tmp_path / "c")), "--out", str(tmp_path / "f")], str(
+        tmp_path / "f")
+
+
+def _cli_missing_campaign(tmp_path):
+    return ["build-db", "--campaign", str(tmp_path / "nope"), "--out", str(tmp_path / "o")], "nope"
+
+
+def _cli_missing_config(tmp_path):
+    return ["validate", "--campaign", str(write_tiny(tmp_path / "c")), "--config", str(tmp_path / "no.toml")], "no.toml"
+
+
+def _cli_unwritable_out(tmp_path):
+    (tmp_path / "f").write_text("x")
+    return ["build-db", "--campaign", str(write_tiny(tmp_path / "c")), "--out", str(tmp_path / "f" / "sub")], "f/sub"
+
+
+def _cli_synth_over_user_data(tmp_path):
+    return ["synth", "--out", str(write_tiny(tmp_path / "mine"))], "--force"
+
+
+def _cli_not_a_sweep(tmp_path):
+    return ["export", str(tmp_path), "--element", "--out", str(tmp_path / "e")], "not a sweep folder"
+
+
+def _element(flag, value, needle):
+    def case(tmp_path):
+        return ["export", str(tmp_path), "--element", flag, value, "--out", str(tmp_path / "e")], needle
+    return case
+
+
+# kind -> case(tmp_path) -> (argv, what the message names). Exit 2, no traceback.
+CLI_KINDS = {
+    "--out on a file": _cli_out_is_a_file,
+    "--out under a file": _cli_unwritable_out,
+    "a campaign folder that is not there": _cli_missing_campaign,
+    "a config file that is not there": _cli_missing_config,
+    "synth --out over a folder it did not write": _cli_synth_over_user_data,
+    "export from a folder that is not a sweep": _cli_not_a_sweep,
+    "element offset NaN": _element("--offset", "nan", "--offset nan"),
+    "element offset beyond the calibration's bounds": _element("--offset", "7", "--offset 7"),
+    "element window negative": _element("--window", "-3", "--window -3"),
+    "element stick offset beyond the bounds": _element("--stick-offset", "5", "--stick-offset 5"),
+    "element hop longer than the window": _element("--hop", "20", "--hop 20"),
+}
 
 CONFIG = {
     "unknown config key": ("[analysis]\nwindow_revz = 8.0\n", "analysis.window_revz"),
@@ -202,7 +248,7 @@ def _run(argv, capsys):
 def test_bad_campaign_is_refused_naming_file_and_column(kind, tmp_path, capsys):
     make, status, file, column, detail = CAMPAIGN[kind]
     folder = make(tmp_path / "c")
-    code, text = _run(["validate", str(folder)], capsys)
+    code, text = _run(["validate", "--campaign", str(folder)], capsys)
     assert code == status, text
     line = next((ln for ln in text.splitlines() if file in ln and column in ln and detail in ln), None)
     assert line is not None, (file, column, detail, text)
@@ -222,7 +268,7 @@ def test_a_gap_in_an_optional_channel_is_left_out_of_the_loaded_record(tmp_path)
 def test_a_column_missing_everywhere_is_one_line(tmp_path, capsys):
     c, r = tiny_records(n_counters=4)
     folder = write_tiny(tmp_path / "c", c, {k: v.drop(columns="pitch_rate_dps") for k, v in r.items()})
-    code, text = _run(["validate", str(folder)], capsys)
+    code, text = _run(["validate", "--campaign", str(folder)], capsys)
     lines = [ln for ln in text.splitlines() if "pitch_rate_dps" in ln]
     assert code == 1 and len(lines) == 1 and "4 time series" in lines[0], text
 
@@ -232,7 +278,7 @@ def test_bad_column_mapping_is_refused_naming_it(kind, tmp_path, capsys):
     toml, file, column, detail = MAPPING[kind]
     folder = write_tiny(tmp_path / "c")
     (tmp_path / "cfg.toml").write_text(toml)
-    code, text = _run(["validate", str(folder), "--config", str(tmp_path / "cfg.toml")], capsys)
+    code, text = _run(["validate", "--campaign", str(folder), "--config", str(tmp_path / "cfg.toml")], capsys)
     assert code in (1, 2), text
     assert any(file in ln and column in ln and detail in ln for ln in text.splitlines()), text
 
@@ -241,7 +287,7 @@ def test_bad_column_mapping_is_refused_naming_it(kind, tmp_path, capsys):
 def test_bad_config_is_refused_naming_the_key(kind, tmp_path, capsys):
     toml, key = CONFIG[kind]
     (tmp_path / "cfg.toml").write_text(toml)
-    code, text = _run(["build-db", str(write_tiny(tmp_path / "c")), "--config", str(tmp_path / "cfg.toml"),
+    code, text = _run(["build-db", "--campaign", str(write_tiny(tmp_path / "c")), "--config", str(tmp_path / "cfg.toml"),
                        "--out", str(tmp_path / "o")], capsys)
     assert code == 2 and key in text, text
 
@@ -250,7 +296,7 @@ def test_a_utf8_byte_order_mark_is_read(tmp_path, capsys):
     folder = write_tiny(tmp_path / "c")
     p = folder / "counters.csv"
     p.write_bytes(b"\xef\xbb\xbf" + p.read_bytes())  # as Excel writes CSV
-    code, text = _run(["validate", str(folder)], capsys)
+    code, text = _run(["validate", "--campaign", str(folder)], capsys)
     assert code == 0 and "valid" in text, text
 
 
@@ -262,3 +308,67 @@ def test_the_docs_list_every_kind():
     assert kinds == listed, (kinds - listed, listed - kinds)
     assert len(kinds) >= 40
 
+
+
+@pytest.mark.parametrize("kind", list(CLI_KINDS))
+def test_cli_mistakes_are_one_clear_message(kind, tmp_path, capsys):
+    argv, needle = CLI_KINDS[kind](tmp_path)
+    code, text = _run(argv, capsys)
+    assert code == 2 and "error: " in text and needle in text, text
+
+
+def test_version_and_every_options_default_in_its_help():
+    import argparse
+
+    from pvvjax import __version__
+    from pvvjax.cli import build_parser
+
+    parser = build_parser()
+    with pytest.raises(SystemExit) as e:
+        parser.parse_args(["--version"])
+    assert e.value.code == 0 and __version__
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    for name, sp in sub.choices.items():
+        for a in sp._actions:
+            if not a.option_strings or a.dest == "help" or a.required:
+                continue
+            assert "default" in (a.help or ""), f"pvvjax {name} {a.option_strings[0]}: help states no default"
+        campaign = [a for a in sp._actions if a.dest == "campaign"]
+        assert all(a.option_strings == ["--campaign"] for a in campaign), name
+
+
+def test_ctrl_c_says_how_to_resume(tmp_path, capsys, monkeypatch):
+    from pvvjax.cli import _commands
+
+    def interrupted(args):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(_commands, "cmd_validate", interrupted)
+    code, text = _run(["validate", "--campaign", str(tmp_path)], capsys)
+    assert code == 130 and "interrupted; run the same command to resume" in text
+
+
+def test_a_closed_pipe_ends_quietly(tmp_path):
+    # `pvvjax validate … | head` on a long report: the reader leaves before the writer is done.
+    import subprocess
+    import sys
+
+    code = ("import sys, pvvjax.cli as cli\n"
+            "def long(args):\n    for i in range(200000): print(f'  - problem {i}')\n    return 1\n"
+            "cli._parser.C.cmd_validate = long\n"
+            "sys.exit(cli.main(['validate', '--campaign', '.']))\n")
+    r = subprocess.run(f"{sys.executable} -c \"$CODE\" | head -n 2", shell=True, capture_output=True, text=True,
+                       env={**__import__("os").environ, "CODE": code}, cwd=tmp_path)
+    assert r.stdout.splitlines() == ["  - problem 0", "  - problem 1"]
+    assert r.stderr == "", r.stderr  # quiet: no traceback, no error line
+
+
+def test_synth_replaces_its_own_campaign_and_writes_over_user_data_with_force(tmp_path, capsys):
+    small = tmp_path / "small.toml"
+    small.write_text('conditions = ["T1-level-135"]\n')
+    out = tmp_path / "synth"
+    assert _run(["synth", "--out", str(out), "--config", str(small)], capsys)[0] == 0
+    (out / "timeseries" / "stray.csv").write_text("x\n")
+    assert _run(["synth", "--out", str(out), "--config", str(small), "--seed", "2"], capsys)[0] == 0
+    assert not (out / "timeseries" / "stray.csv").exists()  # replaced whole
+    mine = write_tiny(tmp_path / "mine")
+    assert _run(["synth", "--out", str(mine), "--config", str(small), "--force"], capsys)[0] == 0

@@ -44,7 +44,7 @@ def test_main_job_on_the_embedded_campaign(tmp_path, capsys, default_campaign_di
 
 
 def test_missing_campaign_folder_is_a_clear_error(tmp_path, capsys):
-    assert main(["build-db", str(tmp_path / "nope"), "--out", str(tmp_path / "o")]) == 2
+    assert main(["build-db", "--campaign", str(tmp_path / "nope"), "--out", str(tmp_path / "o")]) == 2
     assert "campaign folder not found" in capsys.readouterr().err
 
 

@@ -72,7 +72,7 @@ def test_databases_have_exactly_the_contract_columns():
 def test_build_db_cli_writes_csv_and_parquet(tmp_path, capsys):
     folder = write_tiny(tmp_path / "camp")
     out = tmp_path / "dbs"
-    assert main(["build-db", str(folder), "--out", str(out)]) == 0
+    assert main(["build-db", "--campaign", str(folder), "--out", str(out)]) == 0
     for name in ("db1", "db2", "db3"):
         a = pd.read_csv(out / f"{name}.csv")
         b = pd.read_parquet(out / f"{name}.parquet")
@@ -83,22 +83,22 @@ def test_build_db_cli_writes_csv_and_parquet(tmp_path, capsys):
 
 def test_validate_cli_exit_codes(tmp_path, capsys):
     folder = write_tiny(tmp_path / "ok")
-    assert main(["validate", str(folder)]) == 0
+    assert main(["validate", "--campaign", str(folder)]) == 0
     c, r = tiny_records()
     c.loc[0, "maneuver"] = "hover"
     r["C2"].loc[5, "rotor_rpm"] = -1.0
     bad = write_tiny(tmp_path / "bad", c, r)
-    assert main(["validate", str(bad)]) == 1
+    assert main(["validate", "--campaign", str(bad)]) == 1
     out = capsys.readouterr().out
     assert "2 problem(s)" in out and "'maneuver', row 1" in out
     assert "timeseries/C2.csv, column 'rotor_rpm', row 6" in out
-    assert main(["build-db", str(bad), "--out", str(tmp_path / "x")]) == 2
+    assert main(["build-db", "--campaign", str(bad), "--out", str(tmp_path / "x")]) == 2
     assert "2 problem(s)" in capsys.readouterr().err
 
 
 def test_cli_config_error_is_a_message_not_a_traceback(tmp_path, capsys):
     cfgfile = tmp_path / "bad.toml"
     cfgfile.write_text("[analysis]\nwindow_revz = 8\n")
-    assert main(["validate", str(tmp_path), "--config", str(cfgfile)]) == 2
+    assert main(["validate", "--campaign", str(tmp_path), "--config", str(cfgfile)]) == 2
     err = capsys.readouterr().err
     assert "bad.toml: analysis.window_revz: unknown key" in err and "Traceback" not in err

@@ -16,28 +16,54 @@ from ._parser import build_parser, cli_reference
 __all__ = ["api_reference", "build_parser", "cli_reference", "main"]
 
 
+def _error(text: str) -> None:
+    """An error on a line of its own (after a progress bar's partial line, too)."""
+    sys.stdout.flush()
+    print(("\n" if sys.stderr.isatty() else "") + f"error: {text}", file=sys.stderr)
+
+
+def _message(e: BaseException) -> str:
+    if isinstance(e, KeyError) and e.args:
+        return str(e.args[0])
+    if isinstance(e, OSError) and e.filename is not None and e.strerror:
+        return f"{e.filename}: {e.strerror}"
+    return str(e)
+
+
 def main(argv=None) -> int:
-    """Run the CLI on `argv` (default: the process's arguments); returns the exit status
-    (2 for bad input, reported as one clear message rather than a traceback)."""
+    """Run the CLI on `argv` (default: the process's arguments); returns the exit status.
+
+    A user's mistake (campaign problems, config mistakes, missing or unwritable paths, a
+    results folder of other settings) is one clear message and status 2, never a traceback
+    (`PVVJAX_DEBUG=1` shows it); Ctrl-C is status 130 with how to resume; a closed pipe
+    (`pvvjax validate … | head`) ends quietly."""
     from .._strict import ConfigError
     from ..data.campaign import CampaignError
 
     args = build_parser().parse_args(argv)
     use_deterministic_gpu()  # before any command starts JAX
     try:
-        return args.fn(args)
+        code = args.fn(args)
+        sys.stdout.flush()  # inside the try: a reader that left shows here, not at exit
+        return code
+    except KeyboardInterrupt:
+        _error("interrupted; run the same command to resume (finished work is kept)")
+        return 130
+    except BrokenPipeError:  # the reader went away: nothing more to say, and nowhere to say it
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 1
     except (CampaignError, ConfigError) as e:
-        print(f"error: {e}", file=sys.stderr)
+        _error(str(e))
         return 2
     except RuntimeError as e:  # TrainingError (imported lazily: JAX may not be started yet)
         if type(e).__name__ != "TrainingError" or os.environ.get("PVVJAX_DEBUG"):
             raise
-        print(f"error: {e}", file=sys.stderr)
+        _error(str(e))
         return 2
-    except (FileNotFoundError, KeyError, ValueError) as e:
+    except (OSError, KeyError, ValueError) as e:
         if os.environ.get("PVVJAX_DEBUG"):
             raise
-        print(f"error: {e}", file=sys.stderr)
+        _error(_message(e))
         return 2
 
 

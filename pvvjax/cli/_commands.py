@@ -64,7 +64,7 @@ def cmd_synth(args) -> int:
     if args.seed is not None:
         scfg = dataclasses.replace(scfg, seed=args.seed)
     t0 = time.perf_counter()
-    folder, truth = write_synthetic(args.out, scfg, args.truth)
+    folder, truth = write_synthetic(args.out, scfg, args.truth, force=args.force)
     print(f"wrote campaign {folder} ({time.perf_counter() - t0:.1f} s); ground truth: {truth}")
     if args.plots:
         from ..config import ExperimentConfig
@@ -104,6 +104,22 @@ def cmd_sweep(args) -> int:
     return 0
 
 
+def _check_element_settings(args) -> None:
+    """An element's offsets and window within the calibration's bounds (a NaN or a negative
+    window would make every frame NaN)."""
+    import math
+
+    from ..replay.calibration import Bounds
+
+    b = Bounds()
+    for flag, value, (lo, hi) in (("--offset", args.offset, b.offset_s), ("--stick-offset", args.stick_offset,
+                                  b.stick_offset_s), ("--window", args.window, b.window_revs)):
+        if not (math.isfinite(value) and lo <= value <= hi):
+            raise ValueError(f"{flag} {value:g}: must be a number within {lo:g} to {hi:g}")
+    if not (math.isfinite(args.hop) and 0 < args.hop <= args.window):
+        raise ValueError(f"--hop {args.hop:g}: must be above 0 and at most the window ({args.window:g} revs)")
+
+
 def _export_element(args, res, sweep: Path) -> int:
     """Every net of one database (all seeds and folds: their median) with the replay
     settings and the training envelope, as a NumPy real-time element."""
@@ -111,12 +127,23 @@ def _export_element(args, res, sweep: Path) -> int:
     from ..config import load_config
     from ..realtime.export import element_spec, write_element
 
-    sel = res[res.database == args.database]
+    database, arch = args.database, args.architecture
+    if args.net:
+        row = res[res.net_id == args.net]
+        if row.empty:
+            raise KeyError(f"{sweep / 'results.parquet'}: no net {args.net!r}")
+        database, arch = row.database.iloc[0], row.architecture.iloc[0]
+    sel = res[res.database == database]
     if sel.empty:
-        raise KeyError(f"{sweep / 'results.parquet'}: no net for database {args.database!r}")
+        raise KeyError(f"{sweep / 'results.parquet'}: no net for database {database!r}")
     archs = sorted(set(sel.architecture))
-    if len(archs) > 1:
-        raise ValueError(f"{sweep}: {args.database} has several architectures {archs}; export one with --net")
+    if arch is None:  # the architecture whose nets hold out best (median over seeds and folds)
+        arch = sel.groupby("architecture").test_rms_g.median().idxmin()
+    if arch not in archs:
+        raise KeyError(f"--architecture {arch!r}: {database} of {sweep} has {', '.join(archs)}")
+    sel = sel[sel.architecture == arch]
+    archs = [arch]
+    args.database = database
     ids = list(sel.sort_values(["test_fold", "seed"]).net_id)
     cfg = load_config(sweep / "config.toml")
     campaign, _ = resolve_campaign(cfg)
@@ -140,7 +167,12 @@ def cmd_export(args) -> int:
     from ..nets.sweep import load_params
     from ..realtime import npnet
 
+    if args.element:
+        _check_element_settings(args)
     sweep = Path(args.sweep)
+    if not (sweep / "results.parquet").is_file():
+        raise FileNotFoundError(f"{sweep}: not a sweep folder (no results.parquet); give the folder `pvvjax sweep` "
+                                "or the main job wrote (OUT_DIR/NAME/sweep)")
     res = pd.read_parquet(sweep / "results.parquet")
     if args.element:
         return _export_element(args, res, sweep)

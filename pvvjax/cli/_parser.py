@@ -7,10 +7,16 @@ import os
 
 from . import _commands as C
 
+_CAMPAIGN = "campaign folder (default: the embedded synthetic campaign, generated once into the cache)"
+_CONFIG = "experiment config (default: none, the defaults)"
+
 
 def build_parser() -> argparse.ArgumentParser:
     """The `pvvjax` parser: one subcommand each, its function as `fn`."""
+    from .. import __version__
+
     p = argparse.ArgumentParser(prog="pvvjax", description="Helicopter pilot-floor 4/rev vibration (PVV) toolkit.")
+    p.add_argument("--version", action="version", version=f"pvvjax {__version__}")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
     _data_commands(sub)
     _net_commands(sub)
@@ -21,15 +27,16 @@ def build_parser() -> argparse.ArgumentParser:
 def _data_commands(sub):
     s = sub.add_parser("validate", help="check a campaign folder against the data contract",
                        description="Report every problem in a campaign folder (exit 1), or exit 0 if valid.")
-    s.add_argument("campaign", help="campaign folder")
-    s.add_argument("--config", help="experiment config (column mapping, window length)")
+    s.add_argument("--campaign", required=True, help="campaign folder")
+    s.add_argument("--config", help="experiment config: column mapping, window length, harmonic (default: none, "
+                                    "the canonical columns)")
     s.set_defaults(fn=C.cmd_validate)
 
     def campaign_command(name, fn, help, description, out_help):
         s = sub.add_parser(name, help=help, description=description)
-        s.add_argument("campaign", nargs="?", default=None, help="campaign folder (default: embedded synthetic)")
+        s.add_argument("--campaign", default=None, help=_CAMPAIGN)
         s.add_argument("--out", required=True, help=out_help)
-        s.add_argument("--config", help="experiment config")
+        s.add_argument("--config", help=_CONFIG)
         s.set_defaults(fn=fn)
         return s
 
@@ -39,16 +46,19 @@ def _data_commands(sub):
     s = sub.add_parser("synth", help="generate a synthetic UH-60A campaign",
                        description="Write a synthetic campaign (and its ground truth beside it).")
     s.add_argument("--out", required=True, help="campaign folder to write")
-    s.add_argument("--config", help="generator config (TOML), e.g. a hidden-effect scenario")
-    s.add_argument("--seed", type=int, default=None, help="random seed (overrides the config)")
+    s.add_argument("--config", help="generator config (TOML), e.g. a hidden-effect scenario, or a small "
+                                    "campaign: counts = {level = 10, climb = 3} (default: the embedded campaign's)")
+    s.add_argument("--seed", type=int, default=None, help="random seed (default: the config's, 0)")
     s.add_argument("--truth", default=None, help="ground-truth file (default: OUT.truth.json, beside OUT)")
-    s.add_argument("--plots", default=None, metavar="DIR", help="also write the check figures to DIR")
+    s.add_argument("--plots", default=None, metavar="DIR", help="also write the check figures to DIR (default: no)")
+    s.add_argument("--force", action="store_true",
+                   help="write into a non-empty folder that is not a synthetic campaign (default: refused)")
     s.set_defaults(fn=C.cmd_synth)
 
     s = campaign_command("plot", C.cmd_plot, "figures of a campaign (PVV vs airspeed, pull-up, autorotation)",
                      "PVV vs airspeed in level flight and paper-style time histories.", "output folder for PNG files")
     s.add_argument("--paper", action="store_true",
-                   help="also the paper's Figs 1-9, one file each, and their numbers beside the paper's")
+                   help="also the paper's Figs 1-9, one file each, and their numbers beside the paper's (default: no)")
 
 
 
@@ -64,14 +74,22 @@ def _net_commands(sub):
                        description="Copy a net's parameters and the NumPy evaluator (no JAX) into a folder.")
     s.add_argument("sweep", help="sweep folder (with results.parquet and params/)")
     s.add_argument("--out", required=True, help="output folder")
-    s.add_argument("--net", default=None, help="net id (default: the best held-out net of --database)")
-    s.add_argument("--database", default="db1", choices=["db1", "db2", "db3"])
+    s.add_argument("--net", default=None, help="net id (default: the best held-out net of --database); with "
+                                               "--element, the nets of its architecture")
+    s.add_argument("--database", default="db1", choices=["db1", "db2", "db3"], help="database (default: db1)")
     s.add_argument("--element", action="store_true",
-                   help="export a real-time vibration element (all nets of --database, their median)")
-    s.add_argument("--offset", type=float, default=0.0, help="element: input-to-vibration offset, s")
-    s.add_argument("--stick-offset", type=float, default=0.0, help="element: extra offset of the sticks, s")
-    s.add_argument("--window", type=float, default=8.0, help="element: window length, revolutions")
-    s.add_argument("--hop", type=float, default=1.0, help="element: window spacing (update interval), revolutions")
+                   help="export a real-time vibration element: every net of one architecture of --database, their "
+                        "median (default: one net)")
+    s.add_argument("--architecture", default=None,
+                   help="element: the architecture, e.g. 6-10-5-1 (default: the best median held-out RMS)")
+    s.add_argument("--offset", type=float, default=0.0, help="element: input-to-vibration offset, s, within "
+                                                             "-1 to 3 (default: 0)")
+    s.add_argument("--stick-offset", type=float, default=0.0, help="element: extra offset of the sticks, s, within "
+                                                                   "-2 to 2 (default: 0)")
+    s.add_argument("--window", type=float, default=8.0, help="element: window length, revolutions, within 4 to 16 "
+                                                             "(default: 8)")
+    s.add_argument("--hop", type=float, default=1.0, help="element: window spacing (update interval), revolutions, "
+                                                          "above 0 and at most the window (default: 1)")
     s.set_defaults(fn=C.cmd_export)
 
     s = sub.add_parser("realtime", help="feed a recorded counter to a real-time element frame by frame",
@@ -79,10 +97,11 @@ def _net_commands(sub):
                                    "exported NumPy element once per frame, report latency percentiles.")
     s.add_argument("--model", required=True, help="element folder (pvvjax export --element)")
     s.add_argument("--record", required=True, help="counter to play, e.g. 11022")
-    s.add_argument("--campaign", default=None, help="campaign folder (default: embedded synthetic)")
+    s.add_argument("--campaign", default=None, help=_CAMPAIGN)
     s.add_argument("--rate", type=float, default=None, help="frame rate, Hz (default: the record's)")
-    s.add_argument("--jitter", type=float, default=0.0, help="random frame-time jitter, fraction of a frame")
-    s.add_argument("--out", default=None, help="CSV of the output signal")
+    s.add_argument("--jitter", type=float, default=0.0, help="random frame-time jitter, fraction of a frame "
+                                                             "(default: 0)")
+    s.add_argument("--out", default=None, help="CSV file of the output signal (default: none)")
     s.set_defaults(fn=C.cmd_realtime)
 
 
@@ -92,10 +111,10 @@ def _replay_commands(sub):
                        description="Replay counters through the nets that held them out ([replay] of the config; "
                                    "trains the config's sweep first when [replay] sweep is empty).")
     s.add_argument("config", help="experiment config (TOML), e.g. experiments/configs/replay.toml")
-    s.add_argument("--offset", type=float, default=None, help="input-to-vibration offset, s (overrides the config)")
-    s.add_argument("--window", type=float, default=None, help="window length, revolutions (overrides the config)")
-    s.add_argument("--counters", nargs="+", default=None, help="counters to replay (overrides the config)")
-    s.add_argument("--plots", type=int, default=4, help="figures for the first N counters (default 4)")
+    s.add_argument("--offset", type=float, default=None, help="input-to-vibration offset, s (default: the config's)")
+    s.add_argument("--window", type=float, default=None, help="window length, revolutions (default: the config's)")
+    s.add_argument("--counters", nargs="+", default=None, help="counters to replay (default: the config's)")
+    s.add_argument("--plots", type=int, default=4, help="figures for the first N counters (default: 4)")
     s.add_argument("--out", default=None, help="output folder (default: OUT_DIR/NAME/replay)")
     s.set_defaults(fn=C.cmd_replay)
 
@@ -104,10 +123,10 @@ def _replay_commands(sub):
                                    "group ([calibration] of the config), checked against a brute-force grid.")
     s.add_argument("config", help="experiment config (TOML), e.g. experiments/configs/replay.toml")
     s.add_argument("--groups", choices=["all", "maneuver", "counter"], default=None,
-                   help="one fit for all counters, per maneuver kind, or per counter (overrides the config)")
+                   help="one fit for all counters, per maneuver kind, or per counter (default: the config's)")
     s.add_argument("--free", nargs="+", choices=["offset_s", "window_revs", "stick_offset_s"], default=None,
-                   help="parameters to fit (overrides the config)")
-    s.add_argument("--counters", nargs="+", default=None, help="counters to calibrate on (overrides the config)")
+                   help="parameters to fit (default: the config's)")
+    s.add_argument("--counters", nargs="+", default=None, help="counters to calibrate on (default: the config's)")
     s.add_argument("--out", default=None, help="output folder (default: OUT_DIR/NAME/calibration)")
     s.set_defaults(fn=C.cmd_calibrate)
 
@@ -116,9 +135,10 @@ def _replay_commands(sub):
                                    "candidate effects (cross-validated, permutation-tested), add each to the "
                                    "model, retrain and keep it only if the held-out error drops. Writes "
                                    "OUT/discovery.json (data contract section 3) and OUT/report.md.")
-    s.add_argument("--campaign", default=None, help="campaign folder (default: embedded synthetic)")
+    s.add_argument("--campaign", default=None, help=_CAMPAIGN)
     s.add_argument("--out", required=True, help="output folder")
-    s.add_argument("--config", default=None, help="experiment config ([discovery], [train], [analysis] sections)")
+    s.add_argument("--config", default=None, help="experiment config ([discovery], [train], [analysis] sections; "
+                                                  "default: none, the defaults)")
     s.set_defaults(fn=C.cmd_discover)
 
     s = sub.add_parser("run", help="run an experiment config end to end (the main job)",

@@ -6,6 +6,7 @@ import contextlib
 import json
 import os
 import shutil
+import sys
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -15,6 +16,11 @@ import numpy as np
 import pandas as pd
 
 from .._cache import cache_dir
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
 from .._strict import to_dict
 from ..config import config_hash, load_config
 from ..data.campaign import write_campaign
@@ -222,14 +228,33 @@ def _row(counter: str, c: Condition, segment: int) -> dict:
                 description=c.description or f"{c.maneuver}, {c.airspeed_kt:.0f} kt")
 
 
-def write_synthetic(out, cfg: SynthConfig = SynthConfig(), truth_path=None) -> tuple[Path, Path]:
+def _is_synthetic(folder: Path) -> bool:
+    try:
+        return tomllib.loads((folder / "campaign.toml").read_text())["provenance"]["generator"] == "pvvjax.synth"
+    except (OSError, KeyError, TypeError, tomllib.TOMLDecodeError):
+        return False
+
+
+def write_synthetic(out, cfg: SynthConfig = SynthConfig(), truth_path=None, force: bool = False) -> tuple[Path, Path]:
     """Generate a campaign and write it to `out`; the ground truth goes to `truth_path`
     (default: `<out>.truth.json`, beside the folder, never inside it).
+
+    Args:
+        force: write into a non-empty folder that is not a synthetic campaign (refused
+            otherwise: it may be a user's own data). A synthetic campaign's folder is
+            replaced whole either way.
 
     Returns:
         (campaign folder, ground-truth file).
     """
     out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"{out}: is a file, not a folder; give a folder for the campaign")
+    if out.is_dir() and any(out.iterdir()) and not (force or _is_synthetic(out)):
+        raise ValueError(f"{out}: is not empty and not a synthetic campaign (no campaign.toml of pvvjax.synth); "
+                         "give an empty or new folder, or --force to write into it")
+    if out.is_dir() and _is_synthetic(out):
+        shutil.rmtree(out)  # a regenerated campaign keeps no file of the old one
     truth_path = Path(truth_path) if truth_path else out.with_name(out.name + ".truth.json")
     if truth_path.resolve().is_relative_to(out.resolve()):
         raise ValueError(f"ground truth {truth_path} must not be inside the campaign folder {out}")
