@@ -188,7 +188,8 @@ def prepare_sweep(config_path, out=None):
     out = Path(out) if out else Path(cfg.out_dir) / cfg.name / "sweep"
     campaign, _ = resolve_campaign(cfg)
     dbs = build_databases(campaign, cfg.analysis)
-    res = run_sweep(cfg, dbs, out, progress=lambda **kw: tqdm(desc="nets", unit="net", **kw))
+    res = run_sweep(cfg, dbs, out, progress=lambda **kw: tqdm(desc="nets", unit="net", disable=not sys.stderr.isatty(),
+                                                              **kw))
     return cfg, dbs, res, out
 
 
@@ -272,7 +273,8 @@ def _run_networks(cfg, dbs, out: Path, source) -> tuple:
     from .paper.comparison import network_checks, networks_results
 
     enable_compilation_cache()
-    res = run_sweep(cfg, dbs, out / "sweep", progress=lambda **kw: tqdm(desc="nets", unit="net", **kw))
+    res = run_sweep(cfg, dbs, out / "sweep",
+                    progress=lambda **kw: tqdm(desc="nets", unit="net", disable=not sys.stderr.isatty(), **kw))
     md, figs, pred = networks_results(res, dbs, out / "figures", str(source))
     print(md.split("\n\nPoints outside")[0])
     return md, figs, network_checks(pred)

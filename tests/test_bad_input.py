@@ -287,8 +287,8 @@ def test_bad_column_mapping_is_refused_naming_it(kind, tmp_path, capsys):
 def test_bad_config_is_refused_naming_the_key(kind, tmp_path, capsys):
     toml, key = CONFIG[kind]
     (tmp_path / "cfg.toml").write_text(toml)
-    code, text = _run(["build-db", "--campaign", str(write_tiny(tmp_path / "c")), "--config", str(tmp_path / "cfg.toml"),
-                       "--out", str(tmp_path / "o")], capsys)
+    code, text = _run(["build-db", "--campaign", str(write_tiny(tmp_path / "c")), "--config",
+                       str(tmp_path / "cfg.toml"), "--out", str(tmp_path / "o")], capsys)
     assert code == 2 and key in text, text
 
 
