@@ -338,11 +338,11 @@ def test_version_and_every_options_default_in_its_help():
 
 
 def test_ctrl_c_says_how_to_resume(tmp_path, capsys, monkeypatch):
-    from pvvjax.cli import _commands
+    import pvvjax.data.campaign
 
-    def interrupted(args):
+    def interrupted(*args, **kwargs):  # Ctrl-C while the campaign is read
         raise KeyboardInterrupt
-    monkeypatch.setattr(_commands, "cmd_validate", interrupted)
+    monkeypatch.setattr(pvvjax.data.campaign, "validate_campaign", interrupted)
     code, text = _run(["validate", "--campaign", str(tmp_path)], capsys)
     assert code == 130 and "interrupted; run the same command to resume" in text
 
@@ -353,8 +353,8 @@ def test_a_closed_pipe_ends_quietly(tmp_path):
     import sys
 
     code = ("import sys, pvvjax.cli as cli\n"
-            "def long(args):\n    for i in range(200000): print(f'  - problem {i}')\n    return 1\n"
-            "cli._parser.C.cmd_validate = long\n"
+            "def long(*args, **kwargs):\n    for i in range(200000): print(f'  - problem {i}')\n    return []\n"
+            "import pvvjax.data.campaign as c; c.validate_campaign = long\n"
             "sys.exit(cli.main(['validate', '--campaign', '.']))\n")
     r = subprocess.run(f"{sys.executable} -c \"$CODE\" | head -n 2", shell=True, capture_output=True, text=True,
                        env={**__import__("os").environ, "CODE": code}, cwd=tmp_path)
