@@ -21,7 +21,6 @@ import numpy as np
 import pandas as pd
 
 from .._strict import ConfigError, from_dict
-from ._files import _collapsed, _read_table
 from .checks import (
     RANGES,
     REQUIRED_CHANNELS,
@@ -29,10 +28,12 @@ from .checks import (
     _check_length,
     _check_record,
     _check_values,
+    _collapsed,
     _first_bad,
     _gappy_channels,
     _integrate_azimuth,
     _numeric,
+    _read_table,
 )
 from .constants import UH60A, Aircraft
 from .fingerprint import campaign_fingerprint, frames_fingerprint
