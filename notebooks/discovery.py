@@ -22,9 +22,10 @@
 #
 # The world is the base world of the hidden-effect benchmark (`research/discovery_benchmark.py`):
 # the default physics without the two transients no database carries and without
-# autorotations, plus a hidden sideslip effect. The settings are light (3 seeds, one round)
-# so that the notebook runs in a couple of minutes. The generator's ground truth stays in a
-# variable that the workflow never sees; it is opened at the end. The test suite runs this
+# autorotations, with about half its random conditions (129 counters), plus a hidden
+# sideslip effect. The settings are light (3 seeds, one round) so that the notebook runs in
+# about a minute. The generator's ground truth stays in a variable that the workflow never
+# sees; it is opened at the end. The test suite runs this
 # notebook, and its last cells assert what the benchmark asks of every hidden scenario.
 
 # %%
@@ -49,6 +50,7 @@ from pvvjax.discovery import discover, selection_gain, summary
 from pvvjax.synth import SynthConfig, generate
 
 base = dict(seed=41, maneuvers=["level", "climb", "descent", "turn", "roll", "pushover", "pullup", "flare"],
+            counts=dict(level=40, climb=10, descent=13, turn=8, roll=6, pushover=4, pullup=6, flare=3),
             effects={"roll_rate": {"enabled": False}, "pitch_rate": {"enabled": False},
                      "rotor_resonance": {"enabled": False}})
 hidden = {"sideslip": {"enabled": True, "scale": 6.0}}  # the hidden effect
