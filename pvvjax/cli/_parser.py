@@ -46,8 +46,10 @@ def _data_commands(sub):
     s = sub.add_parser("synth", help="generate a synthetic UH-60A campaign",
                        description="Write a synthetic campaign (and its ground truth beside it).")
     s.add_argument("--out", required=True, help="campaign folder to write")
-    s.add_argument("--config", help="generator config (TOML), e.g. a hidden-effect scenario, or a small "
-                                    "campaign: counts = {level = 10, climb = 3} (default: the embedded campaign's)")
+    s.add_argument("--config", help="generator config (TOML): a hidden-effect scenario "
+                                    "(experiments/configs/scenarios/), or a small campaign "
+                                    "(experiments/configs/small-campaign.toml: [counts] of random conditions per "
+                                    "maneuver kind) (default: the embedded campaign's)")
     s.add_argument("--seed", type=int, default=None, help="random seed (default: the config's, 0)")
     s.add_argument("--truth", default=None, help="ground-truth file (default: OUT.truth.json, beside OUT)")
     s.add_argument("--plots", default=None, metavar="DIR", help="also write the check figures to DIR (default: no)")
