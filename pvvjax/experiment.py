@@ -167,16 +167,16 @@ def campaign_plots(campaign, cfg, out: Path, paper: bool = False):
     return paths, figs, rows
 
 
-def prepare_sweep(config_path, out=None):
-    """Load an experiment config, start JAX on every core with the compilation cache,
-    build the databases and run (or resume) its sweep.
+def prepare_sweep(config, out=None):
+    """Load an experiment config (a path, or an `ExperimentConfig`), start JAX on every core
+    with the compilation cache, build the databases and run (or resume) its sweep.
 
     Returns:
         (config, databases, sweep results, sweep folder).
     """
     from .config import load_config
 
-    cfg = load_config(config_path)
+    cfg = load_config(config) if isinstance(config, (str, Path)) else config
     use_cpu_cores(cfg.sweep.cpu_devices)  # before anything imports JAX
     use_deterministic_gpu()
     from tqdm.auto import tqdm

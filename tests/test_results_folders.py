@@ -95,3 +95,11 @@ def test_the_main_jobs_sweep_folder_exports_an_element(tmp_path, campaign_copy, 
     code, text = _run(["export", str(tmp_path / "r" / "sweep"), "--element", "--out", str(tmp_path / "el")], capsys)
     assert code == 0 and (tmp_path / "el").is_dir(), text
     assert np.isfinite(pd.read_parquet(tmp_path / "r" / "sweep" / "results.parquet").test_rms_g).all()
+
+
+def test_campaign_given_on_the_command_line_replaces_the_configs(tmp_path, campaign_copy, capsys):
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(_SWEEP.format(out=tmp_path.as_posix(), campaign="/nowhere", centers=6))
+    code, text = _run(["sweep", str(cfg), "--out", str(tmp_path / "s")], capsys)
+    assert code == 2 and "/nowhere" in text
+    assert _run(["sweep", str(cfg), "--campaign", str(campaign_copy), "--out", str(tmp_path / "s")], capsys)[0] == 0

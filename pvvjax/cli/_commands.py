@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from pathlib import Path
 
@@ -22,7 +23,10 @@ from ..io import claim_folder
 def _experiment(args):
     from ..config import ExperimentConfig, load_config
 
-    return load_config(args.config) if getattr(args, "config", None) else ExperimentConfig()
+    cfg = load_config(args.config) if getattr(args, "config", None) else ExperimentConfig()
+    if getattr(args, "campaign", None):  # --campaign replaces the config's [campaign] path
+        cfg = cfg.with_(campaign=dataclasses.replace(cfg.campaign, path=str(args.campaign)))
+    return cfg
 
 
 def cmd_validate(args) -> int:
@@ -88,16 +92,15 @@ def cmd_plot(args) -> int:
 
 def cmd_run(args) -> int:
     """The main job of an experiment config (`experiment.run_main_job`)."""
-    from ..config import load_config
 
-    run_main_job(load_config(args.config), args.config)
+    run_main_job(_experiment(args), args.config)
     return 0
 
 
 def cmd_sweep(args) -> int:
     """Train the config's family of nets; resumable."""
     t0 = time.perf_counter()
-    _, _, res, out = prepare_sweep(args.config, args.out)
+    _, _, res, out = prepare_sweep(_experiment(args), args.out)
     cols = ["val_rms_g", "test_rms_g", "test_max_abs_g", "test_p95_abs_g", "steps"]
     print(res.groupby(["database", "architecture"])[cols].median().round(4).to_string())
     print(f"{len(res)} nets in {out / 'results.parquet'} ({time.perf_counter() - t0:.1f} s)")
@@ -213,7 +216,7 @@ def _replay_inputs(args, cfg):
         if not (sweep / "parts").is_dir():
             raise FileNotFoundError(f"{args.config}: replay.sweep = {cfg.replay.sweep!r} is not a sweep folder")
     else:
-        _, _, _, sweep = prepare_sweep(args.config)
+        _, _, _, sweep = prepare_sweep(cfg)
     campaign, _ = resolve_campaign(cfg)
     counters = list(args.counters) if getattr(args, "counters", None) else select_counters(campaign, cfg.replay)
     info, batch, recs, models = load_replay_set(campaign, counters, sweep, cfg.replay.databases,
@@ -225,11 +228,10 @@ def _replay_inputs(args, cfg):
 def cmd_replay(args) -> int:
     """Quasi-static replay of recorded counters at a given offset and window length."""
     from .. import plots
-    from ..config import load_config
     from ..io import write_config, write_table
     from ..replay.tables import peak_summary, replay_windows, settings_at
 
-    cfg = load_config(args.config)
+    cfg = _experiment(args)
     rc = cfg.replay
     tau = rc.offset_s if args.offset is None else args.offset
     L = rc.window_revs if args.window is None else args.window
@@ -261,11 +263,10 @@ def cmd_calibrate(args) -> int:
     import numpy as np
 
     from .. import plots
-    from ..config import load_config
     from ..io import write_config, write_table
     from ..replay.tables import calibration_table, grid_table
 
-    cfg = load_config(args.config)
+    cfg = _experiment(args)
     cc = cfg.calibration
     if args.groups or args.free:
         cc = dataclasses.replace(cc, groups=args.groups or cc.groups, free=tuple(args.free or cc.free))

@@ -9,6 +9,8 @@ from . import _commands as C
 
 _CAMPAIGN = "campaign folder (default: the embedded synthetic campaign, generated once into the cache)"
 _CONFIG = "experiment config (default: none, the defaults)"
+_CAMPAIGN_OF_CONFIG = ("campaign folder (default: the config's [campaign] path, else the embedded synthetic "
+                       "campaign)")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -69,6 +71,7 @@ def _net_commands(sub):
                        description="Train every net of the config's [sweep] with its [train] settings. "
                                    "Resumable: run it again after an interruption to finish the rest.")
     s.add_argument("config", help="experiment config (TOML), e.g. experiments/configs/sweep-small.toml")
+    s.add_argument("--campaign", default=None, help=_CAMPAIGN_OF_CONFIG)
     s.add_argument("--out", default=None, help="sweep folder (default: OUT_DIR/NAME/sweep)")
     s.set_defaults(fn=C.cmd_sweep)
 
@@ -113,6 +116,7 @@ def _replay_commands(sub):
                        description="Replay counters through the nets that held them out ([replay] of the config; "
                                    "trains the config's sweep first when [replay] sweep is empty).")
     s.add_argument("config", help="experiment config (TOML), e.g. experiments/configs/replay.toml")
+    s.add_argument("--campaign", default=None, help=_CAMPAIGN_OF_CONFIG)
     s.add_argument("--offset", type=float, default=None, help="input-to-vibration offset, s (default: the config's)")
     s.add_argument("--window", type=float, default=None, help="window length, revolutions (default: the config's)")
     s.add_argument("--counters", nargs="+", default=None, help="counters to replay (default: the config's)")
@@ -124,6 +128,7 @@ def _replay_commands(sub):
                        description="Levenberg-Marquardt from the best point of a coarse grid, per database and "
                                    "group ([calibration] of the config), checked against a brute-force grid.")
     s.add_argument("config", help="experiment config (TOML), e.g. experiments/configs/replay.toml")
+    s.add_argument("--campaign", default=None, help=_CAMPAIGN_OF_CONFIG)
     s.add_argument("--groups", choices=["all", "maneuver", "counter"], default=None,
                    help="one fit for all counters, per maneuver kind, or per counter (default: the config's)")
     s.add_argument("--free", nargs="+", choices=["offset_s", "window_revs", "stick_offset_s"], default=None,
@@ -148,6 +153,7 @@ def _replay_commands(sub):
                                    "networks the paper's networks (Figs 10-12, Table 1), with [run] "
                                    "discovery_scenario a hidden-effect discovery; writes report.md and report.html.")
     s.add_argument("config", help="experiment config (TOML)")
+    s.add_argument("--campaign", default=None, help=_CAMPAIGN_OF_CONFIG)
     s.set_defaults(fn=C.cmd_run)
 
 
