@@ -252,6 +252,9 @@ def test_bad_campaign_is_refused_naming_file_and_column(kind, tmp_path, capsys):
     assert code == status, text
     line = next((ln for ln in text.splitlines() if file in ln and column in ln and detail in ln), None)
     assert line is not None, (file, column, detail, text)
+    if kind != "sticks as fractions":  # one mistake, one line for its file (not one per rule it breaks)
+        where = [ln.replace("warning: ", "").split(":")[0] for ln in text.splitlines() if ln.startswith("  - ")]
+        assert sum(file in w for w in where) == 1, text
     if column:
         assert f"'{column}'" in line or column in line
 

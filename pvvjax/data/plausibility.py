@@ -102,11 +102,13 @@ def plausibility(df: pd.DataFrame, file: str, aircraft: Aircraft, harmonic: int,
             problems.append(Problem(file, "az_g", None, f"median {med:.4g} g in level flight, outside "
                                     f"{_span(warn)} g", warning=True))
 
+    n = len(problems)
     _sample_rule("rotor_rpm / nominal", rpm / aircraft.nominal_rpm, file, "rotor_rpm", problems,
                  f" (nominal {aircraft.nominal_rpm:g} rpm); rad/s or rev/s?")
-    tip_ft_s = rpm * np.pi / 30.0 * aircraft.rotor_radius_ft
-    _sample_rule("advance ratio", _numeric(df["airspeed_kt"]) * KT_TO_FT_S / tip_ft_s, file, "airspeed_kt",
-                 problems, "; airspeed in km/h or ft/s?")
+    if all(p.warning for p in problems[n:]):  # the advance ratio needs a rotor speed in rpm
+        tip_ft_s = rpm * np.pi / 30.0 * aircraft.rotor_radius_ft
+        _sample_rule("advance ratio", _numeric(df["airspeed_kt"]) * KT_TO_FT_S / tip_ft_s, file, "airspeed_kt",
+                     problems, "; airspeed in km/h or ft/s?")
     _sample_rule("climb_rate_fpm", _numeric(df["climb_rate_fpm"]), file, "climb_rate_fpm", problems)
     _sample_rule("pitch_rate_dps", _numeric(df["pitch_rate_dps"]), file, "pitch_rate_dps", problems)
 
