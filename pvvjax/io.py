@@ -33,7 +33,12 @@ def _flat(tree, prefix=""):
     return {prefix[:-1]: tree}
 
 
-def claim_folder(out: str | Path, settings: dict, campaign: str) -> Path:
+# Files by which a folder without an owner record is known as pvvjax's results.
+_RESULTS = ("report.md", "results.parquet", "discovery.json", "config.toml", "windows.parquet", "databases",
+            "calibration.parquet", "summary.parquet")
+
+
+def claim_folder(out: str | Path, settings: dict, campaign: str, log=print) -> Path:
     """Make `out` the results folder of these settings and campaign, or refuse.
 
     A folder belongs to the settings that first wrote into it (recorded in `owner.json`):
@@ -44,10 +49,12 @@ def claim_folder(out: str | Path, settings: dict, campaign: str) -> Path:
         out: the results folder (created if missing).
         settings: the config sections that decide its results (`to_dict` form).
         campaign: the campaign's content fingerprint.
+        log: where a folder of an older pvvjax (results, no owner record) is reported:
+            it is moved aside to `OUT.old` and the results are rerun.
 
     Raises:
-        ResultsFolderError: `out` is a file, holds other settings' results, or holds files
-            not written under an owner record.
+        ResultsFolderError: `out` is a file, holds other settings' results, lies inside
+            another results folder, or holds files that are not pvvjax results.
     """
     out = Path(out)
     if out.exists() and not out.is_dir():
@@ -74,8 +81,14 @@ def claim_folder(out: str | Path, settings: dict, campaign: str) -> Path:
         raise ResultsFolderError(f"{out}: is part of the results folder {parent}, written there with its settings; "
                                  "give another output folder")
     if out.exists() and any(out.iterdir()):
-        raise ResultsFolderError(f"{out}: is not empty and has no {OWNER_FILE} (results of an older pvvjax, or "
-                                 "not pvvjax's); give another output folder, or delete this one")
+        if not any((out / name).exists() for name in _RESULTS):
+            raise ResultsFolderError(f"{out}: is not empty and holds no pvvjax results; give another output "
+                                     "folder, or delete this one")
+        # Results of an older pvvjax (no owner record): rerun, never reinterpreted; kept aside.
+        aside = next(out.with_name(f"{out.name}.old{'' if i == 0 else f'-{i}'}") for i in range(1000)
+                     if not out.with_name(f"{out.name}.old{'' if i == 0 else f'-{i}'}").exists())
+        out.rename(aside)
+        log(f"{out}: results of an older pvvjax (no {OWNER_FILE}) moved to {aside}; rerunning")
     out.mkdir(parents=True, exist_ok=True)
     owner.write_text(json.dumps(record, indent=1, sort_keys=True))
     return out

@@ -85,8 +85,15 @@ def test_claims_resume_the_same_settings_and_refuse_files_and_foreign_folders(tm
         claim_folder(tmp_path / "file", {}, "")
     (tmp_path / "mine").mkdir()
     (tmp_path / "mine" / "notes.txt").write_text("x")
-    with pytest.raises(ResultsFolderError, match="not empty"):
+    with pytest.raises(ResultsFolderError, match="holds no pvvjax results"):
         claim_folder(tmp_path / "mine", {}, "")
+    # Results of an older pvvjax (no owner record) are rerun, the old ones kept aside.
+    (tmp_path / "old" / "parts").mkdir(parents=True)
+    (tmp_path / "old" / "results.parquet").write_text("x")
+    said = []
+    assert claim_folder(tmp_path / "old", {"a": 1}, "f", log=said.append) == tmp_path / "old"
+    assert [p.name for p in (tmp_path / "old").iterdir()] == ["owner.json"] and "moved to" in said[0]
+    assert (tmp_path / "old.old" / "results.parquet").exists()
 
 
 def test_the_main_jobs_sweep_folder_exports_an_element(tmp_path, campaign_copy, capsys):
