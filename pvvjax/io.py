@@ -85,8 +85,8 @@ def claim_folder(out: str | Path, settings: dict, campaign: str, log=print) -> P
             raise ResultsFolderError(f"{out}: is not empty and holds no pvvjax results; give another output "
                                      "folder, or delete this one")
         # Results of an older pvvjax (no owner record): rerun, never reinterpreted; kept aside.
-        aside = next(out.with_name(f"{out.name}.old{'' if i == 0 else f'-{i}'}") for i in range(1000)
-                     if not out.with_name(f"{out.name}.old{'' if i == 0 else f'-{i}'}").exists())
+        names = (out.with_name(f"{out.name}.old{'' if i == 0 else f'-{i}'}") for i in range(1000))
+        aside = next(p for p in names if not p.exists())
         out.rename(aside)
         log(f"{out}: results of an older pvvjax (no {OWNER_FILE}) moved to {aside}; rerunning")
     out.mkdir(parents=True, exist_ok=True)

@@ -145,18 +145,16 @@ def _export_element(args, res, sweep: Path) -> int:
     if arch not in archs:
         raise KeyError(f"--architecture {arch!r}: {database} of {sweep} has {', '.join(archs)}")
     sel = sel[sel.architecture == arch]
-    archs = [arch]
-    args.database = database
     ids = list(sel.sort_values(["test_fold", "seed"]).net_id)
     cfg = load_config(sweep / "config.toml")
     campaign, _ = resolve_campaign(cfg)
-    inputs = list(DB_INPUTS[args.database])
+    inputs = list(DB_INPUTS[database])
     db = peak_table(campaign, cfg.analysis)[0][inputs]
     spec = element_spec([f"net_{i}.npz" for i in ids], inputs, (db.min(), db.max()), campaign,
                         cfg.analysis.window_revs, window_revs=args.window, hop_revs=args.hop, offset_s=args.offset,
                         stick_offset_s=args.stick_offset)
     out = write_element(args.out, [sweep / "params" / f"{i}.npz" for i in ids], spec)
-    print(f"exported a real-time element: {len(ids)} {archs[0]} nets ({args.database}), window {args.window:g} revs, "
+    print(f"exported a real-time element: {len(ids)} {arch} nets ({database}), window {args.window:g} revs, "
           f"hop {args.hop:g} revs, offset {args.offset:g} s, to {out}")
     return 0
 

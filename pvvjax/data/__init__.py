@@ -29,7 +29,7 @@ from .features import (
     thrust_coefficient,
     tip_speed_ft_s,
 )
-from .fingerprint import campaign_files, campaign_fingerprint, frames_fingerprint
+from .fingerprint import campaign_files, campaign_fingerprint, frames_fingerprint, tables_fingerprint
 from .plausibility import LIMITS, MIN_SAMPLES_PER_CYCLE, plausibility
 from .units import CANONICAL_UNITS, KNOWN_UNITS, ColumnMap, conversion_factor
 
@@ -66,6 +66,7 @@ __all__ = [
     "maneuver_load_factor",
     "plausibility",
     "sample_widths",
+    "tables_fingerprint",
     "thrust_coefficient",
     "tip_speed_ft_s",
     "to_batch",

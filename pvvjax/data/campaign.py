@@ -251,9 +251,11 @@ def _check_counters(df: pd.DataFrame, mapping, problems: list) -> pd.DataFrame |
     return df
 
 
-def _check_mapping(mapping: Mapping[str, ColumnMap], present: set, problems: list) -> None:
+def _check_mapping(mapping: Mapping[str, ColumnMap], counter_columns, records: Mapping[str, pd.DataFrame],
+                   problems: list) -> None:
     """A mapped column that no file has (a typo, or another campaign's name): one problem
     listing the columns that are there."""
+    present = set(counter_columns).union(*(df.columns for df in records.values()))
     for src, m in mapping.items():
         if src not in present:
             there = ", ".join(sorted(str(c) for c in present))
@@ -298,12 +300,10 @@ def _read(folder, mapping, window_revs, harmonic, progress=None) -> tuple[Campai
         df = _read_table(p, f"timeseries/{p.name}", problems)
         if df is not None:
             raw[name] = df
-    _check_mapping(mapping or {}, columns.union(*(df.columns for df in raw.values())), problems)
+    _check_mapping(mapping or {}, columns, raw, problems)
     fnames = {name: f"timeseries/{p.name}" for name, p in files.items()}
     campaign = _assemble(counters, raw, fnames, mapping, (window_revs, harmonic), problems, aircraft, provenance,
                          str(folder))
-    if campaign is not None:
-        campaign = dataclasses.replace(campaign, folder_fingerprint=campaign_fingerprint(folder))
     return campaign, _collapsed(problems)
 
 
@@ -366,7 +366,7 @@ def campaign_from_frames(counters: pd.DataFrame, records: Mapping[str, pd.DataFr
         CampaignError: listing every problem.
     """
     problems: list[Problem] = []
-    _check_mapping(mapping or {}, set(counters.columns).union(*(df.columns for df in records.values())), problems)
+    _check_mapping(mapping or {}, counters.columns, records, problems)
     counters = _check_counters(counters.copy(), mapping or {}, problems)
     campaign = None
     if counters is not None:
@@ -411,7 +411,8 @@ def load_campaign(folder, mapping: Mapping[str, ColumnMap] | None = None, window
     Raises:
         CampaignError: listing every error. Warnings are issued as `CampaignWarning`s.
     """
-    return _checked(*_read(folder, mapping, window_revs, harmonic, progress))
+    campaign = _checked(*_read(folder, mapping, window_revs, harmonic, progress))
+    return dataclasses.replace(campaign, folder_fingerprint=campaign_fingerprint(folder))  # not for validation
 
 
 # --------------------------------------------------------------------------- writing

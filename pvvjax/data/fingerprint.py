@@ -19,7 +19,7 @@ import pandas as pd
 
 from .._cache import cache_dir
 
-__all__ = ["campaign_files", "campaign_fingerprint", "frames_fingerprint"]
+__all__ = ["campaign_files", "campaign_fingerprint", "frames_fingerprint", "tables_fingerprint"]
 
 
 def campaign_files(folder) -> list[Path]:
@@ -67,11 +67,16 @@ def campaign_fingerprint(folder) -> str:
     return digest
 
 
+def tables_fingerprint(tables) -> str:
+    """Content hash (16 hex digits) of named tables (`name -> DataFrame`, in their order):
+    names, columns and values."""
+    h = hashlib.sha256()
+    for name, df in tables.items():
+        h.update(f"{name}\0{','.join(map(str, df.columns))}\0".encode())
+        h.update(pd.util.hash_pandas_object(df, index=False).to_numpy().tobytes())
+    return h.hexdigest()[:16]
+
+
 def frames_fingerprint(counters: pd.DataFrame, records) -> str:
     """Content hash (16 hex digits) of in-memory campaign tables (counter order and values)."""
-    h = hashlib.sha256()
-    for df in [counters, *records.values()]:
-        h.update(",".join(map(str, df.columns)).encode())
-        h.update(pd.util.hash_pandas_object(df, index=False).to_numpy().tobytes())
-    h.update(",".join(map(str, records)).encode())
-    return h.hexdigest()[:16]
+    return tables_fingerprint({"counters.csv": counters, **{f"timeseries/{k}": v for k, v in records.items()}})

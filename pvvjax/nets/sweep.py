@@ -33,6 +33,7 @@ import pandas as pd
 from .._strict import to_dict
 from ..analysis.databases import DB_INPUTS, OUTPUT
 from ..config import ExperimentConfig, config_hash
+from ..data.fingerprint import tables_fingerprint
 from ..io import claim_folder, write_config
 from ..realtime.npnet import read_npz
 from . import train as _train
@@ -62,11 +63,7 @@ N_INPUTS = max(len(v) for v in DB_INPUTS.values())  # every database padded to t
 def databases_fingerprint(dbs: dict, databases) -> str:
     """Content hash (16 hex digits) of the named database tables: the data a sweep's nets
     are trained on, which changes whenever the campaign's content changes what they hold."""
-    h = hashlib.sha256()
-    for db in databases:
-        h.update(db.encode() + b"\0" + ",".join(map(str, dbs[db].columns)).encode())
-        h.update(pd.util.hash_pandas_object(dbs[db], index=False).to_numpy().tobytes())
-    return h.hexdigest()[:16]
+    return tables_fingerprint({db: dbs[db] for db in databases})
 
 
 # The sweep's axes: they decide which nets exist, not how each is trained, so a sweep grows
