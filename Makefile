@@ -13,7 +13,7 @@ INSTALL = $(PY) -m uv pip install --quiet --python $(PY)
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install --quiet uv && $(INSTALL) -e '.[test]' || $(PY) -m pip install --quiet -e '.[test]'
+	$(PY) -m pip install --quiet uv && $(INSTALL) -e '.[test,sim]' || $(PY) -m pip install --quiet -e '.[test,sim]'
 	touch $(STAMP)
 
 venv: $(STAMP)
@@ -25,7 +25,7 @@ test: venv
 	$(PY) -m pytest -q -n 2 -m "not slow"
 
 bench: venv
-	$(INSTALL) -e '.[test,bench]' || $(PY) -m pip install --quiet -e '.[test,bench]'
+	$(INSTALL) -e '.[test,sim,bench]' || $(PY) -m pip install --quiet -e '.[test,sim,bench]'
 	$(PY) benchmarks/bench_harmonics.py
 	$(PY) benchmarks/bench_synth.py
 	$(PY) benchmarks/bench_sweep.py

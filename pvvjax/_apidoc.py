@@ -37,6 +37,8 @@ MODULES = [
     "realtime.npnet",
     "realtime.jax_element",
     "realtime.export",
+    "realtime.cexport",
+    "realtime.fmu",
     "synth",
     "paper.comparison",
     "config",

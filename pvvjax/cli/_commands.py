@@ -128,7 +128,7 @@ def _export_element(args, res, sweep: Path) -> int:
     settings and the training envelope, as a NumPy real-time element."""
     from ..analysis.databases import DB_INPUTS, peak_table
     from ..config import load_config
-    from ..realtime.export import element_spec, write_element
+    from ..realtime.export import element_spec
 
     database, arch = args.database, args.architecture
     if args.net:
@@ -153,10 +153,32 @@ def _export_element(args, res, sweep: Path) -> int:
     spec = element_spec([f"net_{i}.npz" for i in ids], inputs, (db.min(), db.max()), campaign,
                         cfg.analysis.window_revs, window_revs=args.window, hop_revs=args.hop, offset_s=args.offset,
                         stick_offset_s=args.stick_offset)
-    out = write_element(args.out, [sweep / "params" / f"{i}.npz" for i in ids], spec)
-    print(f"exported a real-time element: {len(ids)} {arch} nets ({database}), window {args.window:g} revs, "
-          f"hop {args.hop:g} revs, offset {args.offset:g} s, to {out}")
+    files = [sweep / "params" / f"{i}.npz" for i in ids]
+    out = _write_element_format(args, spec, files, f"{len(ids)} {arch} nets ({database}) of {sweep}")
+    print(f"exported a real-time element ({args.format}): {len(ids)} {arch} nets ({database}), window "
+          f"{args.window:g} revs, hop {args.hop:g} revs, offset {args.offset:g} s, to {out}")
     return 0
+
+
+def _write_element_format(args, spec: dict, files: list, source: str) -> Path:
+    """The element in the format asked for: the NumPy folder, the C source, or the FMU."""
+    import json
+
+    from ..realtime.cexport import CSourceLimits, write_c_element
+    from ..realtime.export import write_element
+    from ..realtime.fmu import build_fmu
+    from ..realtime.npnet import NumpyNet
+
+    if args.format == "numpy":
+        return write_element(args.out, files, spec)
+    nets = [NumpyNet.load(f) for f in files]
+    limits = CSourceLimits(max_rate_hz=args.max_rate)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "element.json").write_text(json.dumps({**spec, "nets": source}, indent=2))
+    if args.format == "c":
+        return write_c_element(out, spec, nets, limits, source)
+    return build_fmu(out / "pvv_element.fmu", spec, nets, limits, source)
 
 
 def cmd_export(args) -> int:
@@ -170,6 +192,10 @@ def cmd_export(args) -> int:
 
     if args.element:
         _check_element_settings(args)
+    elif args.format != "numpy":
+        raise ValueError(f"--format {args.format}: a format of the real-time element; add --element")
+    if not (args.max_rate > 0 and args.max_rate < float("inf")):
+        raise ValueError(f"--max-rate {args.max_rate:g}: must be a frame rate above 0 Hz")
     sweep = Path(args.sweep)
     if not (sweep / "results.parquet").is_file():
         raise FileNotFoundError(f"{sweep}: not a sweep folder (no results.parquet); give the folder `pvvjax sweep` "

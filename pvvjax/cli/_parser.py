@@ -75,8 +75,11 @@ def _net_commands(sub):
     s.add_argument("--out", default=None, help="sweep folder (default: OUT_DIR/NAME/sweep)")
     s.set_defaults(fn=C.cmd_sweep)
 
-    s = sub.add_parser("export", help="export a trained net as a NumPy evaluator for a simulator host",
-                       description="Copy a net's parameters and the NumPy evaluator (no JAX) into a folder.")
+    s = sub.add_parser("export", help="export a trained net, or a real-time element (NumPy, C or FMU) for a "
+                                      "simulator host",
+                       description="Copy a net's parameters and the NumPy evaluator (no JAX) into a folder; with "
+                                   "--element, the real-time vibration element as a NumPy folder, C99 source or an "
+                                   "FMI 2.0 co-simulation FMU.")
     s.add_argument("sweep", help="sweep folder (with results.parquet and params/)")
     s.add_argument("--out", required=True, help="output folder")
     s.add_argument("--net", default=None, help="net id (default: the best held-out net of --database); with "
@@ -95,6 +98,12 @@ def _net_commands(sub):
                                                              "(default: 8)")
     s.add_argument("--hop", type=float, default=1.0, help="element: window spacing (update interval), revolutions, "
                                                           "above 0 and at most the window (default: 1)")
+    s.add_argument("--format", default="numpy", choices=["numpy", "c", "fmu"],
+                   help="element: numpy (element.json, the nets and the NumPy modules), c (pvv_element.h and "
+                        "pvv_element.c, C99, <math.h> only) or fmu (pvv_element.fmu, FMI 2.0 co-simulation, built "
+                        "with the machine's C compiler) (default: numpy)")
+    s.add_argument("--max-rate", type=float, default=1000.0,
+                   help="element, c and fmu: highest frame rate the fixed buffers are sized for, Hz (default: 1000)")
     s.set_defaults(fn=C.cmd_export)
 
     s = sub.add_parser("realtime", help="feed a recorded counter to a real-time element frame by frame",

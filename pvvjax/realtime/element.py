@@ -1,8 +1,8 @@
 """The real-time vibration element for a simulator host, in NumPy (imports no JAX).
 
 A host calls `step` once per frame with the simulator's state; the element returns the
-current peak 4/rev pilot-floor vibration (PVV, g) and a seat-shake sample, the 4/rev
-acceleration at that amplitude and the rotor's azimuth.
+current peak N/rev pilot-floor vibration (PVV, g; N the blade count, 4/rev on the UH-60A) and
+a seat-shake sample, the N/rev acceleration at that amplitude and the rotor's azimuth.
 
 It computes exactly what the offline replay (`pvvjax.replay.replay`, windows every
 `hop_revs` revolutions) computes, frame by frame: window j spans revolutions
@@ -43,7 +43,7 @@ class ElementOutput(NamedTuple):
 
     Attributes:
         pvv_g: PVV of the latest ready window, g (0 before the first window is ready).
-        shake_g: seat-shake sample: amplitude × cos(4ψ + phase) (+ optional harmonics), g.
+        shake_g: seat-shake sample: amplitude × cos(Nψ + phase) (+ optional harmonics), g.
         amplitude_g: the ramped amplitude of the shake.
         ready: a window has been predicted since the last reset.
         window_time_s: centre time of the window `pvv_g` belongs to (NaN before).
@@ -83,10 +83,11 @@ class VibrationElement:
         inputs: the database's input names in the nets' order (features or channels).
         window_revs, hop_revs: window length and spacing, revolutions.
         offset_s, stick_offset_s: input-to-vibration offset and the sticks' extra offset, s.
-        phase_rad: phase of the 4/rev seat shake relative to the blade azimuth.
+        phase_rad: phase of the N/rev seat shake relative to the blade azimuth.
         envelope: (lo, hi) arrays over `inputs`, or None (no clipping).
-        harmonics: extra shake content {k: (ratio to the 4/rev amplitude, phase)}.
-        aircraft: dict of rotor_radius_ft, g_ft_s2 (UH-60A defaults).
+        harmonics: extra shake content {k: (ratio to the N/rev amplitude, phase)}.
+        aircraft: dict of rotor_radius_ft, g_ft_s2 and blades N (UH-60A defaults; other keys
+            are ignored).
         clip: clip inputs to the envelope (always flagged).
     """
 
@@ -98,8 +99,8 @@ class VibrationElement:
         self.tau, self.tau_stick = float(offset_s), float(stick_offset_s)
         self.phase = float(phase_rad)
         self.harmonics = {int(k): (float(v[0]), float(v[1])) for k, v in dict(harmonics or {}).items()}
-        ac = {"rotor_radius_ft": 26.83, "g_ft_s2": 32.174, **(aircraft or {})}
-        self.radius, self.g = float(ac["rotor_radius_ft"]), float(ac["g_ft_s2"])
+        ac = {"rotor_radius_ft": 26.83, "g_ft_s2": 32.174, "blades": 4, **(aircraft or {})}
+        self.radius, self.g, self.blades = float(ac["rotor_radius_ft"]), float(ac["g_ft_s2"]), int(ac["blades"])
         self.envelope = None if envelope is None else (np.asarray(envelope[0], float), np.asarray(envelope[1], float))
         self.clip = clip
         self._stick_cols = [CHANNELS.index(s) for s in _STICKS]
@@ -206,7 +207,7 @@ class VibrationElement:
         frac = min(max((r - self._ramp_rev) / self.hop, 0.0), 1.0)
         amp = self._prev + (self._pvv - self._prev) * frac
         psi = 2.0 * math.pi * r
-        shake = amp * math.cos(4.0 * psi + self.phase)
+        shake = amp * math.cos(self.blades * psi + self.phase)
         for k, (ratio, ph) in self.harmonics.items():
             shake += ratio * amp * math.cos(k * psi + ph)
         return ElementOutput(self._pvv, shake, amp, self._ready, self._wtime, self._flag, rejected)

@@ -22,15 +22,16 @@ from . import element, npnet
 __all__ = ["element_spec", "seat_shake_content", "write_element"]
 
 
-def seat_shake_content(campaign: Campaign, window_revs: float, harmonic: int = 4) -> tuple[float, dict]:
+def seat_shake_content(campaign: Campaign, window_revs: float, harmonic: int | None = None) -> tuple[float, dict]:
     """The flight test's seat shake as the element synthesises it: the phase of the analysed
     harmonic (rad, amplitude-weighted over every valid window), and the 1P, 2P and 2N/rev
     content beside it as {k: [median amplitude ratio to the analysed harmonic, weighted phase]}.
 
     Args:
         campaign: the flight test. window_revs: analysis window, revolutions.
-        harmonic: the analysed harmonic N (4 for the UH-60A).
+        harmonic: the analysed harmonic N (default: the aircraft's blade count).
     """
+    harmonic = harmonic or campaign.aircraft.blades
     batch = to_batch(campaign, [])
     wn = analyze(batch, window_revs, harmonic=harmonic)
     valid = np.asarray(wn.valid)
@@ -62,7 +63,8 @@ def element_spec(nets: list[str], inputs: list[str], envelope: tuple, campaign: 
     return dict(nets=list(nets), inputs=list(inputs), window_revs=window_revs, hop_revs=hop_revs, offset_s=offset_s,
                 stick_offset_s=stick_offset_s, phase_rad=phase, harmonics=content,
                 envelope=dict(lo=[float(v) for v in lo], hi=[float(v) for v in hi]),
-                aircraft=dict(rotor_radius_ft=campaign.aircraft.rotor_radius_ft, g_ft_s2=campaign.aircraft.g_ft_s2))
+                aircraft=dict(rotor_radius_ft=campaign.aircraft.rotor_radius_ft, g_ft_s2=campaign.aircraft.g_ft_s2,
+                              blades=campaign.aircraft.blades, nominal_rpm=campaign.aircraft.nominal_rpm))
 
 
 def write_element(out, net_files: list, spec: dict) -> Path:

@@ -1,0 +1,266 @@
+/* pvv_element.c: the pvvjax real-time vibration element in C99 (see pvv_element.h).
+ *
+ * Frame by frame the same arithmetic as pvvjax.realtime.VibrationElement (NumPy), in double
+ * precision: frames are stored as they come in fixed arrays, frames left of every future input
+ * window are dropped after each window, and each window's inputs are hat-weighted averages of
+ * the stored frames. Source: @SOURCE@
+ */
+#include <math.h>
+#include <string.h>
+
+#include "pvv_element.h"
+
+#define PVV_PI 3.14159265358979323846
+#define PVV_KT_TO_FT_S (6076.12 / 3600.0)
+
+/* ------------------------------------------------------------------ exported constants */
+@CONSTANTS@
+/* ------------------------------------------------------------------ the nets */
+@NETS@
+/* ------------------------------------------------------------------ helpers */
+
+/* First index i of increasing xp[0..n) with xp[i] >= x (numpy.searchsorted, side left). */
+static int search_left(const double *xp, int n, double x)
+{
+    int lo = 0, hi = n;
+    while (lo < hi) {
+        int mid = lo + (hi - lo) / 2;
+        if (xp[mid] < x) lo = mid + 1; else hi = mid;
+    }
+    return lo;
+}
+
+/* Linear interpolation on increasing xp, extrapolating with the end segments (n >= 2). */
+static double interp(double x, const double *xp, const double *fp, int n)
+{
+    int i = search_left(xp, n, x);
+    if (i < 1) i = 1;
+    if (i > n - 1) i = n - 1;
+    return fp[i - 1] + (x - xp[i - 1]) * ((fp[i] - fp[i - 1]) / (xp[i] - xp[i - 1]));
+}
+
+/* Part of a sample's hat inside a window edge (u in hat half-widths); NaN stays NaN. */
+static double edge_weight(double u)
+{
+    double v = u < -1.0 ? -1.0 : (u > 1.0 ? 1.0 : u);
+    return v < 0.0 ? 0.5 * (1.0 + v) * (1.0 + v) : 1.0 - 0.5 * (1.0 - v) * (1.0 - v);
+}
+
+static int finite(double v) { return !isnan(v) && !isinf(v); }
+
+/* Drop the frames before index `keep_from` but one (never the first two: they define window 0). */
+static void drop_before(pvv_element *e, int keep_from)
+{
+    int k, n;
+    if (keep_from <= 2) return;
+    k = keep_from - 1;
+    n = e->n - k;
+    memmove(e->t, e->t + k, (size_t)n * sizeof e->t[0]);
+    memmove(e->r, e->r + k, (size_t)n * sizeof e->r[0]);
+    memmove(e->x, e->x + k, (size_t)n * sizeof e->x[0]);
+    e->n = n;
+    e->dropped = 1;
+}
+
+static pvv_output output(const pvv_element *e, int rejected)
+{
+    pvv_output o;
+    double r, frac, amp, psi, shake;
+    int k;
+    o.rejected = rejected;
+    o.overflow = e->overflow;
+    if (e->n == 0) {
+        o.pvv_g = o.shake_g = o.amplitude_g = 0.0;
+        o.window_time_s = NAN;
+        o.ready = o.out_of_envelope = 0;
+        return o;
+    }
+    r = e->r[e->n - 1];
+    frac = (r - e->ramp_rev) / e->s.hop_revs;
+    frac = frac < 0.0 ? 0.0 : (frac > 1.0 ? 1.0 : frac);
+    amp = e->prev + (e->pvv - e->prev) * frac;
+    psi = 2.0 * PVV_PI * r;
+    shake = amp * cos(PVV_BLADES * psi + PVV_PHASE_RAD);
+    for (k = 0; k < PVV_N_HARMONICS; k++)
+        shake += PVV_HARMONIC_RATIO[k] * amp * cos(PVV_HARMONIC_K[k] * psi + PVV_HARMONIC_PHASE[k]);
+    o.pvv_g = e->pvv;
+    o.shake_g = shake;
+    o.amplitude_g = amp;
+    o.ready = e->ready;
+    o.window_time_s = e->wtime;
+    o.out_of_envelope = e->flag;
+    return o;
+}
+
+/* The nets' inputs from window-averaged channels: features, envelope flag, clipping. */
+static int net_inputs(const pvv_element *e, const double *x, double *z)
+{
+    double feats[PVV_N_CHANNELS + 2];
+    double v = x[PVV_AIRSPEED_KT] * PVV_KT_TO_FT_S;
+    int i, flag = 0;
+    for (i = 0; i < PVV_N_CHANNELS; i++) feats[i] = x[i];
+    feats[PVV_N_CHANNELS] = v / (x[PVV_ROTOR_RPM] * 2.0 * PVV_PI / 60.0 * PVV_ROTOR_RADIUS_FT);
+    feats[PVV_N_CHANNELS + 1] = ((1.0 + x[PVV_PITCH_RATE_DPS] * (PVV_PI / 180.0) * v / PVV_G_FT_S2)
+                                 / cos(x[PVV_ROLL_ANGLE_DEG] * (PVV_PI / 180.0)));
+    for (i = 0; i < PVV_N_INPUTS; i++) {
+        double lo = PVV_LO[i], hi = PVV_HI[i];
+        double tol = 1e-9 * (1.0 + (fabs(lo) > fabs(hi) ? fabs(lo) : fabs(hi)));
+        z[i] = feats[PVV_INPUT_FEATURE[i]];
+        if (z[i] < lo - tol || z[i] > hi + tol) flag = 1;
+        if (e->s.clip) z[i] = z[i] < lo ? lo : (z[i] > hi ? hi : z[i]);
+    }
+    return flag;
+}
+
+static double median_prediction(const double *z)
+{
+    double p[PVV_N_NETS];
+    int i, k;
+    for (k = 0; k < PVV_N_NETS; k++) {  /* insertion sort as they come */
+        double v = PVV_NETS[k](z);
+        for (i = k; i > 0 && p[i - 1] > v; i--) p[i] = p[i - 1];
+        p[i] = v;
+    }
+    return PVV_N_NETS % 2 ? p[PVV_N_NETS / 2] : 0.5 * (p[PVV_N_NETS / 2 - 1] + p[PVV_N_NETS / 2]);
+}
+
+/* Predict the next window if the stored frames cover it; returns 1 if one was predicted. */
+static int try_window(pvv_element *e)
+{
+    const int n = e->n;
+    const double *t = e->t, *r = e->r;
+    double a = e->start + e->s.hop_revs * (double)e->j, b = a + e->s.window_revs;
+    double taus[2], lo[2], hi[2], mean[2][PVV_N_CHANNELS], z[PVV_N_INPUTS];
+    double t_a, t_b, drmax, need, t_next, maxtau;
+    int ntau, k, i, c, flag;
+
+    if (r[n - 1] <= b) return 0;
+    t_a = interp(a, r, t, n);
+    t_b = interp(b, r, t, n);
+    taus[0] = e->s.offset_s;
+    taus[1] = e->s.offset_s + e->s.stick_offset_s;
+    ntau = e->s.stick_offset_s != 0.0 ? 2 : 1;
+    for (k = 0; k < ntau; k++) {
+        lo[k] = interp(t_a - taus[k], t, r, n);
+        hi[k] = interp(t_b - taus[k], t, r, n);
+    }
+    /* Every hat touching the input windows must be complete: two samples past the last edge. */
+    drmax = r[1] - r[0];
+    for (i = 2; i < n; i++) if (r[i] - r[i - 1] > drmax) drmax = r[i] - r[i - 1];
+    need = (ntau == 2 && hi[1] > hi[0] ? hi[1] : hi[0]) + 2.0 * drmax;
+    if (r[n - 1] <= need || n < 3) return 0;
+
+    for (k = 0; k < ntau; k++) {
+        double wsum = 0.0;
+        for (c = 0; c < PVV_N_CHANNELS; c++) mean[k][c] = 0.0;
+        for (i = 0; i < n; i++) {
+            /* half-way to each neighbour; the first frame's left neighbour may have been dropped */
+            double h = i == 0 ? (e->dropped ? NAN : r[1] - r[0])
+                     : (i == n - 1 ? r[n - 1] - r[n - 2] : 0.5 * ((r[i] - r[i - 1]) + (r[i + 1] - r[i])));
+            double w = h * edge_weight((r[i] - lo[k]) / h) * edge_weight((hi[k] - r[i]) / h);
+            if (!finite(w) || w == 0.0) continue;
+            wsum += w;
+            for (c = 0; c < PVV_N_CHANNELS; c++) mean[k][c] += w * e->x[i][c];
+        }
+        for (c = 0; c < PVV_N_CHANNELS; c++) mean[k][c] /= wsum;
+    }
+    if (ntau == 2) {
+        mean[0][PVV_COLLECTIVE_PCT] = mean[1][PVV_COLLECTIVE_PCT];
+        mean[0][PVV_LATERAL_PCT] = mean[1][PVV_LATERAL_PCT];
+        mean[0][PVV_LONGITUDINAL_PCT] = mean[1][PVV_LONGITUDINAL_PCT];
+    }
+    flag = net_inputs(e, mean[0], z);
+    {
+        double pred = median_prediction(z);
+        e->prev = e->ready ? output(e, 0).amplitude_g : pred;
+        e->pvv = pred;
+    }
+    e->flag = flag;
+    e->ready = 1;
+    e->ramp_rev = r[n - 1];
+    e->wtime = 0.5 * (t_a + t_b);
+    e->j += 1;
+    /* Frames left of every future input window are no longer needed. */
+    maxtau = 0.0;
+    for (k = 0; k < ntau; k++) if (taus[k] > maxtau) maxtau = taus[k];
+    t_next = interp(e->start + e->s.hop_revs * (double)e->j, r, t, n) - maxtau;
+    drop_before(e, search_left(t, n, t_next) - 2);
+    return 1;
+}
+
+/* ------------------------------------------------------------------ API */
+
+pvv_settings pvv_default_settings(void)
+{
+    pvv_settings s;
+    s.offset_s = PVV_DEFAULT_OFFSET_S;
+    s.stick_offset_s = PVV_DEFAULT_STICK_OFFSET_S;
+    s.window_revs = PVV_DEFAULT_WINDOW_REVS;
+    s.hop_revs = PVV_DEFAULT_HOP_REVS;
+    s.clip = 1;
+    return s;
+}
+
+size_t pvv_element_size(void) { return sizeof(pvv_element); }
+
+void pvv_reset(pvv_element *e)
+{
+    e->n = 0;
+    e->az = e->rpm_last = e->start = e->pvv = e->prev = e->ramp_rev = 0.0;
+    e->wtime = NAN;
+    e->j = 0;
+    e->has_az = e->has_start = e->flag = e->ready = e->dropped = e->overflow = 0;
+}
+
+int pvv_init(pvv_element *e, const pvv_settings *s)
+{
+    if (!(finite(s->offset_s) && fabs(s->offset_s) <= PVV_MAX_OFFSET_S
+          && finite(s->stick_offset_s) && fabs(s->stick_offset_s) <= PVV_MAX_STICK_OFFSET_S
+          && s->window_revs >= PVV_MIN_WINDOW_REVS && s->window_revs <= PVV_MAX_WINDOW_REVS
+          && s->hop_revs > 0.0 && s->hop_revs <= s->window_revs))
+        return PVV_EBADSETTINGS;
+    e->s = *s;
+    pvv_reset(e);
+    return PVV_OK;
+}
+
+pvv_output pvv_step(pvv_element *e, double time_s, double azimuth_deg, const double channels[PVV_N_CHANNELS])
+{
+    int c, use_az = !isnan(azimuth_deg), bad = !finite(time_s) || (e->n > 0 && time_s <= e->t[e->n - 1]);
+    double r, rpm = channels[PVV_ROTOR_RPM];
+    for (c = 0; c < PVV_N_CHANNELS; c++) bad = bad || !finite(channels[c]);
+    if (use_az) bad = bad || !finite(azimuth_deg);
+    if (bad) return output(e, 1);
+
+    if (e->n == 0) {
+        r = use_az ? azimuth_deg / 360.0 : 0.0;
+    } else if (use_az && e->has_az) {
+        double d = azimuth_deg - e->az;
+        r = e->r[e->n - 1] + (d - 360.0 * nearbyint(d / 360.0)) / 360.0;  /* unwrapped */
+    } else {  /* the rotor speed, integrated by the trapezoidal rule */
+        r = e->r[e->n - 1] + 0.5 * (e->rpm_last + rpm) / 60.0 * (time_s - e->t[e->n - 1]);
+    }
+    e->az = azimuth_deg;
+    e->has_az = use_az;
+    e->rpm_last = rpm;
+    if (e->n == PVV_CAPACITY) {  /* faster than sized for: lose the oldest frame, say so */
+        memmove(e->t, e->t + 1, (size_t)(e->n - 1) * sizeof e->t[0]);
+        memmove(e->r, e->r + 1, (size_t)(e->n - 1) * sizeof e->r[0]);
+        memmove(e->x, e->x + 1, (size_t)(e->n - 1) * sizeof e->x[0]);
+        e->n -= 1;
+        e->dropped = 1;
+        e->overflow = 1;
+    }
+    e->t[e->n] = time_s;
+    e->r[e->n] = r;
+    for (c = 0; c < PVV_N_CHANNELS; c++) e->x[e->n][c] = channels[c];
+    e->n += 1;
+    if (e->n == 2 && !e->has_start) {
+        e->start = e->r[0] - 0.5 * (e->r[1] - e->r[0]);
+        e->has_start = 1;
+    }
+    if (e->has_start)
+        while (try_window(e)) {
+        }
+    return output(e, 0);
+}

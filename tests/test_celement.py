@@ -1,0 +1,163 @@
+"""The C element (`pvvjax export --format c`) and its FMU (`--format fmu`): frame by frame they
+equal the NumPy element within 1e-6 g on one record of every maneuver kind, with a stick lag,
+out-of-envelope windows and rejected frames; FMPy validates the FMU and simulates it as a host.
+Needs a C compiler (skipped with the reason where there is none); the FMU tests need FMPy."""
+
+import jax
+import numpy as np
+import pytest
+from conftest import rbf_nets
+
+from pvvjax.analysis.databases import DB_INPUTS, OUTPUT
+from pvvjax.data.campaign import load_campaign
+from pvvjax.nets.networks import mlp_init, mlp_pad, scaling
+from pvvjax.realtime.cexport import CElement, CSourceLimits, c_compiler, compile_shared, write_c_element
+from pvvjax.realtime.element import CHANNELS, VibrationElement
+from pvvjax.realtime.npnet import NumpyNet
+
+pytestmark = pytest.mark.skipif(c_compiler() is None, reason="no C compiler (set CC or install cc/gcc/clang)")
+
+KINDS = ["pullup", "pushover", "roll", "autorotation", "flare", "level", "turn", "climb", "descent"]
+SETTINGS = dict(window_revs=8.0, hop_revs=1.0, offset_s=0.6, stick_offset_s=-0.3)
+TOL = 1e-6  # g
+
+
+@pytest.fixture(scope="module")
+def element(small_campaign_dir, small_dbs, tmp_path_factory):
+    """Two RBF and two padded MLP nets of db1 (an even count: the median of the middle two), a
+    narrowed envelope (some windows flagged), seat-shake harmonics, and the compiled C element."""
+    camp = load_campaign(small_campaign_dir)
+    params, (lo, hi) = rbf_nets(small_dbs, "db1", n=2)
+    db = small_dbs["db1"]
+    x = db[list(DB_INPUTS["db1"])].to_numpy(np.float32)
+    y = db[OUTPUT].to_numpy(np.float32)
+    for seed in (0, 1):
+        p = mlp_pad(mlp_init(jax.random.key(seed), x.shape[1], (10, 5), scale=scaling(x, y)), (12, 8), x.shape[1])
+        params.append(jax.tree.map(np.asarray, p))
+    nets = [NumpyNet(p) for p in params]
+    envelope = (lo, lo + 0.8 * (hi - lo))
+    spec = dict(inputs=list(DB_INPUTS["db1"]), envelope=dict(lo=list(envelope[0]), hi=list(envelope[1])),
+                phase_rad=0.3, harmonics={"1": [0.2, 0.5], "8": [0.1, -1.0]}, aircraft=dict(blades=4), **SETTINGS)
+    folder = write_c_element(tmp_path_factory.mktemp("c"), spec, nets, source="test nets")
+    lib = compile_shared([folder / "pvv_element.c"], folder / "libpvv.so",
+                         flags=("-O2", "-Wall", "-Wextra", "-pedantic", "-Werror"))
+    reference = lambda: VibrationElement(nets, DB_INPUTS["db1"], envelope=envelope, phase_rad=0.3,  # noqa: E731
+                                         harmonics={1: (0.2, 0.5), 8: (0.1, -1.0)}, **SETTINGS)
+    return dict(camp=camp, spec=spec, nets=nets, lib=lib, reference=reference, folder=folder)
+
+
+def _frames(camp, kind):
+    counter = camp.counters.index[camp.counters.maneuver == kind][0]
+    rec = camp.records[counter]
+    return rec.time_s.to_numpy(), rec.azimuth_deg.to_numpy(), rec[list(CHANNELS)].to_numpy(float)
+
+
+def _compare(ref, c, frames):
+    """Step both over frames (t, az or None, x); the largest PVV and shake difference and the flags."""
+    worst, flags = 0.0, []
+    for t, az, x in frames:
+        a, b = ref.step(t, az, x), c.step(t, az, x)
+        worst = max(worst, abs(a.pvv_g - b["pvv_g"]), abs(a.shake_g - b["shake_g"]),
+                    abs(a.amplitude_g - b["amplitude_g"]))
+        assert (a.ready, a.out_of_envelope, a.rejected) == (b["ready"], b["out_of_envelope"], b["rejected"])
+        flags.append(a.out_of_envelope)
+    return worst, flags
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_c_element_equals_the_numpy_element(element, kind):
+    T, AZ, X = _frames(element["camp"], kind)
+    frames = list(zip(T, AZ, X))
+    # A frame with a NaN channel and one whose time does not advance are rejected by both.
+    frames.insert(400, (T[400], AZ[400], np.where(np.arange(X.shape[1]) == 3, np.nan, X[400])))
+    frames.insert(600, (T[598], AZ[598], X[598]))
+    worst, flags = _compare(element["reference"](), CElement(element["lib"]), frames)
+    assert worst < TOL
+    if kind == "pullup":
+        assert any(flags) and not all(flags)  # windows inside and outside the envelope
+
+
+def test_c_element_integrates_the_rotor_speed_and_resets(element):
+    T, AZ, X = _frames(element["camp"], "autorotation")  # the rotor speed changes
+    ref, c = element["reference"](), CElement(element["lib"])
+    worst, _ = _compare(ref, c, [(t, None, x) for t, x in zip(T, X)])
+    assert worst < TOL
+    ref.reset()
+    c.reset()
+    worst, _ = _compare(ref, c, list(zip(T[:3000], AZ[:3000], X[:3000])))
+    assert worst < TOL
+
+
+def test_c_element_settings_and_overflow(element, tmp_path):
+    with pytest.raises(ValueError, match="outside its limits"):
+        CElement(element["lib"], window_revs=40.0)
+    with pytest.raises(ValueError, match="outside its limits"):
+        CElement(element["lib"], hop_revs=9.0)  # more than the window
+    # Sized for 40 frames/s, fed 320: the oldest frames go, the element says so and keeps going.
+    folder = write_c_element(tmp_path, element["spec"], element["nets"], CSourceLimits(max_rate_hz=40.0))
+    small = CElement(compile_shared([folder / "pvv_element.c"], tmp_path / "small.so"))
+    T, AZ, X = _frames(element["camp"], "level")
+    outs = [small.step(t, az, x) for t, az, x in zip(T[:4000], AZ[:4000], X[:4000])]
+    assert outs[-1]["overflow"] and not outs[0]["overflow"]
+    assert all(np.isfinite(o["pvv_g"]) and np.isfinite(o["shake_g"]) for o in outs)
+
+
+def test_c_source_is_self_contained(element):
+    src = (element["folder"] / "pvv_element.c").read_text() + (element["folder"] / "pvv_element.h").read_text()
+    includes = sorted({line.split()[1] for line in src.splitlines() if line.startswith("#include")})
+    assert includes == ['"pvv_element.h"', "<math.h>", "<stddef.h>", "<string.h>"]
+    assert "malloc" not in src and "calloc" not in src
+    assert src.count("static double net") == 4
+
+
+@pytest.fixture(scope="module")
+def fmu(element, tmp_path_factory):
+    pytest.importorskip("fmpy", reason="FMPy is in the sim extra (make test installs it)")
+    from pvvjax.realtime.fmu import build_fmu
+
+    return build_fmu(tmp_path_factory.mktemp("fmu") / "pvv_element.fmu", element["spec"], element["nets"])
+
+
+def test_fmu_passes_fmpy_validation(fmu):
+    import fmpy
+    from fmpy.validation import validate_fmu
+
+    assert validate_fmu(str(fmu)) == []
+    md = fmpy.read_model_description(str(fmu))
+    assert md.fmiVersion == "2.0" and md.coSimulation.modelIdentifier == "pvv_element"
+    by = {v.name: v for v in md.modelVariables}
+    assert [v.name for v in md.modelVariables if v.causality == "input"] == [
+        "airspeed_kt", "gross_weight_lb", "rotor_rpm", "density_ratio", "pitch_rate_dps", "roll_angle_deg",
+        "climb_rate_fpm", "azimuth_deg"]  # db1's channels (and what its features need)
+    assert (by["airspeed_kt"].unit, by["climb_rate_fpm"].unit, by["pvv_g"].unit) == ("kt", "ft/min", "g")
+    assert {v.name for v in md.modelVariables if v.causality == "output"} == {
+        "pvv_g", "shake_g", "amplitude_g", "window_time_s", "ready", "out_of_envelope", "rejected", "overflow"}
+    assert float(by["offset_s"].start) == 0.6 and float(by["window_revs"].max) == 16.0
+
+
+@pytest.mark.parametrize("kind", ["pullup", "autorotation"])
+def test_fmpy_simulation_equals_the_numpy_element(element, fmu, kind):
+    """FMPy as the host: the recorded counter at the campaign's frame rate; the output after the
+    step from t is the element's output for the frame at t."""
+    import fmpy
+
+    T, AZ, X = _frames(element["camp"], kind)
+    dt = float(np.median(np.diff(T)))
+    assert np.allclose(np.diff(T), dt)
+    md = fmpy.read_model_description(str(fmu))
+    names = [v.name for v in md.modelVariables if v.causality == "input"]
+    signal = np.zeros(len(T), [("time", float)] + [(k, float) for k in names])
+    signal["time"] = T
+    for k in names:
+        signal[k] = AZ if k == "azimuth_deg" else X[:, CHANNELS.index(k)]
+    res = fmpy.simulate_fmu(str(fmu), start_time=T[0], stop_time=T[-1], step_size=dt, output_interval=dt,
+                            input=signal, output=["pvv_g", "shake_g", "out_of_envelope", "ready"],
+                            start_values={"stick_offset_s": -0.3})
+    ref = element["reference"]()
+    outs = [ref.step(t, az, x) for t, az, x in zip(T, AZ, X)]
+    want = np.array([(o.pvv_g, o.shake_g, o.out_of_envelope) for o in outs])
+    got = np.stack([res["pvv_g"], res["shake_g"], res["out_of_envelope"]], 1)[1:]
+    n = len(got)
+    assert n >= len(T) - 1 and res["ready"][-1]
+    np.testing.assert_allclose(got[:, :2], want[:n, :2], rtol=0, atol=TOL)
+    assert (got[:, 2] == want[:n, 2]).all()
