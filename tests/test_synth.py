@@ -215,3 +215,47 @@ def test_concurrent_callers_generate_a_cached_campaign_once(tmp_path, monkeypatc
         t.join()
     assert len(calls) == 1 and got[0] == got[1] and len(load_campaign(got[0])) == 1
     assert cached_campaign(cfg, tmp_path) == got[0] and len(calls) == 1
+
+
+# The JSBSim AH-1S's rotor (aircraft/ah1s: 44 ft diameter, 2 blades, 324 rpm, 2.25 ft chord).
+AH1S = dict(blades=2, rotor_radius_ft=22.0, nominal_rpm=324.0, chord_ft=2.25, solidity=0.06511)
+
+
+def test_a_two_bladed_campaign_vibrates_at_2_per_rev_end_to_end(small_dbs):
+    """synth -> harmonics -> databases on a 2-bladed rotor: 2/rev dominates the floor signal,
+    the databases take it by default, and by similarity the peaks are the UH-60A campaign's."""
+    from conftest import SMALL_COUNTS
+
+    from pvvjax.analysis import analyze, build_databases
+    from pvvjax.config import AnalysisConfig
+    from pvvjax.data.batch import to_batch
+    from pvvjax.synth import cached_campaign
+
+    cfg = SynthConfig(name="small-2-bladed", counts=SMALL_COUNTS, sample_rate_hz=400.0, aircraft=AH1S)
+    camp = load_campaign(cached_campaign(cfg))
+    assert (camp.aircraft.blades, camp.aircraft.nominal_rpm, camp.aircraft.rotor_radius_ft) == (2, 324.0, 22.0)
+    batch = to_batch(camp, [])
+    level = {}
+    for k in range(1, 9):
+        w = analyze(batch, 8.0, harmonic=k)
+        level[k] = float(np.median(np.asarray(w.amplitude)[np.asarray(w.valid)]))
+    others = max(v for k, v in level.items() if k != 2)
+    assert level[2] > 3 * others  # N/rev dominates
+    assert level[4] > 5 * max(level[k] for k in (3, 5, 6, 7, 8))  # and 2N/rev is there (1P, 2P beside)
+    dbs = build_databases(camp)  # the analysed harmonic defaults to the blade count
+    peaks = dbs["peaks"].set_index("condition")
+    uh60 = small_dbs["peaks"].set_index("condition").loc[peaks.index]
+    assert 0.95 < float(np.median(peaks[OUTPUT] / uh60[OUTPUT])) < 1.05
+    np.testing.assert_allclose(peaks.advance_ratio, uh60.advance_ratio, rtol=0.06)
+    assert 0.55 < float(np.median(peaks.gross_weight_lb / uh60.gross_weight_lb)) < 0.57  # the same C_W/σ
+    at_4 = build_databases(camp, AnalysisConfig(harmonic=4))["peaks"].set_index("condition")
+    assert float(np.median(at_4[OUTPUT] / peaks[OUTPUT])) < 0.4
+
+
+def test_aircraft_constants_are_checked():
+    with pytest.raises(ValueError, match="aircraft.rotor_diameter_ft: unknown constant"):
+        SynthConfig(aircraft=dict(rotor_diameter_ft=44.0))
+    with pytest.raises(ValueError, match="aircraft.blades: must be a whole number"):
+        SynthConfig(aircraft=dict(blades=2.5))
+    with pytest.raises(ValueError, match="at least 397 Hz"):
+        SynthConfig(aircraft=AH1S)  # 320 Hz is too slow for 64 samples per revolution at 324 rpm

@@ -111,7 +111,7 @@ def peak_table(campaign: Campaign, analysis: AnalysisConfig = AnalysisConfig()) 
     conds = campaign.conditions()
     counters = [c for cs in conds.values() for c in cs]
     batch = to_batch(campaign, STATE_CHANNELS, counters)
-    win = analyze(batch, analysis.window_revs, analysis.hop, harmonic=analysis.harmonic,
+    win = analyze(batch, analysis.window_revs, analysis.hop, harmonic=analysis.harmonic or campaign.aircraft.blades,
                   taper_revs=analysis.taper_revs)
     if not bool(np.asarray(win.valid).any(axis=1).all()):
         short = [c for c, ok in zip(counters, np.asarray(win.valid).any(axis=1)) if not ok]

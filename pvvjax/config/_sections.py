@@ -41,7 +41,8 @@ class AnalysisConfig:
     Attributes:
         window_revs: window length L in rotor revolutions (paper: 8). Continuous.
         hop_revs: window start spacing in revolutions; 0 means consecutive windows (= L).
-        harmonic: harmonic order k analysed (4 for the 4-bladed UH-60A: 4/rev).
+        harmonic: harmonic order k analysed; unset, the aircraft's blade count N (the
+            blade-passage N/rev: 4/rev on the UH-60A).
         taper_revs: width of the raised-cosine window edges in revolutions; 0 gives the
             rectangular window (edges resolved to fractions of a sample).
         inputs: how a database row takes the flight state at the peak window: "mean"
@@ -51,7 +52,7 @@ class AnalysisConfig:
 
     window_revs: float = 8.0
     hop_revs: float = 0.0
-    harmonic: int = 4
+    harmonic: int | None = None
     taper_revs: float = 0.0
     inputs: Literal["mean", "center"] = "mean"
 
@@ -60,7 +61,7 @@ class AnalysisConfig:
             raise ValueError(f"window_revs must be > 0, got {self.window_revs}")
         if self.hop_revs < 0:
             raise ValueError(f"hop_revs must be >= 0, got {self.hop_revs}")
-        if self.harmonic < 1:
+        if self.harmonic is not None and self.harmonic < 1:
             raise ValueError(f"harmonic must be >= 1, got {self.harmonic}")
         if self.taper_revs < 0 or self.taper_revs >= self.window_revs:
             raise ValueError(f"taper_revs must be in [0, window_revs), got {self.taper_revs}")

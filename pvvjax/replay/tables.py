@@ -62,7 +62,7 @@ def load_replay_set(campaign: Campaign, counters, sweep_dir, databases, architec
     """
     info = campaign.counters.loc[list(counters), ["maneuver", "condition"]]
     batch = to_batch(campaign, STATE_CHANNELS, list(counters))
-    recs = prepare(batch)
+    recs = prepare(batch, harmonic=campaign.aircraft.blades)
     models = {db: heldout_models(Path(sweep_dir), db, list(info.condition), architecture or None) for db in databases}
     return info, batch, recs, models
 

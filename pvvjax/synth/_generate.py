@@ -1,4 +1,5 @@
-"""Generate, write and cache synthetic UH-60A flight-test campaigns."""
+"""Generate, write and cache synthetic flight-test campaigns (the UH-60A, or UH-60A-like physics
+scaled to another rotor)."""
 
 from __future__ import annotations
 
@@ -24,9 +25,10 @@ else:  # pragma: no cover
 from .._strict import to_dict
 from ..config import config_hash, load_config
 from ..data.campaign import write_campaign
-from ..data.constants import UH60A
+from ..data.constants import UH60A, Aircraft
 from . import _flight
 from ._conditions import DEFAULT_COUNTS, NAMED, Condition, catalogue, condition_rng, pilot_plan
+from ._scaling import scale_states, similarity
 from ._vibration import EFFECTS, amplitude_4p, vibration_state
 
 GENERATOR_VERSION = "1"
@@ -62,6 +64,11 @@ class SynthConfig:
             (trim, controls, the `gross_weight_lb` column) keeps each condition's own: the same
             campaign with a 4P level that does not depend on weight (a reference for a study
             of weight missing from a database).
+        aircraft: constants of another aircraft (`pvvjax.data.Aircraft` fields: blades,
+            rotor_radius_ft, nominal_rpm, chord_ft, solidity, ...; empty: the UH-60A). The
+            campaign is then UH-60A-like physics scaled to that rotor (same advance ratio,
+            blade loading and load factor; its rotor speed, weights and speeds; its N/rev and
+            2N/rev content), written into campaign.toml: a stand-in until measured data exist.
     """
 
     name: str = "uh60a-synthetic"
@@ -76,6 +83,11 @@ class SynthConfig:
     counts: dict[str, int] = field(default_factory=dict)
     effects: dict[str, EffectConfig] = field(default_factory=dict)
     vibration_weight_lb: float | None = None
+    aircraft: dict[str, float] = field(default_factory=dict)
+
+    def aircraft_constants(self) -> Aircraft:
+        """The aircraft the campaign is flown on."""
+        return UH60A._replace(**{k: int(v) if k == "blades" else float(v) for k, v in self.aircraft.items()})
 
     def __post_init__(self):
         if self.vibration_weight_lb is not None and not self.vibration_weight_lb > 0:
@@ -95,8 +107,16 @@ class SynthConfig:
                 raise ValueError(f"counts.{kind}: unknown maneuver; known: {', '.join(DEFAULT_COUNTS)}")
             if n < 0:
                 raise ValueError(f"counts.{kind}: must be >= 0, got {n}")
-        if self.sample_rate_hz < 64 * 1.15 * UH60A.nominal_rpm / 60:
-            raise ValueError(f"sample_rate_hz {self.sample_rate_hz} gives fewer than 64 samples per revolution")
+        for key, value in self.aircraft.items():
+            if key not in Aircraft._fields:
+                raise ValueError(f"aircraft.{key}: unknown constant; known: {', '.join(Aircraft._fields)}")
+            if not value > 0 or (key == "blades" and value != int(value)):
+                raise ValueError(f"aircraft.{key}: must be {'a whole number ' if key == 'blades' else ''}> 0, "
+                                 f"got {value}")
+        rpm = self.aircraft_constants().nominal_rpm
+        if self.sample_rate_hz < 64 * 1.15 * rpm / 60:
+            raise ValueError(f"sample_rate_hz {self.sample_rate_hz} gives fewer than 64 samples per revolution at "
+                             f"115 % of {rpm:g} rpm (at least {64 * 1.15 * rpm / 60:.0f} Hz)")
 
     def effect_settings(self) -> dict[str, tuple[bool, float, dict]]:
         """name -> (enabled, scale, params) with defaults filled in."""
@@ -165,13 +185,15 @@ def generate(cfg: SynthConfig = SynthConfig()) -> tuple[pd.DataFrame, dict[str, 
         conds = [c for c in conds if c.id in set(cfg.conditions)]
     if cfg.maneuvers:
         conds = [c for c in conds if c.maneuver in set(cfg.maneuvers)]
+    ac = cfg.aircraft_constants()
     t, states = _simulate(conds, cfg)
+    states = scale_states(states, ac)
     dt = float(t[1] - t[0])
     settings = cfg.effect_settings()
     seen = states  # what the vibration sees; the flight and its channels keep each condition's weight
     if cfg.vibration_weight_lb is not None:
         seen = {**states, "gross_weight_lb": np.full_like(states["gross_weight_lb"], cfg.vibration_weight_lb)}
-    vstate = vibration_state(seen, UH60A)
+    vstate = vibration_state(seen, ac)
     # Condition-to-condition scatter (a per-condition constant, so its order with the lag is
     # immaterial); the paper's named conditions are the calibration anchors and carry none.
     named = {c.id for c in NAMED}
@@ -193,9 +215,10 @@ def generate(cfg: SynthConfig = SynthConfig()) -> tuple[pd.DataFrame, dict[str, 
         nz = interp(states["nz_g"])
         a1, a2 = rng.uniform(0.015, 0.04), 0.01 + 0.05 * np.abs(nz - 1.0)
         p1, p2, p4, p8 = rng.uniform(0, 2 * np.pi, 4)
+        n = ac.blades  # the blade-passage harmonic N/rev and its 2N/rev
         az = (nz + a1 * np.cos(psi + p1) + a2 * np.cos(2 * psi + p2)
-              + amp4 * np.cos(4 * psi + p4 + interp(phi4))
-              + 0.2 * amp4 * np.cos(8 * psi + p8)
+              + amp4 * np.cos(n * psi + p4 + interp(phi4))
+              + 0.2 * amp4 * np.cos(2 * n * psi + p8)
               + cfg.noise_g * rng.standard_normal(ts.size))
         ch = {
             "time_s": ts, "az_g": az, "azimuth_deg": np.mod(np.rad2deg(psi), 360.0), "rotor_rpm": rpm,
@@ -211,21 +234,22 @@ def generate(cfg: SynthConfig = SynthConfig()) -> tuple[pd.DataFrame, dict[str, 
         names = c.counter_names
         if len(names) == 1:
             records[names[0]] = df
-            rows.append(_row(names[0], c, 1))
+            rows.append(_row(names[0], c, 1, ac))
         else:  # one continuous flight cut into equal segments, each with time from its start
             cut = np.array_split(np.arange(len(df)), len(names))
             for seg, (name, idx) in enumerate(zip(names, cut), start=1):
                 part = df.iloc[idx].reset_index(drop=True)
                 part["time_s"] = ts[idx] - ts[idx[0]]
                 records[name] = part
-                rows.append(_row(name, c, seg))
+                rows.append(_row(name, c, seg, ac))
     return pd.DataFrame(rows), records, ground_truth(cfg)
 
 
-def _row(counter: str, c: Condition, segment: int) -> dict:
+def _row(counter: str, c: Condition, segment: int, aircraft: Aircraft) -> dict:
+    f = similarity(aircraft) if aircraft != UH60A else dict(weight=1.0, speed=1.0)
     return dict(counter=counter, maneuver=c.maneuver, condition=c.id, segment=segment,
-                gross_weight_lb=c.gross_weight_lb, density_ratio=round(c.density_ratio, 4),
-                description=c.description or f"{c.maneuver}, {c.airspeed_kt:.0f} kt")
+                gross_weight_lb=c.gross_weight_lb * f["weight"], density_ratio=round(c.density_ratio, 4),
+                description=c.description or f"{c.maneuver}, {c.airspeed_kt * f['speed']:.0f} kt")
 
 
 def _is_synthetic(folder: Path) -> bool:
@@ -259,7 +283,8 @@ def write_synthetic(out, cfg: SynthConfig = SynthConfig(), truth_path=None, forc
     if truth_path.resolve().is_relative_to(out.resolve()):
         raise ValueError(f"ground truth {truth_path} must not be inside the campaign folder {out}")
     counters, records, truth = generate(cfg)
-    write_campaign(out, counters, records, fmt=cfg.format,
+    ac = cfg.aircraft_constants()
+    write_campaign(out, counters, records, fmt=cfg.format, aircraft=None if ac == UH60A else ac,
                    provenance=dict(generator="pvvjax.synth", generator_version=GENERATOR_VERSION,
                                    name=cfg.name, seed=cfg.seed, config_hash=config_hash(cfg)))
     truth_path.parent.mkdir(parents=True, exist_ok=True)

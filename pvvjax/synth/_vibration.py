@@ -138,8 +138,11 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in [
 
 
 def vibration_state(states: dict, aircraft) -> dict:
-    """The quantities effects use, from simulated (K, N) state arrays."""
-    from ..data.constants import KT_TO_FT_S, RPM_TO_RAD_S
+    """The quantities effects use, from simulated (K, N) state arrays. The blade-passage
+    frequency `f4` is expressed at the UH-60A's scale (N/rev over the aircraft's nominal N/rev,
+    times the UH-60A's 4/rev at its nominal rpm), so that the airframe resonance sits at the
+    same place relative to the rotor on every aircraft."""
+    from ..data.constants import KT_TO_FT_S, RPM_TO_RAD_S, UH60A
 
     vt = states["rotor_rpm"] * RPM_TO_RAD_S * aircraft.rotor_radius_ft
     mu = states["airspeed_kt"] * KT_TO_FT_S / vt
@@ -149,7 +152,7 @@ def vibration_state(states: dict, aircraft) -> dict:
         mu=mu, loading=cw / aircraft.solidity * states["nz_g"], climb_fpm=states["climb_rate_fpm"],
         q=states["pitch_rate_dps"], p=states["roll_rate_dps"], qdot=states["pitch_accel_dps2"],
         beta=states["sideslip_deg"], collective=states["collective_pct"],
-        f4=aircraft.blades * states["rotor_rpm"] / 60.0,
+        f4=aircraft.blades * states["rotor_rpm"] / 60.0 * (UH60A.nominal_np_hz() / aircraft.nominal_np_hz()),
     )
 
 
