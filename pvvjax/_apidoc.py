@@ -39,6 +39,7 @@ MODULES = [
     "realtime.export",
     "realtime.cexport",
     "realtime.fmu",
+    "realtime.jsbsim",
     "synth",
     "paper.comparison",
     "config",

@@ -25,7 +25,8 @@ __all__ = ["element_spec", "seat_shake_content", "write_element"]
 def seat_shake_content(campaign: Campaign, window_revs: float, harmonic: int | None = None) -> tuple[float, dict]:
     """The flight test's seat shake as the element synthesises it: the phase of the analysed
     harmonic (rad, amplitude-weighted over every valid window), and the 1P, 2P and 2N/rev
-    content beside it as {k: [median amplitude ratio to the analysed harmonic, weighted phase]}.
+    content beside it (those that are not N/rev itself) as {k: [median amplitude ratio to the
+    analysed harmonic, weighted phase]}.
 
     Args:
         campaign: the flight test. window_revs: analysis window, revolutions.
@@ -38,7 +39,7 @@ def seat_shake_content(campaign: Campaign, window_revs: float, harmonic: int | N
     an = np.asarray(wn.amplitude)[valid]
     phase = float(np.angle(np.sum(an * np.exp(1j * np.asarray(wn.phase)[valid]))))
     content = {}
-    for k in (1, 2, 2 * harmonic):
+    for k in sorted({1, 2, 2 * harmonic} - {harmonic}):  # a 2-bladed rotor's 2P is its N/rev
         wk = analyze(batch, window_revs, harmonic=k)
         ak, pk = np.asarray(wk.amplitude)[valid], np.asarray(wk.phase)[valid]
         content[k] = [float(np.median(ak / an)), float(np.angle(np.sum(ak * np.exp(1j * pk))))]

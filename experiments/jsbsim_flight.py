@@ -1,0 +1,231 @@
+"""JSBSim's AH-1S flown with the vibration element in the loop.
+
+    python experiments/jsbsim_flight.py experiments/configs/jsbsim-ah1s.toml [--docs]
+
+1. The AH-1S's rotor constants are read from JSBSim's model (`realtime.jsbsim_aircraft`).
+2. A synthetic campaign of that aircraft (UH-60A-like physics scaled to its 2-bladed rotor:
+   a stand-in until measured data exist) trains the config's nets (`pvvjax sweep`), exported as
+   the element (`pvvjax export --element`: NumPy; and C, `--format c`, where a C compiler is).
+3. Each flight of the config runs JSBSim's `ah1s_flight_test.xml` script frame by frame; each
+   frame is mapped to the data contract's channels (`realtime.JSBSIM_CHANNELS`) and fed to the
+   element, the rotor azimuth integrated from the rotor speed. A flight may add a pitch-attitude
+   pulse through the AFCS trim (`ap/afcs/manual/theta-trim-rad`).
+
+Writes, under OUT_DIR/NAME: per flight `FLIGHT.parquet` (every frame: the channels, PVV, seat
+shake, flags, per-frame latency), `flights.csv` (one row per flight) and `flights.png` (airspeed,
+pitch rate and rotor speed over PVV and seat shake); with --docs the figure also goes to
+docs/figures/jsbsim_ah1s.png.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from pvvjax.config import CampaignConfig, ExperimentConfig, SweepConfig, TrainConfig, load_config
+from pvvjax.realtime import CElement, VibrationElement, c_compiler, compile_shared
+from pvvjax.realtime.jsbsim import JSBSIM_CHANNELS, frame_channels, jsbsim_aircraft, quiet_stdout
+
+THETA_TRIM = "ap/afcs/manual/theta-trim-rad"
+
+
+@dataclass(frozen=True)
+class Flight:
+    """One flight of the script.
+
+    Attributes:
+        variant: the script's `simulation/test-variant` (1: AFCS-held acceleration to maximum
+            speed at 5000 ft; 3: 90 kt at 5000 ft, power loss, autorotation and flare).
+        end_s: stop at this simulation time, s (or where the script ends).
+        pulse_at_s, pulse_s, pulse_rad: a pitch-attitude pulse: the AFCS pitch trim raised by
+            pulse_rad for pulse_s from pulse_at_s (0 s: none).
+    """
+
+    variant: int = 1
+    end_s: float = 600.0
+    pulse_at_s: float = 0.0
+    pulse_s: float = 0.0
+    pulse_rad: float = 0.0
+
+
+@dataclass(frozen=True)
+class JSBSimFlightConfig:
+    """The example: the aircraft, its synthetic campaign and nets, the element, the flights.
+
+    Attributes:
+        name, out_dir: results go to out_dir/name.
+        aircraft, script: JSBSim's model and script (relative to JSBSim's root folder).
+        sample_rate_hz: the synthetic campaign's sample rate (64 per revolution at 115 % rpm).
+        counts: the campaign's random conditions per maneuver kind (empty: the default campaign).
+        database, offset_s, window_revs, hop_revs: the element (`pvvjax export --element`).
+        sweep, train: the nets (as an experiment config's sections).
+        flights: name -> `Flight`.
+    """
+
+    name: str = "jsbsim-ah1s"
+    out_dir: str = "runs"
+    aircraft: str = "ah1s"
+    script: str = "scripts/ah1s_flight_test.xml"
+    sample_rate_hz: float = 400.0
+    counts: dict[str, int] = field(default_factory=dict)
+    database: str = "db1"
+    offset_s: float = 0.5
+    window_revs: float = 8.0
+    hop_revs: float = 1.0
+    sweep: SweepConfig = field(default_factory=SweepConfig)
+    train: TrainConfig = field(default_factory=TrainConfig)
+    flights: dict[str, Flight] = field(default_factory=dict)
+
+
+def train_element(cfg: JSBSimFlightConfig, out: Path) -> tuple[Path, Path | None]:
+    """The aircraft's campaign, nets and element; returns (NumPy element folder, C library or None)."""
+    import jsbsim
+
+    from pvvjax.experiment import prepare_sweep
+    from pvvjax.synth import SynthConfig, cached_campaign
+
+    constants = jsbsim_aircraft(jsbsim.get_default_root_dir(), cfg.aircraft)
+    print(f"{cfg.aircraft} from JSBSim: " + ", ".join(f"{k} {v:g}" for k, v in constants.items()))
+    scfg = SynthConfig(name=f"{cfg.aircraft}-synthetic", sample_rate_hz=cfg.sample_rate_hz, counts=dict(cfg.counts),
+                       aircraft=constants)
+    campaign = cached_campaign(scfg)
+    print(f"synthetic {cfg.aircraft} campaign (UH-60A-like physics scaled to its rotor): {campaign}")
+    ecfg = ExperimentConfig(name=cfg.name, out_dir=cfg.out_dir, campaign=CampaignConfig(path=str(campaign)),
+                            sweep=dataclasses.replace(cfg.sweep, databases=(cfg.database,)), train=cfg.train)
+    _, _, res, sweep = prepare_sweep(ecfg, out / "sweep")
+    print(f"{len(res)} nets in {sweep}")
+    export = [sys.executable, "-m", "pvvjax", "export", str(sweep), "--element", "--database", cfg.database,
+              "--offset", repr(cfg.offset_s), "--window", repr(cfg.window_revs), "--hop", repr(cfg.hop_revs)]
+    subprocess.run(export + ["--out", str(out / "element")], check=True)
+    if c_compiler() is None:
+        print("no C compiler: the C element is left out")
+        return out / "element", None
+    subprocess.run(export + ["--format", "c", "--max-rate", "200", "--out", str(out / "c")], check=True)
+    return out / "element", compile_shared([out / "c" / "pvv_element.c"], out / "c" / "libpvv_element.so")
+
+
+def fly(cfg: JSBSimFlightConfig, flight: Flight, element: Path, c_library: Path | None) -> pd.DataFrame:
+    """One flight, every JSBSim frame through the element (and the C element): a frame table."""
+    import jsbsim
+
+    el = VibrationElement.load(element)
+    cel = CElement(c_library) if c_library else None
+    rows, clock = [], time.perf_counter_ns
+    with quiet_stdout():
+        fdm = jsbsim.FGFDMExec(jsbsim.get_default_root_dir())
+        fdm.set_debug_level(0)
+        fdm.load_script(cfg.script)
+        fdm["simulation/test-variant"] = flight.variant
+        fdm.run_ic()
+        trim = None
+        while fdm.get_sim_time() < flight.end_s and fdm.run():
+            t = fdm.get_sim_time()
+            if flight.pulse_s and t >= flight.pulse_at_s:
+                trim = fdm[THETA_TRIM] if trim is None else trim
+                fdm[THETA_TRIM] = trim + (flight.pulse_rad if t < flight.pulse_at_s + flight.pulse_s else 0.0)
+            t, x = frame_channels(fdm)
+            s = clock()
+            o = el.step(t, None, x)  # no azimuth in JSBSim's rotor model: the rotor speed is integrated
+            lat = (clock() - s) / 1e3
+            row = [t, *x, o.pvv_g, o.shake_g, o.amplitude_g, o.ready, o.out_of_envelope, o.rejected, lat]
+            if cel is not None:
+                s = clock()
+                c = cel.step(t, None, x)
+                row += [c["pvv_g"], c["shake_g"], (clock() - s) / 1e3]
+            rows.append(row)
+    cols = ["time_s", *JSBSIM_CHANNELS, "pvv_g", "shake_g", "amplitude_g", "ready", "out_of_envelope", "rejected",
+            "latency_us"] + (["c_pvv_g", "c_shake_g", "c_latency_us"] if cel is not None else [])
+    df = pd.DataFrame(rows, columns=cols)
+    return df.astype({k: bool for k in ("ready", "out_of_envelope", "rejected")})
+
+
+def summarize(name: str, df: pd.DataFrame) -> dict:
+    ready = df[df.ready]
+    row = dict(flight=name, frames=len(df), sim_s=float(df.time_s.iloc[-1] - df.time_s.iloc[0]),
+               frame_rate_hz=float(1.0 / np.median(np.diff(df.time_s))), max_pvv_g=float(ready.pvv_g.max()),
+               out_of_envelope_share=float(ready.out_of_envelope.mean()), rejected=int(df.rejected.sum()),
+               numpy_latency_median_us=float(df.latency_us.median()),
+               numpy_latency_p99_us=float(df.latency_us.quantile(0.99)))
+    if "c_pvv_g" in df:
+        row.update(c_latency_median_us=float(df.c_latency_us.median()),
+                   c_latency_p99_us=float(df.c_latency_us.quantile(0.99)),
+                   c_minus_numpy_g=float(np.abs(df[["c_pvv_g", "c_shake_g"]].to_numpy()
+                                                - df[["pvv_g", "shake_g"]].to_numpy()).max()))
+    return row
+
+
+def figure(flights: dict[str, pd.DataFrame], plans: dict[str, Flight], path: Path):
+    """Airspeed, pitch rate and rotor speed over PVV and seat shake, a column per flight (a
+    flight with a pitch pulse from 20 s before it)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = [("airspeed_kt", "airspeed, kt"), ("pitch_rate_dps", "pitch rate, deg/s"), ("rotor_rpm", "rotor, rpm")]
+    fig, axes = plt.subplots(4, len(flights), figsize=(4.2 * len(flights), 8), sharex="col", squeeze=False)
+    for col, (name, df) in enumerate(flights.items()):
+        if plans[name].pulse_s:
+            df = df[df.time_s >= plans[name].pulse_at_s - 20.0]
+        for r, (k, label) in enumerate(rows):
+            axes[r, col].plot(df.time_s, df[k], "k-", lw=0.8)
+            axes[r, col].set_ylabel(label if col == 0 else "")
+        ax = axes[3, col]
+        flagged = df.ready & df.out_of_envelope
+        ax.fill_between(df.time_s, 0, 1, where=flagged, transform=ax.get_xaxis_transform(), color="0.85", lw=0,
+                        label="out of envelope", zorder=0)
+        ax.plot(df.time_s, df.shake_g, color="C3", lw=0.15, alpha=0.35, label="seat shake")
+        ax.plot(df.time_s, df.pvv_g, "C0-", lw=1.4, label="PVV")
+        ax.set_ylabel("g" if col == 0 else "")
+        ax.set_xlabel("simulation time, s")
+        axes[0, col].set_title(name)
+        if col == 0:
+            ax.legend(fontsize=7, loc="upper left")
+        for a in axes[:, col]:
+            a.grid(alpha=0.3)
+    fig.suptitle("JSBSim AH-1S with the vibration element in the loop (2/rev, synthetic training campaign)")
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("config", help="the example's config (experiments/configs/jsbsim-ah1s.toml)")
+    ap.add_argument("--docs", action="store_true", help="also write docs/figures/jsbsim_ah1s.png")
+    args = ap.parse_args(argv)
+    cfg = load_config(args.config, JSBSimFlightConfig)
+    if not cfg.flights:
+        sys.exit(f"{args.config}: no [flights.NAME] to fly")
+    out = Path(cfg.out_dir) / cfg.name
+    element, c_library = train_element(cfg, out)
+    flights, rows = {}, []
+    for name, flight in cfg.flights.items():
+        t0 = time.perf_counter()
+        df = fly(cfg, flight, element, c_library)
+        df.to_parquet(out / f"{name}.parquet", index=False)
+        flights[name] = df
+        rows.append(summarize(name, df))
+        print(f"{name}: {len(df)} frames, {df.time_s.iloc[-1]:.0f} s flown in {time.perf_counter() - t0:.1f} s; "
+              f"{out / (name + '.parquet')}")
+    table = pd.DataFrame(rows)
+    table.to_csv(out / "flights.csv", index=False)
+    print(table.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
+    figure(flights, cfg.flights, out / "flights.png")
+    if args.docs:
+        figure(flights, cfg.flights, Path("docs/figures/jsbsim_ah1s.png"))
+    print(f"summary: {out / 'flights.csv'}; figure: {out / 'flights.png'}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
