@@ -86,7 +86,8 @@ def test_sweep_then_export_a_numpy_net(tmp_path, small_campaign_dir, capsys):
     assert sig.pvv_g.notna().all() and sig.pvv_g.max() > 0.05 and sig.shake_g.abs().max() > 0.0
 
 
-def test_replay_config_mistakes_are_clear_errors(tmp_path, capsys):
+def test_replay_config_mistakes_are_clear_errors(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # the configs' default results folder, runs/experiment, goes here
     cfg = tmp_path / "bad.toml"
     cfg.write_text('[calibration]\nfree = ["offset"]\n')
     assert main(["calibrate", str(cfg)]) == 2
