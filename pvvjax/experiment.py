@@ -79,6 +79,24 @@ def enable_compilation_cache():
         jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
 
 
+def start_distributed(coordinator: str, num_processes: int, process_id: int) -> None:
+    """Join a multi-process JAX run (one process per host, `jax.distributed`): afterwards
+    `jax.devices()` spans every process, a sweep shards its nets over all of them and process
+    0 writes the files. Call it before JAX computes anything. On CPU the processes exchange
+    arrays through gloo (TCP), so several processes on one machine work too.
+
+    Args:
+        coordinator: "host:port" of process 0, reachable from every process.
+        num_processes: how many processes take part. process_id: this one's, 0..N-1.
+    """
+    if not 0 <= process_id < num_processes:
+        raise ValueError(f"--process-id {process_id}: must be within 0 to {num_processes - 1} (--num-processes)")
+    import jax
+
+    jax.config.update("jax_cpu_collectives_implementation", "gloo")
+    jax.distributed.initialize(coordinator_address=coordinator, num_processes=num_processes, process_id=process_id)
+
+
 def use_cpu_cores(n: int = 0) -> None:
     """Expose `n` host devices (0: one per core) to XLA on CPU, so that sharded work runs
     on every core. Only possible before JAX starts; otherwise a no-op."""

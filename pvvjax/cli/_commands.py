@@ -98,9 +98,15 @@ def cmd_run(args) -> int:
 
 
 def cmd_sweep(args) -> int:
-    """Train the config's family of nets; resumable."""
+    """Train the config's family of nets; resumable; across processes with --coordinator."""
     t0 = time.perf_counter()
-    _, _, res, out = prepare_sweep(_experiment(args), args.out)
+    cfg = _experiment(args)
+    if args.coordinator:
+        from ..experiment import start_distributed, use_cpu_cores
+
+        use_cpu_cores(cfg.sweep.cpu_devices)  # before JAX starts, as prepare_sweep would
+        start_distributed(args.coordinator, args.num_processes, args.process_id)
+    _, _, res, out = prepare_sweep(cfg, args.out)
     cols = ["val_rms_g", "test_rms_g", "test_max_abs_g", "test_p95_abs_g", "steps"]
     print(res.groupby(["database", "architecture"])[cols].median().round(4).to_string())
     print(f"{len(res)} nets in {out / 'results.parquet'} ({time.perf_counter() - t0:.1f} s)")

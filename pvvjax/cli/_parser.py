@@ -73,6 +73,12 @@ def _net_commands(sub):
     s.add_argument("config", help="experiment config (TOML), e.g. experiments/configs/sweep-small.toml")
     s.add_argument("--campaign", default=None, help=_CAMPAIGN_OF_CONFIG)
     s.add_argument("--out", default=None, help="sweep folder (default: OUT_DIR/NAME/sweep)")
+    s.add_argument("--coordinator", default=None,
+                   help="several processes (one per host, jax.distributed): HOST:PORT of process 0 (default: none, "
+                        "one process)")
+    s.add_argument("--num-processes", type=int, default=1, help="with --coordinator: how many processes (default: 1)")
+    s.add_argument("--process-id", type=int, default=0, help="with --coordinator: this process, 0 to N-1 "
+                                                              "(default: 0)")
     s.set_defaults(fn=C.cmd_sweep)
 
     s = sub.add_parser("export", help="export a trained net, or a real-time element (NumPy, C or FMU) for a "

@@ -231,6 +231,14 @@ def train_nets(params, data: _train.Data, group, cfg, *, chunk_evals: int = 8, o
     return jax.tree.map(np.asarray, _train.result(state, consts))
 
 
+def _barrier(name: str):
+    """Wait for every process of a multi-process run (nothing to wait for in one process)."""
+    if jax.process_count() > 1:
+        from jax.experimental import multihost_utils
+
+        multihost_utils.sync_global_devices(name)
+
+
 def _to_host(tree):
     """Host copies of (possibly sharded) arrays; across hosts (`jax.distributed`) every
     process gathers the whole batch."""
@@ -295,10 +303,14 @@ def run_sweep(cfg: ExperimentConfig, dbs: dict, out: Path, *, progress=None, log
         progress: optional tqdm-like factory `progress(total=, initial=)`.
     """
     data_key = databases_fingerprint(dbs, [db for db in DB_INPUTS if db in dbs])
-    out = claim_folder(out, sweep_settings(cfg), data_key)
-    write_config(cfg, out / "config.toml")  # what `export` and `replay` read the sweep's settings from
-    (out / "parts").mkdir(parents=True, exist_ok=True)
-    (out / "params").mkdir(exist_ok=True)
+    writer = jax.process_index() == 0  # across processes (`jax.distributed`), process 0 writes
+    if writer:
+        out = claim_folder(out, sweep_settings(cfg), data_key)
+        write_config(cfg, out / "config.toml")  # what `export` and `replay` read the sweep's settings from
+        (out / "parts").mkdir(parents=True, exist_ok=True)
+        (out / "params").mkdir(exist_ok=True)
+    _barrier("pvvjax sweep folder claimed")  # every process then sees the same finished nets
+    out = Path(out)
     nets = net_table(cfg, data_key)
     done_ids = set(collect(out).get("net_id", pd.Series(dtype=str)))
     todo = nets[~nets.net_id.isin(done_ids)].reset_index(drop=True)
@@ -315,7 +327,8 @@ def run_sweep(cfg: ExperimentConfig, dbs: dict, out: Path, *, progress=None, log
             continue
         group = group.reset_index(drop=True)
         if sw.family == "rbf":
-            _run_rbf(group, data, dbs, cfg, out, chash, bar)
+            if writer:  # fitted on the host: one process does it
+                _run_rbf(group, data, dbs, cfg, out, chash, bar)
             continue
         depth = int(group.depth.iloc[0])
         max_hidden = tuple(int(max(int(h.split("-")[i]) for h in group.hidden)) for i in range(depth))
@@ -337,7 +350,7 @@ def run_sweep(cfg: ExperimentConfig, dbs: dict, out: Path, *, progress=None, log
         gid = np.array([keys.index((r.database, r.test_fold)) for r in group.itertuples()])
 
         def on_done(idx, fits, seconds, group=group):
-            if jax.process_index() == 0:  # across hosts, one process writes
+            if writer:
                 _finish(group.iloc[idx], fits, seconds, data, dbs, cfg, out, chash)
             if bar is not None:
                 bar.update(len(idx))
@@ -345,8 +358,10 @@ def run_sweep(cfg: ExperimentConfig, dbs: dict, out: Path, *, progress=None, log
         train_nets(stack_trees(params), stack_trees(gdata), gid, cfg.train, chunk_evals=sw.chunk_evals, on_done=on_done)
     if bar is not None:
         bar.close()
+    _barrier("pvvjax sweep trained")  # process 0 has written every part file
     results = collect(out)
-    _atomic_parquet(results, out / "results.parquet")
+    if writer:
+        _atomic_parquet(results, out / "results.parquet")
     return results[results.net_id.isin(nets.net_id)].reset_index(drop=True) if len(results) else results
 
 

@@ -1,0 +1,50 @@
+"""The multi-process path of a sweep (`jax.distributed`, one process per host): two CPU
+processes on this machine, joined through a coordinator on localhost, train a small sweep
+into one folder, and its results table is the one process's."""
+
+import json
+import socket
+import subprocess
+import sys
+
+import numpy as np
+import pandas as pd
+import pytest
+import tomli_w
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.mark.heavy
+def test_two_processes_give_the_one_process_results_table(tmp_path, small_campaign_dir):
+    cfg = tmp_path / "sweep.toml"
+    cfg.write_text(tomli_w.dumps(dict(
+        name="dist", campaign=dict(path=str(small_campaign_dir)), train=dict(max_steps=300),
+        sweep=dict(databases=["db1", "db2"], hidden=[[4], [6]], seeds=2, folds=3, test_folds=[0, 1], cpu_devices=1))))
+    sweep = [sys.executable, "-m", "pvvjax", "sweep", str(cfg)]
+    one = subprocess.run(sweep + ["--out", str(tmp_path / "one")], capture_output=True, text=True, timeout=300)
+    assert one.returncode == 0, one.stderr
+    join = ["--out", str(tmp_path / "two"), "--coordinator", f"127.0.0.1:{_free_port()}", "--num-processes", "2"]
+    procs = [subprocess.Popen(sweep + join + ["--process-id", str(i)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                              text=True) for i in (1, 0)]
+    outs = [p.communicate(timeout=300) for p in procs]
+    assert all(p.returncode == 0 for p in procs), [o[1][-2000:] for o in outs]
+    assert all("16 nets in" in o[0] for o in outs)  # both processes report the whole sweep
+
+    a, b = (pd.read_parquet(tmp_path / d / "results.parquet").sort_values("net_id").reset_index(drop=True)
+            for d in ("one", "two"))
+    assert list(a.net_id) == list(b.net_id) and len(a) == 16
+    for col in ("database", "architecture", "seed", "test_fold", "steps", "best_step", "config_hash"):
+        assert (a[col] == b[col]).all(), col
+    # The nets are sharded over two processes' devices in other batch shapes: the same nets to
+    # float32 rounding.
+    metrics = [c for c in a.columns if c.endswith(("_rms_g", "_max_abs_g", "_p95_abs_g"))]
+    np.testing.assert_allclose(b[metrics], a[metrics], rtol=0, atol=1e-6)
+    preds = lambda df: np.array([json.loads(p) for p in df.predictions])  # noqa: E731
+    np.testing.assert_allclose(preds(b), preds(a), rtol=0, atol=1e-5)
+    assert sorted(p.name for p in (tmp_path / "two" / "params").iterdir()) == sorted(
+        p.name for p in (tmp_path / "one" / "params").iterdir())
