@@ -24,8 +24,9 @@ demo: venv
 test: venv
 	$(PY) -m pytest -q -n 2 -m "not slow"
 
+# pip, not uv, for the bench extra: pip finds torch's CPU build on these machines' disk.
 bench: venv
-	$(INSTALL) -e '.[test,sim,bench]' || $(PY) -m pip install --quiet -e '.[test,sim,bench]'
+	$(PY) -m pip install --quiet -e '.[test,sim,bench]'
 	$(PY) benchmarks/bench_harmonics.py
 	$(PY) benchmarks/bench_synth.py
 	$(PY) benchmarks/bench_sweep.py

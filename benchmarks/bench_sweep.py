@@ -1,13 +1,27 @@
-"""Sweep training and prediction speed: pvvjax vs scikit-learn, side by side.
+"""Sweep training speed: pvvjax beside the framework's own ceiling, PyTorch and scikit-learn.
 
-384 nets = 3 databases x 16 architectures (n-W-5-1, W = 2, 4, ..., 32) x 8 seeds, trained
-on fold 0 of a 5-fold split by condition of the embedded campaign. Both sides use the same
-rows, the same input/output standardisation, full-batch Adam at the same learning rate
-and the same early stopping (validation RMS every 50 steps, patience 10, at most 6000
-steps), so both reach comparable validation RMS; the script prints both.
+N nets = 3 databases x 16 architectures (n-W-5-1, W = 2, 4, ..., 32) x N/48 seeds, trained on
+fold 0 of a 5-fold split by condition of the embedded campaign, at each size of --sizes:
 
-    pip install scikit-learn   # (make bench installs it)
-    python benchmarks/bench_sweep.py [--sklearn-nets N]
+- pvvjax: `run_sweep` as `pvvjax sweep` runs it (full-batch Adam at 3e-3, validation RMS every
+  50 steps, patience 10, at most 6000 steps; one XLA host device per core on CPU), cold and
+  warm (compiled programs from the disk cache); counted by the steps the nets actually ran;
+- the bare JAX loop, the framework's ceiling: the same padded 32-5 nets, masks and rows, one
+  jitted `lax.scan` of --peer-steps optax Adam steps under `vmap`, no stopping, no files;
+- a PyTorch ensemble (batched matmuls, `torch.optim.Adam`, eager; `pip install torch`), the
+  same nets, rows and steps;
+- scikit-learn's `MLPRegressor`, one net at a time with the same stopping rule (the first
+  --sklearn-nets nets of the smallest size).
+
+All report net-steps per second; the bare loop and PyTorch start from the same weights and
+print their median final training loss, which must agree. Then single-prediction latency.
+
+    python benchmarks/bench_sweep.py [--sizes 384,3072] [--peer-steps 2000] [--sklearn-nets 48]
+
+On a GPU (`pip install "jax[cuda13]" torch`), the issue's sizes and its five-fold sweep:
+
+    python benchmarks/bench_sweep.py --sizes 384,3072,24576 --sklearn-nets 0
+    python benchmarks/bench_sweep.py --sizes 3072 --all-folds --sklearn-nets 0   # 15 360 nets
 """
 
 from __future__ import annotations
@@ -19,27 +33,139 @@ import os
 os.environ.setdefault("XLA_FLAGS", f"--xla_force_host_platform_device_count={os.cpu_count()}")
 
 import argparse  # noqa: E402
-import platform
-import shutil
-import tempfile
-import time
-import warnings
-from pathlib import Path
+import platform  # noqa: E402
+import shutil  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+import warnings  # noqa: E402
+from pathlib import Path  # noqa: E402
 
-import jax
-import numpy as np
+import jax  # noqa: E402
+import jax.numpy as jnp  # noqa: E402
+import numpy as np  # noqa: E402
+import optax  # noqa: E402
 
-from pvvjax.analysis.databases import DB_INPUTS, build_databases
-from pvvjax.config import ExperimentConfig, SweepConfig, TrainConfig
-from pvvjax.data.campaign import load_campaign
-from pvvjax.nets.networks import mlp_apply
-from pvvjax.nets.sweep import load_params, run_sweep
-from pvvjax.nets.train import condition_folds, split_masks
-from pvvjax.realtime.npnet import NumpyNet
-from pvvjax.synth import cached_campaign
+from pvvjax.analysis import DATABASES, DB_INPUTS, build_databases  # noqa: E402
+from pvvjax.config import ExperimentConfig, SweepConfig, TrainConfig  # noqa: E402
+from pvvjax.data.campaign import load_campaign  # noqa: E402
+from pvvjax.nets import N_INPUTS, load_params, mlp_apply, run_sweep, stack_data  # noqa: E402
+from pvvjax.nets.train import condition_folds, split_masks  # noqa: E402
+from pvvjax.realtime.npnet import NumpyNet  # noqa: E402
+from pvvjax.synth import cached_campaign  # noqa: E402
 
 TRAIN = TrainConfig(learning_rate=3e-3, max_steps=6000, eval_every=50, patience=10)
-ARCHS = tuple((w, 5) for w in range(2, 34, 2))
+WIDTHS = tuple(range(2, 34, 2))
+ARCHS = tuple((w, 5) for w in WIDTHS)
+
+
+# --------------------------------------------------------------------------- the peers' problem
+
+
+def peer_problem(dbs, n_nets: int, seed: int = 0) -> dict:
+    """The nets and rows of the peers, as NumPy: (G=3 databases, M nets each) padded to 32-5
+    hidden units with masks, each database's fold-0 training rows standardised and padded."""
+    data = stack_data(dbs, DATABASES, 5, 0)
+    rows = [split_masks(f, 0, 5)[0] > 0 for _, _, _, f in data.values()]
+    n = max(int(r.sum()) for r in rows)
+    X, Y, W = np.zeros((3, n, N_INPUTS), np.float32), np.zeros((3, n), np.float32), np.zeros((3, n), np.float32)
+    for g, ((x, y, mask, _), r) in enumerate(zip(data.values(), rows)):
+        xs = x[r]
+        X[g, : r.sum()] = (xs - xs.mean(0)) / np.where(xs.std(0) > 0, xs.std(0), 1.0) * mask
+        Y[g, : r.sum()] = (y[r] - y[r].mean()) / y[r].std()
+        W[g, : r.sum()] = 1.0
+    m = n_nets // 3
+    rng = np.random.default_rng(seed)
+    glorot = lambda *s: (rng.uniform(-1, 1, (3, m) + s) * np.sqrt(6.0 / sum(s))).astype(np.float32)  # noqa: E731
+    width = np.resize(np.array(WIDTHS), m)
+    params = dict(w1=glorot(N_INPUTS, 32), b1=np.zeros((3, m, 32), np.float32), w2=glorot(32, 5),
+                  b2=np.zeros((3, m, 5), np.float32), w3=glorot(5), b3=np.zeros((3, m), np.float32))
+    mask1 = (np.arange(32) < width[:, None]).astype(np.float32)[None].repeat(3, 0)
+    return dict(params=params, mask1=mask1, x=X, y=Y, w=W)
+
+
+def _loss_one(p, mask1, x, y, w):
+    h = jnp.tanh(x @ p["w1"] + p["b1"]) * mask1
+    h = jnp.tanh(h @ p["w2"] + p["b2"])
+    return jnp.sum(w * (h @ p["w3"] + p["b3"] - y) ** 2) / jnp.sum(w)
+
+
+def bare_jax(prob: dict, steps: int) -> tuple[float, float]:
+    """The framework's ceiling: (seconds warm, median final loss)."""
+    opt = optax.adam(TRAIN.learning_rate)
+    grads = jax.vmap(jax.vmap(jax.value_and_grad(_loss_one), (0, 0, None, None, None)))  # nets in a group, groups
+
+    @jax.jit
+    def train(p, mask1, x, y, w):
+        def step(carry, _):
+            p, s = carry
+            loss, g = grads(p, mask1, x, y, w)
+            u, s = opt.update(g, s, p)
+            return (optax.apply_updates(p, u), s), loss
+
+        (p, _), losses = jax.lax.scan(step, (p, opt.init(p)), None, length=steps)
+        return losses[-1]
+
+    from jax.sharding import Mesh, NamedSharding, PartitionSpec
+
+    mesh = Mesh(np.array(jax.devices()), ("nets",))
+    nets, rep = NamedSharding(mesh, PartitionSpec(None, "nets")), NamedSharding(mesh, PartitionSpec())
+    args = (jax.device_put(prob["params"], nets), jax.device_put(prob["mask1"], nets),
+            *jax.device_put((prob["x"], prob["y"], prob["w"]), rep))
+    train(*args).block_until_ready()  # compile
+    t0 = time.perf_counter()
+    loss = np.asarray(train(*args))
+    return time.perf_counter() - t0, float(np.median(loss))
+
+
+def torch_ensemble(prob: dict, steps: int) -> tuple[float, float] | None:
+    """A PyTorch batched ensemble: (seconds, median final loss), or None without torch."""
+    try:
+        import torch
+    except ImportError:
+        return None
+    dev = "cuda" if torch.cuda.is_available() else "cpu"
+    g, m = prob["mask1"].shape[:2]
+    flat = lambda a: torch.tensor(a.reshape((g * m,) + a.shape[2:]), device=dev)  # noqa: E731
+    p = {k: flat(v).requires_grad_() for k, v in prob["params"].items()}
+    mask1 = flat(prob["mask1"])[:, None]
+    per_net = lambda a: torch.tensor(a, device=dev).repeat_interleave(m, 0)  # noqa: E731
+    x, y, w = per_net(prob["x"]), per_net(prob["y"]), per_net(prob["w"])
+    opt = torch.optim.Adam(p.values(), lr=TRAIN.learning_rate)
+
+    def step():
+        opt.zero_grad(set_to_none=True)
+        h = torch.tanh(torch.baddbmm(p["b1"][:, None], x, p["w1"])) * mask1
+        h = torch.tanh(torch.baddbmm(p["b2"][:, None], h, p["w2"]))
+        pred = torch.bmm(h, p["w3"][:, :, None])[..., 0] + p["b3"][:, None]
+        loss = (w * (pred - y) ** 2).sum(1) / w.sum(1)
+        loss.sum().backward()
+        opt.step()
+        return loss
+
+    step()  # warm-up (allocations), then from the start
+    for k, v in prob["params"].items():
+        p[k].data.copy_(flat(v))
+    opt = torch.optim.Adam(p.values(), lr=TRAIN.learning_rate)
+    if dev == "cuda":
+        torch.cuda.synchronize()
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        loss = step()
+    if dev == "cuda":
+        torch.cuda.synchronize()
+    return time.perf_counter() - t0, float(loss.detach().median())
+
+
+# --------------------------------------------------------------------------- pvvjax and scikit-learn
+
+
+def pvvjax_sweep(dbs, n_nets: int, folder: Path, all_folds: bool = False):
+    """(seconds, results) of `run_sweep` over n_nets nets of fold 0 (x5: every fold) into `folder`."""
+    cfg = ExperimentConfig(sweep=SweepConfig(hidden=ARCHS, seeds=n_nets // 48, folds=5,
+                                             test_folds=() if all_folds else (0,)), train=TRAIN)
+    t0 = time.perf_counter()
+    res = run_sweep(cfg, dbs, folder, log=lambda *a: None)
+    return time.perf_counter() - t0, res
 
 
 def sklearn_net(x, y, tr, va, hidden, seed):
@@ -60,85 +186,98 @@ def sklearn_net(x, y, tr, va, hidden, seed):
     return best, steps
 
 
-def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--sklearn-nets", type=int, default=384, help="train this many of the 384 with scikit-learn")
-    args = ap.parse_args()
-    import sklearn
+def sklearn_nets(dbs, res, k: int):
+    """(seconds, steps, median validation RMS) of the first k nets of `res`, one by one."""
+    order = res.sort_values(["database", "hidden", "seed"]).reset_index(drop=True)
+    vals, steps, t = [], [], 0.0
+    for r in order.head(k).itertuples():
+        db = dbs[r.database]
+        x = db[list(DB_INPUTS[r.database])].to_numpy(np.float64)
+        y = db.peak_pvv_g.to_numpy(np.float64)
+        tr, va, _ = (m > 0 for m in split_masks(condition_folds(db.condition, 5, 0), 0, 5))
+        t0 = time.perf_counter()
+        v, s = sklearn_net(x, y, tr, va, tuple(int(h) for h in r.hidden.split("-")), int(r.seed))
+        t += time.perf_counter() - t0
+        vals.append(v)
+        steps.append(s)
+    return t, int(np.sum(steps)), float(np.median(vals))
 
+
+def prediction_latency(dbs, res, folder: Path):
+    """Single-prediction latency of a 6-10-5-1 db1 net: jitted, AOT-compiled JAX and NumPy."""
+    row = res[(res.database == "db1") & (res.hidden == "10-5")].iloc[0]
+    params, meta = load_params(folder / "params" / f"{row.net_id}.npz")
+    x1 = np.zeros(8, np.float32)
+    x1[:6] = dbs["db1"][list(DB_INPUTS["db1"])].iloc[0].to_numpy(np.float32)
+    f = jax.jit(mlp_apply)
+    p_dev = jax.device_put(params)
+    aot = f.lower(p_dev, x1).compile()  # ahead-of-time compiled: no tracing or cache lookup per call
+    net = NumpyNet(params, meta)
+    xn = x1[:6].astype(np.float64)
+
+    def per_call(fn, reps=20000):
+        fn()
+        t0 = time.perf_counter()
+        for _ in range(reps):
+            fn()
+        return (time.perf_counter() - t0) / reps
+
+    t_jit = per_call(lambda: f(p_dev, x1).block_until_ready())
+    t_aot = per_call(lambda: aot(p_dev, x1).block_until_ready())
+    t_np = per_call(lambda: net.predict1(xn))
+    print(f"single prediction: jitted JAX {t_jit * 1e6:.1f} us, AOT-compiled JAX {t_aot * 1e6:.1f} us, "
+          f"NumPy predict1 {t_np * 1e6:.1f} us")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--sizes", default="384", help="net counts, multiples of 96 (default: 384)")
+    ap.add_argument("--peer-steps", type=int, default=2000, help="Adam steps of the bare loop and PyTorch")
+    ap.add_argument("--sklearn-nets", type=int, default=48, help="nets scikit-learn trains (0: none)")
+    ap.add_argument("--all-folds", action="store_true", help="pvvjax trains every fold of each size (x5 nets, "
+                                                             "in one call): 3072 gives the issue's 15 360")
+    args = ap.parse_args()
+    sizes = [int(s) for s in args.sizes.split(",")]
+    if any(n % 96 for n in sizes):
+        raise SystemExit("--sizes: multiples of 96 (3 databases x 16 widths x seeds, sharded over 2 devices)")
     warnings.filterwarnings("ignore")
     dbs = build_databases(load_campaign(cached_campaign()))
-    cfg = ExperimentConfig(sweep=SweepConfig(hidden=ARCHS, seeds=8, folds=5, test_folds=(0,)), train=TRAIN)
-    print(f"JAX devices: {jax.device_count()} (XLA_FLAGS={os.environ.get('XLA_FLAGS', '')!r})")
+    try:
+        import torch
+
+        peers = f"torch {torch.__version__} ({torch.get_num_threads()} threads)"
+    except ImportError:
+        peers = "no torch"
+    print(f"machine: {platform.machine()}, {jax.devices()[0].device_kind} x{jax.device_count()}, jax {jax.__version__}"
+          f", {peers}; peers run {args.peer_steps} steps")
+    print(f"{'nets':>6s} {'who':28s} {'seconds':>8s} {'net-steps':>10s} {'net-steps/s':>12s}  note")
+    line = lambda n, who, t, ns, note="": print(f"{n:6d} {who:28s} {t:8.2f} {ns:10d} {ns / t:12.0f}  {note}")  # noqa
     tmp = Path(tempfile.mkdtemp())
     try:
         jax.config.update("jax_compilation_cache_dir", str(tmp / "xla"))
         jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
-        times = []
-        for run in ("cold", "warm"):  # warm: compiled programs come from the persistent cache
-            t0 = time.perf_counter()
-            res = run_sweep(cfg, dbs, tmp / run, log=lambda *a: None)
-            times.append(time.perf_counter() - t0)
-        n = len(res)
-        order = res.sort_values(["database", "hidden", "seed"]).reset_index(drop=True)
-        sk_val, sk_steps, t_sk = [], [], 0.0
-        for r in order.head(args.sklearn_nets).itertuples():
-            db = dbs[r.database]
-            x = db[list(DB_INPUTS[r.database])].to_numpy(np.float64)
-            y = db.peak_pvv_g.to_numpy(np.float64)
-            tr, va, _ = (m > 0 for m in split_masks(condition_folds(db.condition, 5, 0), 0, 5))
-            t0 = time.perf_counter()
-            v, s = sklearn_net(x, y, tr, va, tuple(int(h) for h in r.hidden.split("-")), int(r.seed))
-            t_sk += time.perf_counter() - t0
-            sk_val.append(v)
-            sk_steps.append(s)
-        k = len(sk_val)
-        t_sk_all = t_sk * n / k
-        print(f"machine: {platform.machine()}, {jax.devices()[0].device_kind} x{jax.device_count()}, "
-              f"jax {jax.__version__}, "
-              f"scikit-learn {sklearn.__version__}")
-        print(f"{n} nets; scikit-learn trained {k} of them one by one ({t_sk:.1f} s; x{n / k:.2f} for all)")
-        print(f"{'':34s} {'time (s)':>9s} {'per net (ms)':>13s} {'steps/net':>10s} {'median val RMS (g)':>19s}")
-        print(f"{'pvvjax sweep, cold (compiling)':34s} {times[0]:9.1f} {1e3 * times[0] / n:13.1f} "
-              f"{res.steps.mean():10.0f} {res.val_rms_g.median():19.4f}")
-        print(f"{'pvvjax sweep, warm (cached XLA)':34s} {times[1]:9.1f} {1e3 * times[1] / n:13.1f}")
-        print(f"{'scikit-learn MLPRegressor':34s} {t_sk_all:9.1f} {1e3 * t_sk_all / n:13.1f} "
-              f"{np.mean(sk_steps):10.0f} {np.median(sk_val):19.4f}")
-        print(f"speed-up: {t_sk_all / times[0]:.1f}x cold, {t_sk_all / times[1]:.1f}x warm")
-
-        # prediction latency and throughput, 6-10-5-1 on db1
-        row = res[(res.database == "db1") & (res.hidden == "10-5")].iloc[0]
-        params, meta = load_params(tmp / "warm" / "params" / f"{row.net_id}.npz")
-        x1 = np.zeros(8, np.float32)
-        x1[:6] = dbs["db1"][list(DB_INPUTS["db1"])].iloc[0].to_numpy(np.float32)
-        f = jax.jit(mlp_apply)
-        p_dev = jax.device_put(params)
-        aot = f.lower(p_dev, x1).compile()  # ahead-of-time compiled: no tracing or cache lookup per call
-        net = NumpyNet(params, meta)
-        xn = x1[:6].astype(np.float64)
-        reps = 20000
-
-        def per_call(fn):
-            fn()
-            t0 = time.perf_counter()
-            for _ in range(reps):
-                fn()
-            return (time.perf_counter() - t0) / reps
-
-        t_jit = per_call(lambda: f(p_dev, x1).block_until_ready())
-        t_aot = per_call(lambda: aot(p_dev, x1).block_until_ready())
-        t_np = per_call(lambda: net.predict1(xn))
-        t_np_call = per_call(lambda: net(xn))
-        xb = np.tile(x1, (1_000_000, 1))
-        xb_dev = jax.device_put(xb)
-        f(p_dev, xb_dev).block_until_ready()
-        t0 = time.perf_counter()
-        for _ in range(5):
-            f(p_dev, xb_dev).block_until_ready()
-        per_s = 5 * len(xb) / (time.perf_counter() - t0)
-        print(f"single prediction: jitted JAX {t_jit * 1e6:.1f} us, AOT-compiled JAX {t_aot * 1e6:.1f} us, "
-              f"NumPy predict1 {t_np * 1e6:.1f} us, NumPy __call__ {t_np_call * 1e6:.1f} us; "
-              f"batched (1e6 rows, jit): {per_s / 1e6:.1f} M predictions/s")
+        for i, n in enumerate(sizes):
+            cold, res = pvvjax_sweep(dbs, n, tmp / f"cold-{n}", args.all_folds)
+            warm, res = pvvjax_sweep(dbs, n, tmp / f"warm-{n}", args.all_folds)
+            ns = int(res.steps.sum())
+            n = len(res)
+            line(n, "pvvjax sweep, cold", cold, ns, "compiling")
+            line(n, "pvvjax sweep, warm", warm, ns, f"{ns / n:.0f} steps per net, median val RMS "
+                                                    f"{res.val_rms_g.median():.4f} g")
+            prob = peer_problem(dbs, n)
+            t, loss = bare_jax(prob, args.peer_steps)
+            line(n, "bare JAX vmap + scan", t, n * args.peer_steps, f"median final loss {loss:.4f}")
+            bare_rate = n * args.peer_steps / t
+            got = torch_ensemble(prob, args.peer_steps)
+            if got is not None:
+                line(n, "PyTorch batched ensemble", got[0], n * args.peer_steps, f"median final loss {got[1]:.4f}")
+            if i == 0 and args.sklearn_nets:
+                t, steps, val = sklearn_nets(dbs, res, args.sklearn_nets)
+                line(args.sklearn_nets, "scikit-learn, one by one", t, steps, f"median val RMS {val:.4f} g")
+            print(f"{'':6s} where pvvjax's warm time goes: {ns / bare_rate:.2f} s of it is the nets' steps at the "
+                  f"bare loop's rate; {warm - ns / bare_rate:.2f} s the rest (validation, batches shrinking as "
+                  f"nets stop, host round trips, {n} parameter files)")
+        prediction_latency(dbs, res, tmp / f"warm-{sizes[-1]}")
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
 
