@@ -207,6 +207,12 @@ def _cli_not_a_sweep(tmp_path):
     return ["export", str(tmp_path), "--element", "--out", str(tmp_path / "e")], "not a sweep folder"
 
 
+def _cli_process_id(tmp_path):
+    (tmp_path / "cfg.toml").write_text("")
+    return ["sweep", str(tmp_path / "cfg.toml"), "--coordinator", "127.0.0.1:1", "--num-processes", "2",
+            "--process-id", "2"], "--process-id 2"
+
+
 def _element(flag, value, needle):
     def case(tmp_path):
         return ["export", str(tmp_path), "--element", flag, value, "--out", str(tmp_path / "e")], needle
@@ -226,6 +232,10 @@ CLI_KINDS = {
     "element window negative": _element("--window", "-3", "--window -3"),
     "element stick offset beyond the bounds": _element("--stick-offset", "5", "--stick-offset 5"),
     "element hop longer than the window": _element("--hop", "20", "--hop 20"),
+    "element format without --element": lambda tmp_path: (
+        ["export", str(tmp_path), "--format", "c", "--out", str(tmp_path / "e")], "add --element"),
+    "element frame rate not above 0": _element("--max-rate", "0", "--max-rate 0"),
+    "sweep process id outside the processes": _cli_process_id,
 }
 
 CONFIG = {

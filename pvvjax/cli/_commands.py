@@ -181,7 +181,7 @@ def _write_element_format(args, spec: dict, files: list, source: str) -> Path:
     limits = CSourceLimits(max_rate_hz=args.max_rate)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    (out / "element.json").write_text(json.dumps({**spec, "nets": source}, indent=2))
+    (out / "settings.json").write_text(json.dumps({**spec, "nets": source}, indent=2))  # what was built in
     if args.format == "c":
         return write_c_element(out, spec, nets, limits, source)
     return build_fmu(out / "pvv_element.fmu", spec, nets, limits, source)
