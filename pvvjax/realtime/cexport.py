@@ -229,7 +229,7 @@ class CElement:
 
     def __init__(self, library, **settings):
         self.lib = ctypes.CDLL(str(library))
-        self.lib.pvv_element_size.restype = ctypes.c_size_t
+        self.lib.pvv_element_size.restype = ctypes.c_ulong
         self.lib.pvv_default_settings.restype = _Settings
         self.lib.pvv_init.argtypes = [ctypes.c_void_p, ctypes.POINTER(_Settings)]
         self.lib.pvv_step.restype = _Output

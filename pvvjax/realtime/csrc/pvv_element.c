@@ -6,7 +6,6 @@
  * the stored frames. Source: @SOURCE@
  */
 #include <math.h>
-#include <string.h>
 
 #include "pvv_element.h"
 
@@ -48,18 +47,23 @@ static double edge_weight(double u)
 
 static int finite(double v) { return !isnan(v) && !isinf(v); }
 
+/* Move frames [k, n) to the front (forward copy: the ranges may overlap). */
+static void shift_left(pvv_element *e, int k)
+{
+    int i, c, n = e->n - k;
+    for (i = 0; i < n; i++) {
+        e->t[i] = e->t[i + k];
+        e->r[i] = e->r[i + k];
+        for (c = 0; c < PVV_N_CHANNELS; c++) e->x[i][c] = e->x[i + k][c];
+    }
+    e->n = n;
+    e->dropped = 1;
+}
+
 /* Drop the frames before index `keep_from` but one (never the first two: they define window 0). */
 static void drop_before(pvv_element *e, int keep_from)
 {
-    int k, n;
-    if (keep_from <= 2) return;
-    k = keep_from - 1;
-    n = e->n - k;
-    memmove(e->t, e->t + k, (size_t)n * sizeof e->t[0]);
-    memmove(e->r, e->r + k, (size_t)n * sizeof e->r[0]);
-    memmove(e->x, e->x + k, (size_t)n * sizeof e->x[0]);
-    e->n = n;
-    e->dropped = 1;
+    if (keep_from > 2) shift_left(e, keep_from - 1);
 }
 
 static pvv_output output(const pvv_element *e, int rejected)
@@ -201,7 +205,7 @@ pvv_settings pvv_default_settings(void)
     return s;
 }
 
-size_t pvv_element_size(void) { return sizeof(pvv_element); }
+unsigned long pvv_element_size(void) { return (unsigned long)sizeof(pvv_element); }
 
 void pvv_reset(pvv_element *e)
 {
@@ -244,11 +248,7 @@ pvv_output pvv_step(pvv_element *e, double time_s, double azimuth_deg, const dou
     e->has_az = use_az;
     e->rpm_last = rpm;
     if (e->n == PVV_CAPACITY) {  /* faster than sized for: lose the oldest frame, say so */
-        memmove(e->t, e->t + 1, (size_t)(e->n - 1) * sizeof e->t[0]);
-        memmove(e->r, e->r + 1, (size_t)(e->n - 1) * sizeof e->r[0]);
-        memmove(e->x, e->x + 1, (size_t)(e->n - 1) * sizeof e->x[0]);
-        e->n -= 1;
-        e->dropped = 1;
+        shift_left(e, 1);
         e->overflow = 1;
     }
     e->t[e->n] = time_s;

@@ -8,7 +8,7 @@
  * azimuth whose amplitude ramps over one hop.
  *
  * Needs <math.h> only. The element is one struct of fixed size: declare it static or allocate it
- * once (pvv_element_size()); no call allocates memory.
+ * once (pvv_element_size() bytes); no call allocates memory.
  *
  *     static pvv_element el;
  *     pvv_settings s = pvv_default_settings();
@@ -27,8 +27,6 @@
 #ifdef __cplusplus
 extern "C" {
 #endif
-
-#include <stddef.h>
 
 /* Channels of a frame, canonical units of the pvvjax data contract, in this order. */
 #define PVV_N_CHANNELS 10
@@ -106,7 +104,7 @@ void pvv_reset(pvv_element *e);
 pvv_output pvv_step(pvv_element *e, double time_s, double azimuth_deg, const double channels[PVV_N_CHANNELS]);
 
 /* sizeof(pvv_element), for hosts that allocate it. */
-size_t pvv_element_size(void);
+unsigned long pvv_element_size(void);
 
 #ifdef __cplusplus
 }
