@@ -20,13 +20,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .element import CHANNELS
+from .element import AIRCRAFT_DEFAULTS, CHANNELS, FEATURES
 
 __all__ = ["CElement", "CSourceLimits", "buffer_capacity", "c_compiler", "c_sources", "compile_shared",
            "write_c_element"]
 
 _CSRC = Path(__file__).parent / "csrc"
-FEATURES = CHANNELS + ("advance_ratio", "mlf")  # what a net input may be: a channel or a feature
 
 
 class CSourceLimits:
@@ -128,7 +127,7 @@ def c_sources(spec: dict, nets: list, limits: CSourceLimits = CSourceLimits(), s
     unknown = [k for k in inputs if k not in FEATURES]
     if unknown:
         raise ValueError(f"inputs {unknown}: the C element computes {', '.join(FEATURES)}")
-    ac = {"rotor_radius_ft": 26.83, "g_ft_s2": 32.174, "blades": 4, "nominal_rpm": 257.8, **spec.get("aircraft", {})}
+    ac = {**AIRCRAFT_DEFAULTS, **spec.get("aircraft", {})}
     lo, hi = limits.window_revs
     if not (lo <= spec["window_revs"] <= hi and abs(spec["offset_s"]) <= limits.max_offset_s
             and abs(spec["stick_offset_s"]) <= limits.max_stick_offset_s):

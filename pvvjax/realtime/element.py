@@ -29,11 +29,15 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["CHANNELS", "ElementOutput", "VibrationElement"]
+__all__ = ["AIRCRAFT_DEFAULTS", "CHANNELS", "FEATURES", "ElementOutput", "VibrationElement"]
 
 # Frame channels, canonical units (data contract): what db1-db3 and their features need.
 CHANNELS = ("airspeed_kt", "gross_weight_lb", "rotor_rpm", "density_ratio", "pitch_rate_dps", "roll_angle_deg",
             "climb_rate_fpm", "collective_pct", "lateral_pct", "longitudinal_pct")
+# What a net input may be: a channel, or a feature the element derives from the channels.
+FEATURES = CHANNELS + ("advance_ratio", "mlf")
+# The rotor constants an element uses, where its settings give none (the UH-60A's).
+AIRCRAFT_DEFAULTS = {"rotor_radius_ft": 26.83, "g_ft_s2": 32.174, "blades": 4, "nominal_rpm": 257.8}
 _STICKS = ("collective_pct", "lateral_pct", "longitudinal_pct")
 _KT_TO_FT_S = 6076.12 / 3600.0
 
@@ -99,7 +103,7 @@ class VibrationElement:
         self.tau, self.tau_stick = float(offset_s), float(stick_offset_s)
         self.phase = float(phase_rad)
         self.harmonics = {int(k): (float(v[0]), float(v[1])) for k, v in dict(harmonics or {}).items()}
-        ac = {"rotor_radius_ft": 26.83, "g_ft_s2": 32.174, "blades": 4, **(aircraft or {})}
+        ac = {**AIRCRAFT_DEFAULTS, **(aircraft or {})}
         self.radius, self.g, self.blades = float(ac["rotor_radius_ft"]), float(ac["g_ft_s2"]), int(ac["blades"])
         self.envelope = None if envelope is None else (np.asarray(envelope[0], float), np.asarray(envelope[1], float))
         self.clip = clip

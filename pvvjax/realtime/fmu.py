@@ -21,7 +21,7 @@ from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
 from .cexport import _CSRC, CSourceLimits, _fill, c_sources, compile_shared
-from .element import CHANNELS
+from .element import AIRCRAFT_DEFAULTS, CHANNELS
 
 __all__ = ["FMU_INPUTS", "build_fmu", "fmu_channels", "fmu_platform", "model_description"]
 
@@ -97,13 +97,13 @@ def model_description(spec: dict, limits: CSourceLimits, guid: str, source: str 
         if is_output:
             outputs.append(len(variables))
 
-    nominal = spec.get("aircraft", {}).get("nominal_rpm", 257.8)
-    starts = dict(density_ratio=1.0, rotor_rpm=nominal)
+    ac = {**AIRCRAFT_DEFAULTS, **spec.get("aircraft", {})}
+    starts = dict(density_ratio=1.0, rotor_rpm=ac["nominal_rpm"])
     for name in fmu_channels(spec["inputs"]):
         unit, text = FMU_INPUTS[name]
         add(_var(name, CHANNELS.index(name), "Real", "input", "continuous", text, unit, repr(starts.get(name, 0.0))))
     add(_var("azimuth_deg", 10, "Real", "input", "continuous", "reference-blade azimuth", "deg", "0.0"))
-    blades = int(spec.get("aircraft", {}).get("blades", 4))
+    blades = int(ac["blades"])
     for vr, name, unit, text in (
             (20, "pvv_g", "g", f"peak {blades}/rev pilot-floor vertical vibration of the latest window"),
             (21, "shake_g", "g", f"seat-shake acceleration: amplitude x cos({blades} psi + phase) + harmonics"),

@@ -22,7 +22,7 @@ from ..analysis.harmonics import edge_weight
 from ..data.constants import UH60A
 from ..data.features import advance_ratio, maneuver_load_factor
 from ..nets.networks import apply_for
-from .element import CHANNELS
+from .element import CHANNELS, FEATURES
 
 __all__ = ["ElementSpec", "ElementState", "StepOutput", "capacity_for", "init", "make_spec", "step", "stream"]
 
@@ -59,8 +59,6 @@ class ElementSpec(NamedTuple):
     harm_phase: jax.Array
 
 
-# Inputs a database can use: the channels, then the derived features.
-FEATURES = CHANNELS + ("advance_ratio", "mlf")
 
 
 def make_spec(params, inputs, *, window_revs=8.0, hop_revs=1.0, offset_s=0.0, stick_offset_s=0.0, phase_rad=0.0,
