@@ -186,6 +186,7 @@ def generate(cfg: SynthConfig = SynthConfig()) -> tuple[pd.DataFrame, dict[str, 
     if cfg.maneuvers:
         conds = [c for c in conds if c.maneuver in set(cfg.maneuvers)]
     ac = cfg.aircraft_constants()
+    scale = similarity(ac)  # every factor exactly 1 for the UH-60A
     t, states = _simulate(conds, cfg)
     states = scale_states(states, ac)
     dt = float(t[1] - t[0])
@@ -234,19 +235,19 @@ def generate(cfg: SynthConfig = SynthConfig()) -> tuple[pd.DataFrame, dict[str, 
         names = c.counter_names
         if len(names) == 1:
             records[names[0]] = df
-            rows.append(_row(names[0], c, 1, ac))
+            rows.append(_row(names[0], c, 1, scale))
         else:  # one continuous flight cut into equal segments, each with time from its start
             cut = np.array_split(np.arange(len(df)), len(names))
             for seg, (name, idx) in enumerate(zip(names, cut), start=1):
                 part = df.iloc[idx].reset_index(drop=True)
                 part["time_s"] = ts[idx] - ts[idx[0]]
                 records[name] = part
-                rows.append(_row(name, c, seg, ac))
+                rows.append(_row(name, c, seg, scale))
     return pd.DataFrame(rows), records, ground_truth(cfg)
 
 
-def _row(counter: str, c: Condition, segment: int, aircraft: Aircraft) -> dict:
-    f = similarity(aircraft) if aircraft != UH60A else dict(weight=1.0, speed=1.0)
+def _row(counter: str, c: Condition, segment: int, f: dict) -> dict:
+    """A counters-table row; `f`: the similarity factors of the aircraft (`similarity`)."""
     return dict(counter=counter, maneuver=c.maneuver, condition=c.id, segment=segment,
                 gross_weight_lb=c.gross_weight_lb * f["weight"], density_ratio=round(c.density_ratio, 4),
                 description=c.description or f"{c.maneuver}, {c.airspeed_kt * f['speed']:.0f} kt")
