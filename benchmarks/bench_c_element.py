@@ -32,6 +32,7 @@ import pandas as pd
 
 from pvvjax.analysis.databases import DB_INPUTS
 from pvvjax.data.campaign import load_campaign
+from pvvjax.nets import load_nets
 from pvvjax.realtime import CHANNELS, NumpyNet, VibrationElement, c_compiler, write_c_element
 from pvvjax.synth import cached_campaign
 
@@ -99,7 +100,7 @@ def main():
     db1 = res[res.database == "db1"]
     arch = db1.groupby("architecture").test_rms_g.median().idxmin()
     ids = list(db1[db1.architecture == arch].sort_values(["test_fold", "seed"]).net_id)
-    nets = [NumpyNet.load(sweep / "params" / f"{i}.npz") for i in ids]
+    nets = [NumpyNet(p, m) for p, m in load_nets(sweep, ids, res)]
     kw = dict(window_revs=8.0, hop_revs=1.0, offset_s=0.66, stick_offset_s=0.0)
 
     camp = load_campaign(cached_campaign())

@@ -33,7 +33,7 @@ import pandas as pd  # noqa: E402
 
 from pvvjax.analysis.databases import DB_INPUTS  # noqa: E402
 from pvvjax.data.campaign import load_campaign  # noqa: E402
-from pvvjax.nets.sweep import load_params  # noqa: E402
+from pvvjax.nets.sweep import load_nets  # noqa: E402
 from pvvjax.realtime import jax_element as RT  # noqa: E402
 from pvvjax.realtime.element import CHANNELS, VibrationElement  # noqa: E402
 from pvvjax.realtime.npnet import NumpyNet  # noqa: E402
@@ -47,7 +47,7 @@ def main():
     camp = load_campaign(cached_campaign())
     res = pd.read_parquet(SWEEP / "results.parquet")
     ids = list(res[res.database == "db1"].sort_values(["test_fold", "seed"]).net_id)
-    plist = [load_params(SWEEP / "params" / f"{i}.npz")[0] for i in ids]
+    plist = [p for p, _ in load_nets(SWEEP, ids, res)]
     rec = camp.records["11022"]
     t0, rev0 = rec.time_s.to_numpy(), np.unwrap(rec.azimuth_deg.to_numpy(), period=360.0)
     x0 = rec[list(CHANNELS)].to_numpy(float)

@@ -38,6 +38,7 @@ from pvvjax.analysis.databases import DB_INPUTS, build_databases  # noqa: E402
 from pvvjax.config import TRANSIENT_MANEUVERS  # noqa: E402
 from pvvjax.data.campaign import load_campaign  # noqa: E402
 from pvvjax.data.constants import KT_TO_FT_S, RPM_TO_RAD_S, UH60A  # noqa: E402
+from pvvjax.nets import load_nets  # noqa: E402
 from pvvjax.realtime.npnet import NumpyNet  # noqa: E402
 from pvvjax.replay.calibration import Bounds, calibrate, cost_grid, group_members  # noqa: E402
 from pvvjax.replay.quasistatic import make_settings, replay  # noqa: E402
@@ -125,11 +126,11 @@ def main():
 
         res = pd.read_parquet(SWEEP / "results.parquet")
         cond = camp.counters.loc["11022", "condition"]
-        for r in res[res.database == "db1"].itertuples():
-            import json
+        import json
 
-            if dict(zip(json.loads(r.conditions), json.loads(r.split))).get(cond) == "test":
-                nets.append(NumpyNet.load(SWEEP / "params" / f"{r.net_id}.npz"))
+        held = [r.net_id for r in res[res.database == "db1"].itertuples()
+                if dict(zip(json.loads(r.conditions), json.loads(r.split))).get(cond) == "test"]
+        nets = [NumpyNet(p, m) for p, m in load_nets(SWEEP, held, res)]
         t_np = best(lambda: numpy_replay(rec, nets, gw, sigma, 0.5, 8.0), 20)
         meas_np, pred_np = numpy_replay(rec, nets, gw, sigma, 0.5, 8.0)
         rep = replay(m1, r1, 0.5, 8.0, settings=s8)

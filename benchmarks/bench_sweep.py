@@ -48,7 +48,7 @@ import optax  # noqa: E402
 from pvvjax.analysis import DATABASES, DB_INPUTS, build_databases  # noqa: E402
 from pvvjax.config import ExperimentConfig, SweepConfig, TrainConfig  # noqa: E402
 from pvvjax.data.campaign import load_campaign  # noqa: E402
-from pvvjax.nets import N_INPUTS, load_params, mlp_apply, run_sweep, stack_data  # noqa: E402
+from pvvjax.nets import N_INPUTS, load_nets, mlp_apply, run_sweep, stack_data  # noqa: E402
 from pvvjax.nets.train import condition_folds, split_masks  # noqa: E402
 from pvvjax.realtime.npnet import NumpyNet  # noqa: E402
 from pvvjax.synth import cached_campaign  # noqa: E402
@@ -206,7 +206,7 @@ def sklearn_nets(dbs, res, k: int):
 def prediction_latency(dbs, res, folder: Path):
     """Single-prediction latency of a 6-10-5-1 db1 net: jitted, AOT-compiled JAX and NumPy."""
     row = res[(res.database == "db1") & (res.hidden == "10-5")].iloc[0]
-    params, meta = load_params(folder / "params" / f"{row.net_id}.npz")
+    [(params, meta)] = load_nets(folder, [row.net_id], res)
     x1 = np.zeros(8, np.float32)
     x1[:6] = dbs["db1"][list(DB_INPUTS["db1"])].iloc[0].to_numpy(np.float32)
     f = jax.jit(mlp_apply)

@@ -7,7 +7,7 @@ import inspect
 import re
 
 # Pipeline order: data, analysis, networks, replay, discovery, real time, the generator, the shell.
-# A package is listed where it holds names of private modules (discovery, synth).
+# A package is listed where it holds names of private modules (nets, discovery, synth).
 MODULES = [
     "data.campaign",
     "data.checks",
@@ -19,8 +19,10 @@ MODULES = [
     "data.features",
     "analysis.harmonics",
     "analysis.databases",
+    "nets",
     "nets.networks",
     "nets.train",
+    "nets.batched",
     "nets.sweep",
     "nets.evaluation",
     "replay.quasistatic",

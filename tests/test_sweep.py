@@ -16,7 +16,7 @@ import pytest
 from pvvjax.analysis.databases import DB_INPUTS
 from pvvjax.config import ExperimentConfig, SweepConfig, TrainConfig
 from pvvjax.nets.networks import mlp_apply
-from pvvjax.nets.sweep import load_params, net_table, run_sweep
+from pvvjax.nets.sweep import load_nets, load_params, net_table, run_sweep
 from pvvjax.nets.train import TrainingError
 
 FAST = TrainConfig(learning_rate=1e-2, max_steps=600, eval_every=50, patience=4)
@@ -38,7 +38,7 @@ def test_sweep_results_params_and_resume(tmp_path, small_dbs):
     assert (res.test_rms_g < 0.2).all()
     # saved parameters reproduce the recorded predictions, and the split is by condition
     row = res.iloc[0]
-    params, meta = load_params(tmp_path / "params" / f"{row.net_id}.npz")
+    [(params, meta)] = load_nets(tmp_path, [row.net_id])
     assert meta["inputs"] == list(DB_INPUTS[row.database])
     db = small_dbs[row.database]
     x = np.zeros((len(db), 8), np.float32)
@@ -93,6 +93,7 @@ def _sweep_config_file(tmp_path, campaign_dir, n_archs):
         seeds = 2
         folds = 3
         chunk_evals = 1
+        checkpoint_s = 0.5
         [train]
         learning_rate = 0.003
         max_steps = 3000
@@ -128,6 +129,7 @@ def test_killed_sweep_resumes_without_duplicates_or_corrupt_files(tmp_path, smal
     assert not list(out.rglob("*.tmp*"))
     for p in (out / "params").glob("*.npz"):
         load_params(p)  # every parameter file reads back
+    assert len(load_nets(out, list(res.net_id), res)) == total
 
 
 SHARDING_SCRIPT = """
@@ -153,24 +155,26 @@ def test_sweep_axis_is_sharded_over_devices_in_a_separate_process(tmp_path, smal
     out = subprocess.run([sys.executable, "-c", SHARDING_SCRIPT, str(small_campaign_dir), str(tmp_path / "two")],
                          capture_output=True, text=True, env=env, timeout=600)
     assert out.returncode == 0, out.stderr[-3000:]
-    two = pd.read_json(pd.io.common.StringIO(out.stdout.strip().splitlines()[-1]), typ="series")
+    two = pd.read_json(pd.io.common.StringIO(out.stdout.strip().splitlines()[-1]), typ="series", precise_float=True)
     cfg = ExperimentConfig(sweep=SweepConfig(databases=("db1",), hidden=((4,), (6,), (8,)), seeds=2, folds=3,
                                              test_folds=(0,)),
                            train=TrainConfig(learning_rate=1e-2, max_steps=600, eval_every=50, patience=4))
     one = run_sweep(cfg, small_dbs, tmp_path / "one", log=lambda *a: None).set_index("net_id").val_rms_g
     assert jax.device_count() == 1
-    # Per-device batches compile to slightly different code, and early stopping can turn a
-    # last-bit difference into another best step: equal to 2 %, where a broken sharding
-    # (nets mixed up, data not replicated) would be far off.
+    # XLA partitions a sharded program into other arithmetic (on one device a net's bits do
+    # not depend on its batch: test_batched), and early stopping can turn a last-bit
+    # difference into another best step: equal to 2 %, where a broken sharding (nets mixed
+    # up, data not replicated) would be far off.
     assert set(two.index) == set(one.index)
     np.testing.assert_allclose(two.loc[one.index].to_numpy(), one.to_numpy(), rtol=2e-2)
 
 
-@pytest.mark.parametrize("per_group, widths", [(3, {3}), (5, {5}), (12, {16, 8})])
+@pytest.mark.parametrize("per_group, widths", [(1, {2}), (3, {3}), (5, {5}), (12, {16, 8})])
 def test_a_groups_nets_are_not_padded_beyond_its_size_up_to_8(monkeypatch, per_group, widths):
     # Padded nets are computed and thrown away: a group of 3 (discovery's seeds) trains as 3,
-    # not 4; above 8 the widths are powers of two (few shapes to compile as nets finish).
-    from pvvjax.nets import sweep
+    # not 4; a lone net as 2 (a batch of one compiles to other arithmetic); above 8 the widths
+    # are powers of two (few shapes to compile as nets finish).
+    from pvvjax.nets import batched
     from pvvjax.nets.networks import mlp_init
     from pvvjax.nets.train import make_data
 
@@ -181,15 +185,16 @@ def test_a_groups_nets_are_not_padded_beyond_its_size_up_to_8(monkeypatch, per_g
     data = jax.tree.map(lambda a: np.stack([a, a]), make_data(x, y, w, 1.0 - w))
     n = 2 * per_group
     params = jax.tree.map(lambda *a: np.stack(a), *[mlp_init(jax.random.key(i), 2, (3,)) for i in range(n)])
-    seen, run = [], sweep._run_chunk
+    seen, program = [], batched._program
 
-    def recorded(state, *args):
+    def recorded(state, *args, **kw):
         seen.append(jax.tree.leaves(state)[0].shape[:2])  # (groups, nets per group)
-        return run(state, *args)
+        return program(state, *args, **kw)
 
-    monkeypatch.setattr(sweep, "_run_chunk", recorded)
+    monkeypatch.setattr(batched, "_program", recorded)
+    monkeypatch.setattr(batched, "_pays", lambda w, w_new, *a: w_new <= w // 2)  # compact whenever it can
     # patience 1 and different seeds: nets finish in different chunks, so compaction is exercised
     cfg = TrainConfig(learning_rate=1e-2, max_steps=400, eval_every=10, patience=1)
-    fits = sweep.train_nets(params, data, np.repeat([0, 1], per_group), cfg, chunk_evals=1)
+    fits = batched.train_nets(params, data, np.repeat([0, 1], per_group), cfg, chunk_evals=1, compact=True)
     assert {m for _, m in seen} == widths and all(g == 2 for g, _ in seen)
     assert fits.best_val_rms.shape == (n,) and np.isfinite(fits.best_val_rms).all()

@@ -134,6 +134,7 @@ def _export_element(args, res, sweep: Path) -> int:
     settings and the training envelope, as a NumPy real-time element."""
     from ..analysis.databases import DB_INPUTS, peak_table
     from ..config import load_config
+    from ..nets.sweep import load_nets
     from ..realtime.export import element_spec
 
     database, arch = args.database, args.architecture
@@ -159,14 +160,14 @@ def _export_element(args, res, sweep: Path) -> int:
     spec = element_spec([f"net_{i}.npz" for i in ids], inputs, (db.min(), db.max()), campaign,
                         cfg.analysis.window_revs, window_revs=args.window, hop_revs=args.hop, offset_s=args.offset,
                         stick_offset_s=args.stick_offset)
-    files = [sweep / "params" / f"{i}.npz" for i in ids]
-    out = _write_element_format(args, spec, files, f"{len(ids)} {arch} nets ({database}) of {sweep}")
+    source = f"{len(ids)} {arch} nets ({database}) of {sweep}"
+    out = _write_element_format(args, spec, load_nets(sweep, ids, res), source)
     print(f"exported a real-time element ({args.format}): {len(ids)} {arch} nets ({database}), window "
           f"{args.window:g} revs, hop {args.hop:g} revs, offset {args.offset:g} s, to {out}")
     return 0
 
 
-def _write_element_format(args, spec: dict, files: list, source: str) -> Path:
+def _write_element_format(args, spec: dict, nets: list, source: str) -> Path:
     """The element in the format asked for: the NumPy folder, the C source, or the FMU."""
     import json
 
@@ -176,8 +177,8 @@ def _write_element_format(args, spec: dict, files: list, source: str) -> Path:
     from ..realtime.npnet import NumpyNet
 
     if args.format == "numpy":
-        return write_element(args.out, files, spec)
-    nets = [NumpyNet.load(f) for f in files]
+        return write_element(args.out, nets, spec)
+    nets = [NumpyNet(params, meta) for params, meta in nets]
     limits = CSourceLimits(max_rate_hz=args.max_rate)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -193,7 +194,7 @@ def cmd_export(args) -> int:
 
     import pandas as pd
 
-    from ..nets.sweep import load_params
+    from ..nets.sweep import load_nets
     from ..realtime import npnet
 
     if args.element:
@@ -220,9 +221,9 @@ def cmd_export(args) -> int:
     row = sel.iloc[0]
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    shutil.copy(sweep / "params" / f"{row.net_id}.npz", out / "net.npz")
+    [(params, meta)] = load_nets(sweep, [row.net_id], res)
+    npnet.write_npz(out / "net.npz", params, meta)
     shutil.copy(npnet.__file__, out / "npnet.py")
-    _, meta = load_params(out / "net.npz")
     (out / "README.md").write_text(
         f"# Exported network {row.architecture} ({row.database}, net {row.net_id})\n\n"
         f"Held-out RMS {row.test_rms_g:.4f} g. Needs NumPy only.\n\n"

@@ -118,7 +118,10 @@ class SweepConfig:
         folds: k of the k-fold split by condition.
         test_folds: outer folds to run (empty: all k, so every condition is held out once).
         split_seed: seed of the assignment of conditions to folds.
-        chunk_evals: evaluations per compiled chunk; finished nets leave the batch between chunks.
+        chunk_evals: on CPU, evaluations between the host's looks at which nets have stopped
+            (finished nets leave the batch there when half of it has).
+        checkpoint_s: write the nets finished so far at least this often, s: what a killed
+            sweep keeps (it does not change the results).
         cpu_devices: on CPU, expose this many host devices so that the net axis is sharded
             over the cores (0: one per core; 1: off). Applied by `pvvjax sweep` before JAX
             starts; results then depend on it (same config, seed and devices: same numbers).
@@ -133,6 +136,7 @@ class SweepConfig:
     test_folds: tuple[int, ...] = ()
     split_seed: int = 0
     chunk_evals: int = 4
+    checkpoint_s: float = 60.0
     cpu_devices: int = 0
 
     def __post_init__(self):
@@ -143,6 +147,8 @@ class SweepConfig:
             raise ValueError(f"sweep.hidden: every architecture needs widths >= 1, got {self.hidden}")
         if self.seeds < 1 or self.folds < 3 or self.chunk_evals < 1:
             raise ValueError("sweep.seeds must be >= 1, sweep.folds >= 3, sweep.chunk_evals >= 1")
+        if not self.checkpoint_s > 0:
+            raise ValueError(f"sweep.checkpoint_s must be > 0 s, got {self.checkpoint_s}")
         if any(not 0 <= f < self.folds for f in self.test_folds):
             raise ValueError(f"sweep.test_folds must lie in 0..{self.folds - 1}, got {self.test_folds}")
 

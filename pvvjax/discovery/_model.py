@@ -15,8 +15,8 @@ from ..analysis.databases import DB_INPUTS
 from ..config import ExperimentConfig
 from ..data.campaign import Campaign
 from ..nets import train as _train
+from ..nets.batched import stack_trees, train_nets
 from ..nets.networks import mlp_apply, mlp_init, scaling
-from ..nets.sweep import stack_trees, train_nets
 from ..replay.quasistatic import FEATURES, input_index
 from ..replay.tables import replay_all
 from . import _rules

@@ -1,10 +1,11 @@
 """The paper's networks as pure functions, their training and the sweeps over them.
 
 `networks` initialises and applies MLP and RBF nets (padded to share one program);
-`train` fits them full-batch; `sweep` trains databases × architectures × seeds × folds,
-vmapped and resumable; `evaluation` scores held-out predictions (Table 1, Figs 10-12).
+`train` fits them full-batch; `batched` trains many in one on-device loop; `sweep` trains
+databases × architectures × seeds × folds, resumable; `evaluation` scores held-out predictions (Table 1, Figs 10-12).
 """
 
+from .batched import predict_many, stack_trees, train_nets
 from .evaluation import BAND_G, attach_measured, heldout_predictions, search_architecture, table1
 from .networks import (
     apply_for,
@@ -23,13 +24,13 @@ from .sweep import (
     collect,
     databases_fingerprint,
     heldout_models,
+    load_nets,
     load_params,
     net_table,
     run_sweep,
     save_params,
     stack_data,
     sweep_settings,
-    train_nets,
 )
 from .train import (
     TRAINABLE,
@@ -69,6 +70,7 @@ __all__ = [
     "fit",
     "heldout_models",
     "heldout_predictions",
+    "load_nets",
     "init_state",
     "load_params",
     "make_data",
@@ -77,6 +79,7 @@ __all__ = [
     "mlp_init",
     "mlp_pad",
     "n_weights",
+    "predict_many",
     "net_table",
     "rbf_apply",
     "rbf_fit",
@@ -88,6 +91,7 @@ __all__ = [
     "search_architecture",
     "split_masks",
     "stack_data",
+    "stack_trees",
     "sweep_settings",
     "table1",
     "train_nets",

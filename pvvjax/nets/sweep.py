@@ -2,27 +2,23 @@
 
 Nets of one depth share a compiled program: hidden layers are allocated at the widest
 architecture of the sweep and masked (`networks`), and the inputs of db1-db3 (6, 8 and 7)
-are padded to 8 with an input mask. The stacked nets are vmapped; when more than one JAX
-device exists the net axis is sharded across them (`jax.sharding`). Training runs in
-chunks of `chunk_evals` evaluations; between chunks finished nets leave the batch, which
-shrinks to the next power of two, so the cost follows the nets' own step counts rather
-than the slowest net's.
+are padded to 8 with an input mask. They train together in one on-device loop
+(`batched.train_nets`).
 
-The shell around it (`run_sweep`) is resumable: the parameters of each finished net are
-written to `params/<net_id>.npz`, then the result rows of the nets that finished together
-to one file in `parts/`, each under a temporary name and renamed (a net counts as done
-once its row is in a part), so a sweep killed at any point and run again with the
-same config trains only the missing nets, keeps every finished one, and leaves no
-duplicate row and no half-written file. `results.parquet` gathers the parts at the end.
+The shell around it (`run_sweep`) is resumable. At every checkpoint (`sweep.checkpoint_s`)
+and at the end, the nets that finished since the last one are written together: their
+parameters stacked in one `params/<first net id>-<count>.npz`, then their result rows to
+the part of the same name in `parts/`, each under a temporary name and renamed (a net counts
+as done once its row is in a part). A sweep killed at any point and run again with the same
+config trains only the missing nets to the same bits, keeps every finished one, and leaves
+no duplicate row and no half-written file. `results.parquet` gathers the parts at the end.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
-import math
 import time
-from functools import partial
 from pathlib import Path
 
 import jax
@@ -35,8 +31,9 @@ from ..analysis.databases import DB_INPUTS, OUTPUT
 from ..config import ExperimentConfig, config_hash
 from ..data.fingerprint import tables_fingerprint
 from ..io import claim_folder, write_config
-from ..realtime.npnet import read_npz
+from ..realtime.npnet import read_npz, write_npz
 from . import train as _train
+from .batched import predict_many, stack_trees, train_nets
 from .networks import architecture_name, mlp_apply, mlp_init, n_weights, rbf_apply, rbf_fit, scaling
 
 __all__ = [
@@ -45,13 +42,13 @@ __all__ = [
     "collect",
     "databases_fingerprint",
     "heldout_models",
+    "load_nets",
     "load_params",
     "net_table",
     "run_sweep",
     "save_params",
     "stack_data",
     "sweep_settings",
-    "train_nets",
 ]
 
 N_INPUTS = max(len(v) for v in DB_INPUTS.values())  # every database padded to this many inputs
@@ -69,13 +66,14 @@ def databases_fingerprint(dbs: dict, databases) -> str:
 # The sweep's axes: they decide which nets exist, not how each is trained, so a sweep grows
 # (or narrows) in its folder; every other setting is the folder's own.
 SWEEP_AXES = ("databases", "hidden", "centers", "seeds", "test_folds")
+_NOT_RESULTS = ("checkpoint_s",)  # how often results are written, not what they are
 
 
 def sweep_settings(cfg: ExperimentConfig) -> dict:
     """The settings that decide how each net of a sweep is trained: what its folder is
     claimed for (`io.claim_folder`). The axes (`SWEEP_AXES`) are not among them."""
     campaign = {k: v for k, v in to_dict(cfg.campaign).items() if k != "path"}  # the content counts, not where
-    sweep = {k: v for k, v in to_dict(cfg.sweep).items() if k not in SWEEP_AXES}
+    sweep = {k: v for k, v in to_dict(cfg.sweep).items() if k not in SWEEP_AXES + _NOT_RESULTS}
     return dict(sweep=sweep, train=to_dict(cfg.train), analysis=to_dict(cfg.analysis), campaign=campaign,
                 seed=cfg.seed)
 
@@ -122,115 +120,6 @@ def stack_data(dbs: dict, databases, folds: int, split_seed: int):
 # --------------------------------------------------------------------------- core
 
 
-def stack_trees(trees):
-    """One PyTree whose leaves are the given trees' leaves stacked on a new leading axis (NumPy)."""
-    return jax.tree.map(lambda *a: np.stack([np.asarray(v) for v in a]), *trees)
-
-
-def _take(tree, idx):
-    return jax.tree.map(lambda a: a[idx], tree)
-
-
-def _bucket(n: int, multiple: int) -> int:
-    b = 1 << max(0, math.ceil(math.log2(max(n, 1))))
-    return max(multiple, -(-b // multiple) * multiple)
-
-
-def _sharded(state, consts, data, n_dev):
-    """Shard the net axis (axis 1 of the (groups, nets, ...) layout) over the devices;
-    the groups' data are replicated."""
-    if n_dev <= 1:
-        return state, consts, data
-    from jax.sharding import Mesh, NamedSharding, PartitionSpec
-
-    mesh = Mesh(np.array(jax.devices()), ("nets",))
-    nets = NamedSharding(mesh, PartitionSpec(None, "nets"))
-    return (jax.device_put(state, nets), jax.device_put(consts, nets),
-            jax.device_put(data, NamedSharding(mesh, PartitionSpec())))
-
-
-def _inner(f):
-    return jax.vmap(f, in_axes=(0, 0, None))  # the nets of a group share its data
-
-
-@partial(jax.jit, static_argnames=("cfg", "apply"))
-def _init_chunk(train_params, consts, data, cfg, apply):
-    return jax.vmap(_inner(lambda p, c, d: _train.init_state({**c, **p}, d, cfg, apply)))(train_params, consts, data)
-
-
-@partial(jax.jit, static_argnames=("cfg", "chunk_evals", "apply"))
-def _run_chunk(state, consts, data, cfg, chunk_evals, apply):
-    run = _inner(lambda s, c, d: _train.run(s, c, d, cfg, chunk_evals, apply))
-    new = jax.vmap(run)(state, consts, data)
-    return new, jax.vmap(jax.vmap(lambda s: _train.done(s, cfg)))(new)
-
-
-@partial(jax.jit, static_argnames=("apply",))
-def predict_many(params, x, apply=mlp_apply):
-    """Predictions of stacked nets (N, ...) on stacked inputs (N, n, d) -> (N, n)."""
-    return jax.vmap(apply)(params, x)
-
-
-def train_nets(params, data: _train.Data, group, cfg, *, chunk_evals: int = 8, on_done=None, apply=mlp_apply):
-    """Train a stack of nets (leading axis N) to completion, with compaction.
-
-    Nets that train on the same data (same database and split) form a group, and the
-    data enter once per group: the compiled step is vmapped over groups and, inside, over
-    the nets of a group with the data shared, so a layer of all the nets of a group is one
-    large matrix product rather than N small ones.
-
-    Args:
-        params: stacked parameters (N, ...).
-        data: `Data` of each group, stacked (G, ...).
-        group: (N,) group index of each net.
-        cfg: `TrainConfig`. chunk_evals: evaluations per chunk.
-        on_done: callback(indices, fits, seconds) for nets that just finished (host arrays).
-
-    Returns:
-        Stacked `Fit` of all nets (host arrays), in input order.
-    """
-    group = np.asarray(group)
-    n, n_groups = group.size, jax.tree.leaves(data)[0].shape[0]
-    consts = {k: v for k, v in params.items() if k not in _train.TRAINABLE}
-    n_dev = jax.device_count()
-    state = None
-    active = np.arange(n)
-    spent = np.zeros(n)
-    # Batch sizes are powers of two, at least the first chunk's (up to 8, not rounded up):
-    # few shapes, so few compilations, and no group of 3 or 4 nets (discovery's seeds)
-    # padded to 4 or 8 (the padded nets are computed and thrown away).
-    largest = np.bincount(group, minlength=n_groups).max()
-    least = min(_bucket(8, n_dev), -(-largest // n_dev) * n_dev)
-    while active.size:
-        # (G, M) table of net indices: each group's active nets, padded with repeats
-        per = [active[group[active] == g] for g in range(n_groups)]
-        most = max(len(a) for a in per)
-        width = least if most <= least else _bucket(most, n_dev)
-        table = np.stack([np.resize(a if len(a) else np.flatnonzero(group == g)[:1], width) for g, a in enumerate(per)])
-        real = np.stack([np.arange(width) < len(a) for a in per])
-        t0 = time.perf_counter()
-        c = _take(consts, table)
-        if state is None:
-            st = _init_chunk({k: v for k, v in _take(params, table).items() if k in _train.TRAINABLE}, c, data, cfg,
-                             apply)
-        else:
-            st = _take(state, table)
-        new, fin = _run_chunk(*_sharded(st, c, data, n_dev), cfg, chunk_evals, apply)
-        fin, new = _to_host((fin, new))
-        dt = time.perf_counter() - t0
-        ids, fin = table[real], fin[real]
-        spent[ids] += dt / ids.size
-        if state is None:  # allocate the full state once, from the first chunk's layout
-            state = jax.tree.map(lambda a: np.zeros((n,) + a.shape[2:], a.dtype), new)
-        state = jax.tree.map(lambda full, part: _scatter(full, ids, part[real]), state, new)
-        finished = ids[fin]
-        if on_done is not None and finished.size:
-            fits = _train.result(_take(state, finished), _take(consts, finished))
-            on_done(finished, jax.tree.map(np.asarray, fits), spent[finished])
-        active = np.setdiff1d(active, finished)
-    return jax.tree.map(np.asarray, _train.result(state, consts))
-
-
 def _barrier(name: str):
     """Wait for every process of a multi-process run (nothing to wait for in one process)."""
     if jax.process_count() > 1:
@@ -239,40 +128,42 @@ def _barrier(name: str):
         multihost_utils.sync_global_devices(name)
 
 
-def _to_host(tree):
-    """Host copies of (possibly sharded) arrays; across hosts (`jax.distributed`) every
-    process gathers the whole batch."""
-    if jax.process_count() > 1:
-        from jax.experimental import multihost_utils
-
-        return jax.tree.map(np.asarray, multihost_utils.process_allgather(tree, tiled=True))
-    return jax.tree.map(np.asarray, tree)
-
-
-def _scatter(full, idx, part):
-    full = np.array(full, copy=True)
-    full[idx] = part
-    return full
-
-
 # --------------------------------------------------------------------------- files
 
 
 def save_params(path, params: dict, meta: dict) -> Path:
-    """Save parameters as `.npz` (no pickle), written atomically; `meta` is stored as JSON."""
-    path = Path(path)
-    flat = {"/".join(str(getattr(k, "key", getattr(k, "idx", k))) for k in kp): np.asarray(v)
-            for kp, v in jax.tree_util.tree_flatten_with_path(params)[0]}
-    flat["__meta__"] = np.array(json.dumps(meta))
-    tmp = path.with_name(path.name + ".tmp.npz")
-    np.savez(tmp, **flat)
-    tmp.replace(path)
-    return path
+    """Save parameters (one net's, or nets stacked on a leading axis) as `.npz` (no
+    pickle), written atomically; `meta` is stored as JSON."""
+    write_npz(path, jax.tree.map(np.asarray, params), meta)
+    return Path(path)
 
 
 def load_params(path) -> tuple[dict, dict]:
     """Load parameters saved by `save_params` (with `allow_pickle=False`)."""
     return read_npz(path)
+
+
+def load_nets(out, net_ids, results: pd.DataFrame | None = None) -> list[tuple[dict, dict]]:
+    """One net's (parameters, metadata) for each net id of a sweep folder, read from the
+    parameter files that hold them (each file once; `params_file` and `params_index` of
+    the results table say where a net is). `results`: the folder's rows, if already read."""
+    res = collect(out) if results is None else results
+    where = res.set_index("net_id") if len(res) else None
+    if where is not None and "params_file" not in where.columns:
+        raise ValueError(f"{out}: written by an earlier pvvjax (a parameter file per net); delete the folder and "
+                         "run the sweep again")
+    missing = [i for i in net_ids if where is None or i not in where.index]
+    if missing:
+        raise KeyError(f"{out}: no finished net {missing[0]!r}")
+    files = {}
+    out_list = []
+    for i in net_ids:
+        name, j = where.at[i, "params_file"], int(where.at[i, "params_index"])
+        if name not in files:
+            files[name] = load_params(Path(out) / "params" / name)
+        params, meta = files[name]
+        out_list.append((jax.tree.map(lambda a: a[j], params), meta["nets"][j]))
+    return out_list
 
 
 def _split_sizes(data, sw) -> tuple[int, int]:
@@ -355,7 +246,8 @@ def run_sweep(cfg: ExperimentConfig, dbs: dict, out: Path, *, progress=None, log
             if bar is not None:
                 bar.update(len(idx))
 
-        train_nets(stack_trees(params), stack_trees(gdata), gid, cfg.train, chunk_evals=sw.chunk_evals, on_done=on_done)
+        train_nets(stack_trees(params), stack_trees(gdata), gid, cfg.train, chunk_evals=sw.chunk_evals,
+                   checkpoint_s=sw.checkpoint_s, on_done=on_done)
     if bar is not None:
         bar.close()
     _barrier("pvvjax sweep trained")  # process 0 has written every part file
@@ -374,7 +266,8 @@ def collect(out: Path) -> pd.DataFrame:
 
 
 def _finish(rows: pd.DataFrame, fits, seconds, data, dbs, cfg, out: Path, chash: str, apply=mlp_apply):
-    """Write the parameters and result rows of nets that just finished (one part file)."""
+    """Write the parameters (one file) and result rows (one part) of nets that finished
+    together; the part last, since a net counts as done once its row is in a part."""
     failed = np.asarray(fits.failed_step)
     for j, r in enumerate(rows.itertuples()):
         if failed[j] >= 0:
@@ -383,16 +276,24 @@ def _finish(rows: pd.DataFrame, fits, seconds, data, dbs, cfg, out: Path, chash:
                 f"not finite or diverging at step {int(failed[j])}; lower train.learning_rate or check the data")
     x = np.stack([data[db][0] for db in rows.database])
     preds = np.asarray(predict_many(fits.params, x, apply))
-    out_rows = []
+    _write_nets(rows, fits.params, preds, seconds, fits.best_step, fits.steps, data, dbs, cfg, out, chash)
+
+
+def _write_nets(rows, params, preds, seconds, best_step, steps, data, dbs, cfg, out, chash):
+    """Save stacked parameters of `rows`' nets as one file, then their rows as one part."""
+    stem = f"{rows.net_id.iloc[0]}-{len(rows)}"
+    out_rows, metas = [], []
     for j, r in enumerate(rows.itertuples()):
-        p = jax.tree.map(lambda a: a[j], fits.params)
-        out_rows.append(_net_row(r, p, preds[j], float(seconds[j]), int(fits.best_step[j]), int(fits.steps[j]), data,
-                                 dbs, cfg, out, chash))
-    _atomic_parquet(pd.DataFrame(out_rows), out / "parts" / f"{rows.net_id.iloc[0]}-{len(rows)}.parquet")
+        row, meta = _net_row(r, preds[j], float(seconds[j]), int(best_step[j]), int(steps[j]), data, dbs, cfg,
+                             chash)
+        out_rows.append({**row, "params_file": f"{stem}.npz", "params_index": j})
+        metas.append(meta)
+    save_params(out / "params" / f"{stem}.npz", params, dict(nets=metas))
+    _atomic_parquet(pd.DataFrame(out_rows), out / "parts" / f"{stem}.parquet")
 
 
-def _net_row(r, p, pred, seconds, best_step, steps, data, dbs, cfg, out, chash) -> dict:
-    """Save one net's parameters and return its result row."""
+def _net_row(r, pred, seconds, best_step, steps, data, dbs, cfg, chash) -> tuple[dict, dict]:
+    """One net's result row and the metadata stored with its parameters."""
     x, y, in_mask, folds = data[r.database]
     w_tr, w_va, w_te = _train.split_masks(folds, r.test_fold, cfg.sweep.folds)
     row = {k: v for k, v in r._asdict().items() if k != "Index"}
@@ -408,22 +309,28 @@ def _net_row(r, p, pred, seconds, best_step, steps, data, dbs, cfg, out, chash) 
                split=json.dumps(np.where(w_te > 0, "test", np.where(w_va > 0, "val", "train")).tolist()))
     meta = dict(net_id=r.net_id, database=r.database, architecture=r.architecture, family=r.family,
                 inputs=list(DB_INPUTS[r.database]), seed=int(r.seed), test_fold=int(r.test_fold))
-    save_params(out / "params" / f"{r.net_id}.npz", jax.tree.map(np.asarray, p), meta)
-    return row
+    return row, meta
 
 
 def _run_rbf(group, data, dbs, cfg, out, chash, bar):
-    for r in group.itertuples():
-        x, y, in_mask, folds = data[r.database]
-        w_tr, _, _ = _train.split_masks(folds, r.test_fold, cfg.sweep.folds)
-        t0 = time.perf_counter()
-        sel = w_tr > 0
-        p = jax.tree.map(np.asarray, rbf_fit(jax.random.key(r.seed), x[sel], y[sel], int(r.hidden), in_mask=in_mask))
-        pred = np.asarray(rbf_apply(p, x))
-        row = _net_row(r, p, pred, time.perf_counter() - t0, 0, 0, data, dbs, cfg, out, chash)
-        _atomic_parquet(pd.DataFrame([row]), out / "parts" / f"{r.net_id}-1.parquet")
+    """RBF nets, fitted on the host one at a time; each architecture's written as one file."""
+    for _, rows in group.groupby("hidden", sort=False):
+        rows = rows.reset_index(drop=True)
+        params, preds, seconds = [], [], []
+        for r in rows.itertuples():
+            x, y, in_mask, folds = data[r.database]
+            w_tr, _, _ = _train.split_masks(folds, r.test_fold, cfg.sweep.folds)
+            t0 = time.perf_counter()
+            sel = w_tr > 0
+            p = jax.tree.map(np.asarray, rbf_fit(jax.random.key(r.seed), x[sel], y[sel], int(r.hidden),
+                                                 in_mask=in_mask))
+            preds.append(np.asarray(rbf_apply(p, x)))
+            params.append(p)
+            seconds.append(time.perf_counter() - t0)
+        zero = np.zeros(len(rows), int)
+        _write_nets(rows, stack_trees(params), preds, seconds, zero, zero, data, dbs, cfg, out, chash)
         if bar is not None:
-            bar.update(1)
+            bar.update(len(rows))
 
 
 def heldout_models(out: Path, database: str, conditions, architecture: str | None = None) -> dict:
@@ -464,7 +371,7 @@ def heldout_models(out: Path, database: str, conditions, architecture: str | Non
         raise ValueError(f"{out}: conditions {missing[:5]} are not held out by any {database} net of the sweep")
     by_fold = {}
     for fold, g in sel.sort_values("seed").groupby("test_fold"):
-        by_fold[int(fold)] = stack_trees([load_params(Path(out) / "params" / f"{nid}.npz")[0] for nid in g.net_id])
+        by_fold[int(fold)] = stack_trees([p for p, _ in load_nets(out, list(g.net_id), res)])
     params = stack_trees([by_fold[fold_of[c]] for c in conditions])
     idx = np.broadcast_to(input_index(database, N_INPUTS), (len(conditions), N_INPUTS))
     return dict(params=jax.tree.map(jnp.asarray, params), idx=jnp.asarray(idx))

@@ -19,6 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
+from ._sums import pairwise_sum
 from .networks import mlp_apply
 
 __all__ = ["TRAINABLE", "Data", "Fit", "TrainState", "TrainingError", "condition_folds", "descend", "done", "fit",
@@ -76,11 +77,11 @@ def _split(params: dict) -> tuple[dict, dict]:
 
 
 def _wmse(pred, y, w, y_scale):
-    return jnp.sum(w * ((pred - y) / y_scale) ** 2) / jnp.maximum(jnp.sum(w), 1.0)
+    return pairwise_sum(w * ((pred - y) / y_scale) ** 2) / jnp.maximum(pairwise_sum(w), 1.0)
 
 
 def _wrms(pred, y, w):
-    return jnp.sqrt(jnp.sum(w * (pred - y) ** 2) / jnp.maximum(jnp.sum(w), 1.0))
+    return jnp.sqrt(pairwise_sum(w * (pred - y) ** 2) / jnp.maximum(pairwise_sum(w), 1.0))
 
 
 class TrainState(NamedTuple):

@@ -68,13 +68,14 @@ def element_spec(nets: list[str], inputs: list[str], envelope: tuple, campaign: 
                               blades=campaign.aircraft.blades, nominal_rpm=campaign.aircraft.nominal_rpm))
 
 
-def write_element(out, net_files: list, spec: dict) -> Path:
-    """Write an element folder: the nets' parameter files under `spec["nets"]`' names,
-    element.json, and the NumPy modules it runs on. Returns the folder."""
+def write_element(out, nets: list, spec: dict) -> Path:
+    """Write an element folder: the nets' parameter files under `spec["nets"]`' names
+    (`nets`: one (parameters, metadata) pair each), element.json, and the NumPy modules it
+    runs on. Returns the folder."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    for src, name in zip(net_files, spec["nets"]):
-        shutil.copy(src, out / name)
+    for (params, meta), name in zip(nets, spec["nets"]):
+        npnet.write_npz(out / name, params, meta)
     (out / "element.json").write_text(json.dumps(spec, indent=2))
     shutil.copy(npnet.__file__, out / "npnet.py")
     shutil.copy(element.__file__, out / "rtelement.py")

@@ -10,10 +10,11 @@ NumPy only and can be copied next to the parameter file (`pvvjax export` does th
 from __future__ import annotations
 
 import json
+import os
 
 import numpy as np
 
-__all__ = ["NumpyNet", "read_npz"]
+__all__ = ["NumpyNet", "read_npz", "write_npz"]
 
 
 def read_npz(path) -> tuple[dict, dict]:
@@ -33,6 +34,29 @@ def read_npz(path) -> tuple[dict, dict]:
         if group in out:
             out[group] = tuple(out[group][str(i)] for i in range(len(out[group])))
     return out, meta
+
+
+def write_npz(path, params: dict, meta: dict):
+    """Write parameters (nested dicts and tuples of arrays) and JSON metadata as a `.npz`
+    that `read_npz` reads, atomically (a temporary file renamed)."""
+    flat = {}
+
+    def walk(node, key):
+        if isinstance(node, dict):
+            for k, v in node.items():
+                walk(v, f"{key}/{k}" if key else str(k))
+        elif isinstance(node, (tuple, list)):
+            for i, v in enumerate(node):
+                walk(v, f"{key}/{i}")
+        else:
+            flat[key] = np.asarray(node)
+
+    walk(params, "")
+    flat["__meta__"] = np.array(json.dumps(meta))
+    path = str(path)
+    tmp = path + ".tmp.npz"
+    np.savez(tmp, **flat)
+    os.replace(tmp, path)
 
 
 class NumpyNet:

@@ -1,0 +1,256 @@
+"""Many nets trained in one loop that stays on the device.
+
+Nets that train on the same data (one database and split) form a group; the batch is a
+(G, W) table of G groups with W nets each (a group with fewer nets repeats them). The step
+is vmapped over groups and, inside, over the nets of a group with the data shared, so a
+layer of a group's nets is one large matrix product rather than W small ones. When more
+than one JAX device exists the net axis is sharded across them.
+
+A segment (`train.run` vmapped) trains on the device until every net has stopped (budget,
+patience or divergence, kept per net) or a number of evaluations has passed. Between
+segments the host reads only the (G, W) stop flags. It pulls a net's parameters once, after
+the net has stopped: at a checkpoint (`checkpoint_s`, counted in seconds, so a long sweep
+can be killed and resumed), before compaction drops it, and at the end.
+
+Compaction pays where a step costs in proportion to the nets in the batch (CPU): when the
+nets still training fit in half the width, they are gathered on the device into a narrower
+batch (widths are powers of two, so few programs compile). On an accelerator a step of
+thousands of small nets costs about what a step of a few costs, so the batch keeps its
+layout and the loop runs to the end (or the next checkpoint) in one call.
+
+A net's arithmetic does not depend on its batch (sums over rows are `_sums.pairwise_sum`,
+and a batch holds at least 2 nets per device), so on one device a net trains to the same
+bits alone, in any group, compacted or resumed. (Sharded, XLA partitions the program into
+other arithmetic: the same to float32 rounding.)
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from functools import partial
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from . import train as _train
+from .networks import mlp_apply
+
+__all__ = ["predict_many", "stack_trees", "train_nets"]
+
+
+def stack_trees(trees):
+    """One PyTree whose leaves are the given trees' leaves stacked on a new leading axis (NumPy)."""
+    return jax.tree.map(lambda *a: np.stack([np.asarray(v) for v in a]), *trees)
+
+
+@partial(jax.jit, static_argnames=("apply",))
+def _predict(params, x, apply):
+    return jax.vmap(apply)(params, x)
+
+
+def predict_many(params, x, apply=mlp_apply):
+    """Predictions of stacked nets (N, ...) on stacked inputs (N, n, d) -> (N, n), the same
+    bits for a net whatever the others (a lone net is computed beside a copy: XLA compiles
+    a batch of one to other arithmetic)."""
+    n = jax.tree.leaves(params)[0].shape[0]
+    if n == 1:
+        params, x = jax.tree.map(lambda a: jnp.concatenate([a, a]), (params, x))
+    return _predict(params, x, apply)[:n]
+
+
+def _take(tree, idx):
+    return jax.tree.map(lambda a: a[idx], tree)
+
+
+def _bucket(n: int, multiple: int) -> int:
+    b = 1 << max(0, math.ceil(math.log2(max(n, 1))))
+    return max(multiple, -(-b // multiple) * multiple)
+
+
+def _inner(f):
+    return jax.vmap(f, in_axes=(0, 0, None))  # the nets of a group share its data
+
+
+@partial(jax.jit, static_argnames=("cfg", "apply"))
+def _init(train_params, consts, data, cfg, apply):
+    return jax.vmap(_inner(lambda p, c, d: _train.init_state({**c, **p}, d, cfg, apply)))(train_params, consts, data)
+
+
+@partial(jax.jit, static_argnames=("cfg", "apply"))
+def _segment(state, consts, data, evals, cfg, apply):
+    """At most `evals` evaluations of every net of the (G, W) batch (a traced count: one
+    program for any segment length); the nets' stop flags (G, W)."""
+    run = _inner(lambda s, c, d: _train.run(s, c, d, cfg, evals, apply))
+    new = jax.vmap(run)(state, consts, data)
+    return new, jax.vmap(jax.vmap(lambda s: _train.done(s, cfg)))(new)
+
+
+_PROGRAMS: dict = {}  # compiled segments by layout, with the seconds each took to compile
+
+
+def _program(state, consts, data, evals, cfg, apply):
+    """The compiled segment for these shapes, and the seconds compiling it cost now (0 when
+    an earlier call compiled it: discovery trains the same layouts again and again)."""
+    key = (cfg, apply, jax.tree.structure((state, consts, data)),
+           tuple((a.shape, a.dtype, getattr(a, "sharding", None)) for a in jax.tree.leaves((state, consts, data))))
+    if key in _PROGRAMS:
+        return _PROGRAMS[key], 0.0
+    t0 = time.perf_counter()
+    compiled = _segment.lower(state, consts, data, evals, cfg=cfg, apply=apply).compile()
+    _PROGRAMS[key] = compiled
+    return compiled, time.perf_counter() - t0
+
+
+@jax.jit
+def _regroup(tree, idx):
+    """Entries idx (G, W') of each group's row of a (G, W, ...) batch, on the device."""
+    rows = jnp.arange(idx.shape[0])[:, None]
+    return jax.tree.map(lambda a: a[rows, idx], tree)
+
+
+@jax.jit
+def _fits(state, consts, g, w):
+    """The `Fit`s of the batch entries (g[i], w[i]), on the device."""
+    return _train.result(_take(state, (g, w)), _take(consts, (g, w)))
+
+
+class _Placement:
+    """Where the batch lives: sharded on the net axis over the devices, data replicated."""
+
+    def __init__(self, n_dev: int):
+        self.n_dev = n_dev
+        if n_dev > 1:
+            from jax.sharding import Mesh, NamedSharding, PartitionSpec
+
+            mesh = Mesh(np.array(jax.devices()), ("nets",))
+            self.nets = NamedSharding(mesh, PartitionSpec(None, "nets"))
+            self.replicated = NamedSharding(mesh, PartitionSpec())
+
+    def batch(self, tree):
+        return tree if self.n_dev <= 1 else jax.device_put(tree, self.nets)
+
+    def data(self, tree):
+        return tree if self.n_dev <= 1 else jax.device_put(tree, self.replicated)
+
+
+def _layout(per_group, width):
+    """(G, width) table of entries (each group's, repeated to fill; a group with none holds
+    entry 0) and which are the first copy of one."""
+    table = np.stack([np.resize(a if len(a) else np.zeros(1, int), width) for a in per_group])
+    real = np.stack([np.arange(width) < len(a) for a in per_group])
+    return table, real
+
+
+def _pull(state, consts, entries):
+    """Host `Fit`s of the batch entries [(g, w), ...], gathered on the device (the count
+    padded to a power of two, so that few programs compile)."""
+    g, w = np.array(entries).T
+    m = _bucket(len(g), 1)
+    fits = _to_host(_fits(state, consts, jnp.asarray(np.resize(g, m)), jnp.asarray(np.resize(w, m))))
+    return jax.tree.map(lambda a: a[: len(g)], fits)
+
+
+def train_nets(params, data: _train.Data, group, cfg, *, chunk_evals: int = 8, checkpoint_s: float | None = None,
+               compact: bool | None = None, on_done=None, apply=mlp_apply):
+    """Train a stack of nets (leading axis N) to completion in one on-device loop.
+
+    Args:
+        params: stacked parameters (N, ...).
+        data: `Data` of each group, stacked (G, ...).
+        group: (N,) group index of each net.
+        cfg: `TrainConfig`.
+        chunk_evals: with compaction, evaluations between looks at the stop flags.
+        checkpoint_s: hand finished nets to `on_done` at least this often, s (None: once,
+            at the end).
+        compact: gather the nets still training into a narrower batch when they fit in
+            half of it (None: on CPU only).
+        on_done: callback(indices, fits, seconds) for nets that finished since the last
+            call (host arrays; `seconds`: each net's share of the wall time).
+
+    Returns:
+        Stacked `Fit` of all nets (host arrays), in input order.
+    """
+    group = np.asarray(group)
+    n, n_groups = group.size, jax.tree.leaves(data)[0].shape[0]
+    place = _Placement(jax.device_count())
+    compact = jax.default_backend() == "cpu" if compact is None else compact
+    per = [np.flatnonzero(group == g) for g in range(n_groups)]
+    # Widths are powers of two above the first layout's (at most 8, not rounded up, so a
+    # group of 3 or 5 nets is not padded to 4 or 8): few shapes, so few compilations.
+    # At least 2 nets per device: XLA compiles a batch of one to other arithmetic (other
+    # last bits), and a lone net's repeat costs little.
+    largest = max(len(a) for a in per)
+    least = max(2 * place.n_dev, min(_bucket(8, place.n_dev), -(-largest // place.n_dev) * place.n_dev))
+
+    def width(most):
+        return least if most <= least else _bucket(most, place.n_dev)
+
+    table, real = _layout(per, width(largest))
+    consts = {k: v for k, v in params.items() if k not in _train.TRAINABLE}
+    c = place.batch(_take(consts, table))
+    data = place.data(data)
+    state = _init(place.batch({k: v for k, v in _take(params, table).items() if k in _train.TRAINABLE}), c, data,
+                  cfg, apply)
+    finished, spent = np.zeros(n, bool), np.zeros(n)
+    unpulled, pending, pulled = [], [], []  # finished nets' (g, w); pulled fits to report; all pulled
+    total_evals = -(-cfg.max_steps // cfg.eval_every) + 1
+    evals, last = (chunk_evals if compact or checkpoint_s is not None else total_evals), time.perf_counter()
+    evals_run, compile_s = 0, 0.0
+    while True:
+        program, cs = _program(state, c, data, jnp.int32(evals), cfg, apply)
+        compile_s = max(compile_s, cs)
+        t0 = time.perf_counter()
+        state, stop = program(state, c, data, jnp.int32(evals))
+        stop = _to_host(stop)
+        dt = time.perf_counter() - t0
+        evals_run += evals
+        running = real & ~finished[table]
+        spent[table[running]] += dt / running.sum()
+        new = running & stop
+        finished[table[new]] = True
+        unpulled += list(zip(*np.nonzero(new)))
+        now = time.perf_counter()
+        due = finished.all() or (checkpoint_s is not None and now - last >= checkpoint_s)
+        keep = real & ~finished[table]
+        shrink = (compact and not finished.all()
+                  and _pays(table.shape[1], width(keep.sum(1).max()), dt / evals, evals_run, compile_s))
+        if unpulled and (due or shrink):
+            pending.append((table[tuple(np.array(unpulled).T)], _pull(state, c, unpulled)))
+            unpulled = []
+        if due and pending:
+            pulled += pending
+            if on_done is not None:
+                ids = np.concatenate([i for i, _ in pending])
+                on_done(ids, jax.tree.map(lambda *a: np.concatenate(a), *[f for _, f in pending]), spent[ids])
+            pending, last = [], now
+        if finished.all():
+            break
+        if shrink:
+            idx, real = _layout([np.flatnonzero(k) for k in keep], width(keep.sum(1).max()))
+            table = np.take_along_axis(table, idx, axis=1)
+            state, c = place.batch(_regroup((state, c), jnp.asarray(idx)))
+        if not compact and checkpoint_s is not None:  # segments of about the checkpoint interval
+            evals = int(min(total_evals, max(chunk_evals, evals * checkpoint_s / max(dt, 1e-9))))
+    ids = np.concatenate([i for i, _ in pulled])
+    order = np.argsort(ids)
+    return jax.tree.map(lambda *a: np.concatenate(a)[order], *[f for _, f in pulled])
+
+
+def _pays(w: int, w_new: int, eval_s: float, evals_run: int, compile_s: float) -> bool:
+    """Whether narrowing the batch from w to w_new nets pays for a compilation (CPU: an
+    evaluation costs in proportion to the width). The nets still training are the slow
+    ones, so they are taken to need about as many evaluations again as have run; the
+    compile time is the largest this call has seen (0 once every width is compiled)."""
+    return w_new <= w // 2 and eval_s * (1 - w_new / w) * evals_run > compile_s
+
+
+def _to_host(tree):
+    """Host copies of (possibly sharded) arrays; across hosts (`jax.distributed`) every
+    process gathers the whole batch."""
+    if jax.process_count() > 1:
+        from jax.experimental import multihost_utils
+
+        return jax.tree.map(np.asarray, multihost_utils.process_allgather(tree, tiled=True))
+    return jax.tree.map(np.asarray, tree)

@@ -1,0 +1,96 @@
+"""The on-device trainer: many nets in one loop, equal to the per-net reference, and the
+same bits whatever the batch layout (alone, grouped, compacted, checkpointed)."""
+
+import jax
+import numpy as np
+import pytest
+
+from pvvjax.config import TrainConfig
+from pvvjax.nets import fit, make_data, mlp_init, stack_trees, train_nets
+
+CFG = TrainConfig(learning_rate=1e-2, max_steps=600, eval_every=20, patience=3)
+
+
+@pytest.fixture(scope="module")
+def problem():
+    """Three groups (datasets) and 48 nets of several widths, which stop at different steps."""
+    def data(seed):
+        rng = np.random.default_rng(seed)
+        x = rng.normal(size=(90, 8)).astype(np.float32)
+        y = np.tanh(x[:, 0] + x[:, 1] * x[:, 2]).astype(np.float32)
+        w = (np.arange(90) % 5 > 0).astype(np.float32)
+        return make_data(x, y, w, 1.0 - w)
+
+    datasets = [data(s) for s in range(3)]
+    nets = [mlp_init(jax.random.key(i), 8, (2 + i % 5, 3), max_hidden=(8, 4)) for i in range(48)]
+    group = np.arange(48) % 3
+    return datasets, nets, group
+
+
+def _equal(a, b):
+    for u, v in zip(jax.tree.leaves(a), jax.tree.leaves(b)):
+        np.testing.assert_array_equal(u, v)
+
+
+def _train(problem, idx, **kw):
+    datasets, nets, group = problem
+    groups = sorted(set(group[idx]))
+    gid = np.array([groups.index(g) for g in group[idx]])
+    return train_nets(stack_trees([nets[i] for i in idx]), stack_trees([datasets[g] for g in groups]), gid, CFG, **kw)
+
+
+@pytest.fixture(scope="module")
+def everything(problem):
+    return _train(problem, np.arange(48), compact=False)
+
+
+def test_nets_stop_at_different_steps_and_match_the_per_net_reference(problem, everything):
+    datasets, nets, group = problem
+    assert len(set(everything.steps.tolist())) > 3  # early stopping per net, on the device
+    one = jax.jit(fit, static_argnums=2)
+    for i in (0, 5, 13, 22):
+        ref = one(nets[i], datasets[group[i]], CFG)
+        assert int(ref.steps) == everything.steps[i] and int(ref.best_step) == everything.best_step[i]
+        # an unbatched net compiles to other arithmetic: equal to float32 rounding
+        for u, v in zip(jax.tree.leaves(ref.params), jax.tree.leaves(jax.tree.map(lambda a: a[i], everything.params))):
+            np.testing.assert_allclose(v, u, rtol=0, atol=2e-5)
+
+
+@pytest.mark.parametrize("layout", ["alone", "subset", "reversed", "compacted", "checkpointed"])
+def test_a_net_trains_to_the_same_bits_whatever_the_batch_layout(problem, everything, layout, monkeypatch):
+    from pvvjax.nets import batched
+
+    widths = []
+    pays = batched._pays
+
+    def compact_whenever_possible(w, w_new, *a):
+        widths.append(w_new if w_new <= w // 2 else w)
+        return w_new <= w // 2
+
+    monkeypatch.setattr(batched, "_pays", compact_whenever_possible)
+    if layout == "alone":
+        for i in (4, 17):
+            _equal(_train(problem, np.array([i])), jax.tree.map(lambda a: a[i : i + 1], everything))
+        return
+    idx = {"subset": np.array([1, 2, 4, 9, 11, 20, 23, 30, 47]), "reversed": np.arange(48)[::-1]}
+    idx = idx.get(layout, np.arange(48))
+    kw = dict(compact=True, chunk_evals=1) if layout == "compacted" else {}
+    if layout == "checkpointed":
+        kw = dict(compact=True, chunk_evals=1, checkpoint_s=1e-9)
+    got = _train(problem, idx, **kw)
+    _equal(got, jax.tree.map(lambda a: a[idx], everything))
+    if layout == "compacted":
+        assert set(widths) == {16, 8}  # 16 nets per group, narrowed to 8 (the first width's floor)
+    assert pays(8, 4, 1.0, 10, 4.9) and not pays(8, 4, 1.0, 10, 5.1) and not pays(8, 5, 1.0, 100, 0.0)
+
+
+def test_on_done_reports_every_net_once_with_its_fit(problem, everything):
+    seen = []
+    _train(problem, np.arange(48), compact=True, chunk_evals=1, checkpoint_s=1e-9,
+           on_done=lambda idx, fits, seconds: seen.append((idx, fits, seconds)))
+    assert len(seen) > 1  # a checkpoint every segment
+    ids = np.concatenate([i for i, _, _ in seen])
+    assert sorted(ids.tolist()) == list(range(48))
+    for idx, fits, seconds in seen:
+        assert (seconds > 0).all()
+        _equal(fits, jax.tree.map(lambda a: a[idx], everything))
