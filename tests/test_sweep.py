@@ -192,7 +192,6 @@ def test_a_groups_nets_are_not_padded_beyond_its_size_up_to_8(monkeypatch, per_g
         return program(state, *args, **kw)
 
     monkeypatch.setattr(batched, "_program", recorded)
-    monkeypatch.setattr(batched, "_pays", lambda w, w_new, *a: w_new <= w // 2)  # compact whenever it can
     # patience 1 and different seeds: nets finish in different chunks, so compaction is exercised
     cfg = TrainConfig(learning_rate=1e-2, max_steps=400, eval_every=10, patience=1)
     fits = batched.train_nets(params, data, np.repeat([0, 1], per_group), cfg, chunk_evals=1, compact=True)

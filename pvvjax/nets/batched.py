@@ -14,9 +14,12 @@ can be killed and resumed), before compaction drops it, and at the end.
 
 Compaction pays where a step costs in proportion to the nets in the batch (CPU): when the
 nets still training fit in half the width, they are gathered on the device into a narrower
-batch (widths are powers of two, so few programs compile). On an accelerator a step of
-thousands of small nets costs about what a step of a few costs, so the batch keeps its
-layout and the loop runs to the end (or the next checkpoint) in one call.
+batch. Widths are powers of two and the rule depends only on which nets have stopped, so
+a layout's program compiles once (per process, and on disk with `pvvjax sweep`) and every
+later sweep or discovery round reuses it; halving the work of the remaining evaluations
+pays for that compile after the first run. On an accelerator a step of thousands of small
+nets costs about what a step of a few costs, so the batch keeps its layout and the loop
+runs to the end (or the next checkpoint) in one call.
 
 A net's arithmetic does not depend on its batch (sums over rows are `_sums.pairwise_sum`,
 and a batch holds at least 2 nets per device), so on one device a net trains to the same
@@ -87,20 +90,17 @@ def _segment(state, consts, data, evals, cfg, apply):
     return new, jax.vmap(jax.vmap(lambda s: _train.done(s, cfg)))(new)
 
 
-_PROGRAMS: dict = {}  # compiled segments by layout, with the seconds each took to compile
+_PROGRAMS: dict = {}  # compiled segments by layout
 
 
 def _program(state, consts, data, evals, cfg, apply):
-    """The compiled segment for these shapes, and the seconds compiling it cost now (0 when
-    an earlier call compiled it: discovery trains the same layouts again and again)."""
+    """The compiled segment for these shapes (compiled once per process; `pvvjax sweep`
+    also keeps them on disk: `experiment.enable_compilation_cache`)."""
     key = (cfg, apply, jax.tree.structure((state, consts, data)),
            tuple((a.shape, a.dtype, getattr(a, "sharding", None)) for a in jax.tree.leaves((state, consts, data))))
-    if key in _PROGRAMS:
-        return _PROGRAMS[key], 0.0
-    t0 = time.perf_counter()
-    compiled = _segment.lower(state, consts, data, evals, cfg=cfg, apply=apply).compile()
-    _PROGRAMS[key] = compiled
-    return compiled, time.perf_counter() - t0
+    if key not in _PROGRAMS:
+        _PROGRAMS[key] = _segment.lower(state, consts, data, evals, cfg=cfg, apply=apply).compile()
+    return _PROGRAMS[key]
 
 
 @jax.jit
@@ -177,10 +177,13 @@ def train_nets(params, data: _train.Data, group, cfg, *, chunk_evals: int = 8, c
     place = _Placement(jax.device_count())
     compact = jax.default_backend() == "cpu" if compact is None else compact
     per = [np.flatnonzero(group == g) for g in range(n_groups)]
+    if n_groups == 1:  # XLA compiles a batch axis of one to other arithmetic: two rows of the same data
+        per = [per[0][::2], per[0][1::2]] if per[0].size > 1 else [per[0], per[0][:0]]
+        data = jax.tree.map(lambda a: jnp.concatenate([a, a]), data)
     # Widths are powers of two above the first layout's (at most 8, not rounded up, so a
     # group of 3 or 5 nets is not padded to 4 or 8): few shapes, so few compilations.
-    # At least 2 nets per device: XLA compiles a batch of one to other arithmetic (other
-    # last bits), and a lone net's repeat costs little.
+    # At least 2 nets per device and 2 rows: XLA compiles a batch axis of one to other
+    # arithmetic (other last bits), and a lone net's repeat costs little.
     largest = max(len(a) for a in per)
     least = max(2 * place.n_dev, min(_bucket(8, place.n_dev), -(-largest // place.n_dev) * place.n_dev))
 
@@ -196,16 +199,16 @@ def train_nets(params, data: _train.Data, group, cfg, *, chunk_evals: int = 8, c
     finished, spent = np.zeros(n, bool), np.zeros(n)
     unpulled, pending, pulled = [], [], []  # finished nets' (g, w); pulled fits to report; all pulled
     total_evals = -(-cfg.max_steps // cfg.eval_every) + 1
-    evals, last = (chunk_evals if compact or checkpoint_s is not None else total_evals), time.perf_counter()
-    evals_run, compile_s = 0, 0.0
+    # Segments: `chunk_evals` while the batch may still narrow, else to the end or to the
+    # next checkpoint.
+    narrows = lambda: compact and table.shape[1] > least  # noqa: E731
+    evals, last = (chunk_evals if narrows() or checkpoint_s is not None else total_evals), time.perf_counter()
     while True:
-        program, cs = _program(state, c, data, jnp.int32(evals), cfg, apply)
-        compile_s = max(compile_s, cs)
+        program = _program(state, c, data, jnp.int32(evals), cfg, apply)
         t0 = time.perf_counter()
         state, stop = program(state, c, data, jnp.int32(evals))
         stop = _to_host(stop)
         dt = time.perf_counter() - t0
-        evals_run += evals
         running = real & ~finished[table]
         spent[table[running]] += dt / running.sum()
         new = running & stop
@@ -214,8 +217,7 @@ def train_nets(params, data: _train.Data, group, cfg, *, chunk_evals: int = 8, c
         now = time.perf_counter()
         due = finished.all() or (checkpoint_s is not None and now - last >= checkpoint_s)
         keep = real & ~finished[table]
-        shrink = (compact and not finished.all()
-                  and _pays(table.shape[1], width(keep.sum(1).max()), dt / evals, evals_run, compile_s))
+        shrink = compact and not finished.all() and width(keep.sum(1).max()) <= table.shape[1] // 2
         if unpulled and (due or shrink):
             pending.append((table[tuple(np.array(unpulled).T)], _pull(state, c, unpulled)))
             unpulled = []
@@ -231,19 +233,15 @@ def train_nets(params, data: _train.Data, group, cfg, *, chunk_evals: int = 8, c
             idx, real = _layout([np.flatnonzero(k) for k in keep], width(keep.sum(1).max()))
             table = np.take_along_axis(table, idx, axis=1)
             state, c = place.batch(_regroup((state, c), jnp.asarray(idx)))
-        if not compact and checkpoint_s is not None:  # segments of about the checkpoint interval
+        if narrows():
+            evals = chunk_evals
+        elif checkpoint_s is None:
+            evals = total_evals
+        else:  # segments of about the checkpoint interval
             evals = int(min(total_evals, max(chunk_evals, evals * checkpoint_s / max(dt, 1e-9))))
     ids = np.concatenate([i for i, _ in pulled])
     order = np.argsort(ids)
     return jax.tree.map(lambda *a: np.concatenate(a)[order], *[f for _, f in pulled])
-
-
-def _pays(w: int, w_new: int, eval_s: float, evals_run: int, compile_s: float) -> bool:
-    """Whether narrowing the batch from w to w_new nets pays for a compilation (CPU: an
-    evaluation costs in proportion to the width). The nets still training are the slow
-    ones, so they are taken to need about as many evaluations again as have run; the
-    compile time is the largest this call has seen (0 once every width is compiled)."""
-    return w_new <= w // 2 and eval_s * (1 - w_new / w) * evals_run > compile_s
 
 
 def _to_host(tree):

@@ -23,7 +23,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._sums import add_bias
+from ._sums import affine
 
 __all__ = [
     "MLP",
@@ -146,8 +146,8 @@ class MLP(nn.Module):
         c = _constants(self, ("masks", "in_mask", *_SCALING), defaults)
         h = (x - c["x_shift"]) / c["x_scale"] * c["in_mask"]
         for layer, mask in zip(layers[:-1], c["masks"]):
-            h = jnp.tanh(add_bias(h @ layer["w"], layer["b"])) * mask
-        out = add_bias(h @ layers[-1]["w"], layers[-1]["b"])[..., 0]
+            h = jnp.tanh(affine(h, layer["w"], layer["b"])) * mask
+        out = affine(h, layers[-1]["w"], layers[-1]["b"])[..., 0]
         return out * c["y_scale"] + c["y_shift"]
 
 
