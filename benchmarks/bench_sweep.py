@@ -275,8 +275,8 @@ def main():
                 t, steps, val = sklearn_nets(dbs, res, args.sklearn_nets)
                 line(args.sklearn_nets, "scikit-learn, one by one", t, steps, f"median val RMS {val:.4f} g")
             print(f"{'':6s} where pvvjax's warm time goes: {ns / bare_rate:.2f} s of it is the nets' steps at the "
-                  f"bare loop's rate; {warm - ns / bare_rate:.2f} s the rest (validation, batches shrinking as "
-                  f"nets stop, host round trips, {n} parameter files)")
+                  f"bare loop's rate; {warm - ns / bare_rate:.2f} s the rest (validation, stopped nets computed "
+                  f"until the batch can halve, results and files)")
         prediction_latency(dbs, res, tmp / f"warm-{sizes[-1]}")
     finally:
         shutil.rmtree(tmp, ignore_errors=True)

@@ -197,3 +197,16 @@ def test_a_groups_nets_are_not_padded_beyond_its_size_up_to_8(monkeypatch, per_g
     fits = batched.train_nets(params, data, np.repeat([0, 1], per_group), cfg, chunk_evals=1, compact=True)
     assert {m for _, m in seen} == widths and all(g == 2 for g, _ in seen)
     assert fits.best_val_rms.shape == (n,) and np.isfinite(fits.best_val_rms).all()
+
+
+def test_a_sweep_folder_of_the_earlier_format_is_refused_naming_it(tmp_path, small_dbs):
+    # Format 1 held a parameter file per net and nets whose bits followed their batch: its
+    # nets are not this pvvjax's, so the folder is not resumed.
+    from pvvjax.io import ResultsFolderError, claim_folder
+    from pvvjax.nets.sweep import databases_fingerprint, sweep_settings
+
+    cfg = _cfg()
+    old = {k: v for k, v in sweep_settings(cfg).items() if k != "format"}
+    claim_folder(tmp_path, old, databases_fingerprint(small_dbs, ["db1", "db2", "db3"]))
+    with pytest.raises(ResultsFolderError, match=r"format: '\(unset\)' there, 2 now"):
+        run_sweep(cfg, small_dbs, tmp_path, log=lambda *a: None)

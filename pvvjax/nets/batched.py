@@ -196,8 +196,7 @@ def train_nets(params, data: _train.Data, group, cfg, *, chunk_evals: int = 8, c
     data = place.data(data)
     state = _init(place.batch({k: v for k, v in _take(params, table).items() if k in _train.TRAINABLE}), c, data,
                   cfg, apply)
-    finished, spent = np.zeros(n, bool), np.zeros(n)
-    unpulled, pending, pulled = [], [], []  # finished nets' (g, w); pulled fits to report; all pulled
+    ledger = _Ledger(n, on_done)
     total_evals = -(-cfg.max_steps // cfg.eval_every) + 1
     # Segments: `chunk_evals` while the batch may still narrow, else to the end or to the
     # next checkpoint.
@@ -207,28 +206,17 @@ def train_nets(params, data: _train.Data, group, cfg, *, chunk_evals: int = 8, c
         program = _program(state, c, data, jnp.int32(evals), cfg, apply)
         t0 = time.perf_counter()
         state, stop = program(state, c, data, jnp.int32(evals))
-        stop = _to_host(stop)
-        dt = time.perf_counter() - t0
-        running = real & ~finished[table]
-        spent[table[running]] += dt / running.sum()
-        new = running & stop
-        finished[table[new]] = True
-        unpulled += list(zip(*np.nonzero(new)))
-        now = time.perf_counter()
-        due = finished.all() or (checkpoint_s is not None and now - last >= checkpoint_s)
-        keep = real & ~finished[table]
-        shrink = compact and not finished.all() and width(keep.sum(1).max()) <= table.shape[1] // 2
-        if unpulled and (due or shrink):
-            pending.append((table[tuple(np.array(unpulled).T)], _pull(state, c, unpulled)))
-            unpulled = []
-        if due and pending:
-            pulled += pending
-            if on_done is not None:
-                ids = np.concatenate([i for i, _ in pending])
-                on_done(ids, jax.tree.map(lambda *a: np.concatenate(a), *[f for _, f in pending]), spent[ids])
-            pending, last = [], now
-        if finished.all():
-            break
+        ledger.stopped(table, real, _to_host(stop), time.perf_counter() - t0)
+        done = ledger.finished.all()
+        due = done or (checkpoint_s is not None and time.perf_counter() - last >= checkpoint_s)
+        keep = real & ~ledger.finished[table]
+        shrink = compact and not done and width(keep.sum(1).max()) <= table.shape[1] // 2
+        if due or shrink:
+            ledger.pull(state, c, table)
+        if due:
+            last = ledger.report() or last
+        if done:
+            return ledger.fits()
         if shrink:
             idx, real = _layout([np.flatnonzero(k) for k in keep], width(keep.sum(1).max()))
             table = np.take_along_axis(table, idx, axis=1)
@@ -238,10 +226,49 @@ def train_nets(params, data: _train.Data, group, cfg, *, chunk_evals: int = 8, c
         elif checkpoint_s is None:
             evals = total_evals
         else:  # segments of about the checkpoint interval
-            evals = int(min(total_evals, max(chunk_evals, evals * checkpoint_s / max(dt, 1e-9))))
-    ids = np.concatenate([i for i, _ in pulled])
-    order = np.argsort(ids)
-    return jax.tree.map(lambda *a: np.concatenate(a)[order], *[f for _, f in pulled])
+            evals = int(min(total_evals, max(chunk_evals, evals * checkpoint_s / max(ledger.last_s, 1e-9))))
+
+
+class _Ledger:
+    """The host's account of a training: which nets stopped, where those not yet pulled sit
+    in the batch, the fits pulled but not yet handed to `on_done`, and each net's seconds."""
+
+    def __init__(self, n: int, on_done):
+        self.finished, self.spent, self.on_done = np.zeros(n, bool), np.zeros(n), on_done
+        self.unpulled, self.pending, self.pulled, self.last_s = [], [], [], 0.0
+
+    def stopped(self, table, real, stop, seconds: float):
+        """Record a segment: its stop flags (G, W) and wall time, shared by the nets it ran."""
+        running = real & ~self.finished[table]
+        self.spent[table[running]] += seconds / running.sum()
+        new = running & stop
+        self.finished[table[new]] = True
+        self.unpulled += list(zip(*np.nonzero(new)))
+        self.last_s = seconds
+
+    def pull(self, state, consts, table):
+        """Bring the fits of the stopped nets to the host (before the batch drops them)."""
+        if self.unpulled:
+            self.pending.append((table[tuple(np.array(self.unpulled).T)], _pull(state, consts, self.unpulled)))
+            self.unpulled = []
+
+    def report(self) -> float | None:
+        """Hand the pulled fits to `on_done`; the time, or None if there was nothing."""
+        if not self.pending:
+            return None
+        self.pulled += self.pending
+        if self.on_done is not None:
+            ids = np.concatenate([i for i, _ in self.pending])
+            fits = jax.tree.map(lambda *a: np.concatenate(a), *[f for _, f in self.pending])
+            self.on_done(ids, fits, self.spent[ids])
+        self.pending = []
+        return time.perf_counter()
+
+    def fits(self):
+        """Every net's `Fit`, stacked in input order."""
+        ids = np.concatenate([i for i, _ in self.pulled])
+        order = np.argsort(ids)
+        return jax.tree.map(lambda *a: np.concatenate(a)[order], *[f for _, f in self.pulled])
 
 
 def _to_host(tree):

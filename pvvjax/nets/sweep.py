@@ -69,13 +69,19 @@ SWEEP_AXES = ("databases", "hidden", "centers", "seeds", "test_folds")
 _NOT_RESULTS = ("checkpoint_s",)  # how often results are written, not what they are
 
 
+# How a sweep folder is laid out and its nets computed: 2 = a parameter file per checkpoint,
+# and a net's arithmetic independent of its batch (a folder of format 1 holds other bits).
+FOLDER_FORMAT = 2
+
+
 def sweep_settings(cfg: ExperimentConfig) -> dict:
     """The settings that decide how each net of a sweep is trained: what its folder is
-    claimed for (`io.claim_folder`). The axes (`SWEEP_AXES`) are not among them."""
+    claimed for (`io.claim_folder`), with the folder's `FOLDER_FORMAT`. The axes
+    (`SWEEP_AXES`) are not among them."""
     campaign = {k: v for k, v in to_dict(cfg.campaign).items() if k != "path"}  # the content counts, not where
     sweep = {k: v for k, v in to_dict(cfg.sweep).items() if k not in SWEEP_AXES + _NOT_RESULTS}
     return dict(sweep=sweep, train=to_dict(cfg.train), analysis=to_dict(cfg.analysis), campaign=campaign,
-                seed=cfg.seed)
+                seed=cfg.seed, format=FOLDER_FORMAT)
 
 
 def net_table(cfg: ExperimentConfig, data: str = "") -> pd.DataFrame:
