@@ -21,10 +21,11 @@ pays for that compile after the first run. On an accelerator a step of thousands
 nets costs about what a step of a few costs, so the batch keeps its layout and the loop
 runs to the end (or the next checkpoint) in one call.
 
-A net's arithmetic does not depend on its batch (sums over rows are `_sums.pairwise_sum`,
-and a batch holds at least 2 nets per device), so on one device a net trains to the same
-bits alone, in any group, compacted or resumed. (Sharded, XLA partitions the program into
-other arithmetic: the same to float32 rounding.)
+A net's arithmetic does not depend on its batch (`_sums`: the loss sums rows as a pairwise
+tree and each bias sits inside its layer's matrix product; and a batch holds at least 2
+nets per device and 2 rows), so on one device a net trains to the same bits alone, in any
+group, compacted or resumed. (Sharded, XLA partitions the program into other arithmetic:
+the same to float32 rounding.)
 """
 
 from __future__ import annotations
