@@ -2,7 +2,8 @@
 
 `networks` initialises and applies MLP and RBF nets (padded to share one program);
 `train` fits them full-batch; `batched` trains many in one on-device loop; `sweep` trains
-databases × architectures × seeds × folds, resumable; `evaluation` scores held-out predictions (Table 1, Figs 10-12).
+databases × architectures × seeds × folds, resumable; `evaluation` scores held-out
+predictions (Table 1, Figs 10-12).
 """
 
 from .batched import predict_many, stack_trees, train_nets
@@ -70,8 +71,8 @@ __all__ = [
     "fit",
     "heldout_models",
     "heldout_predictions",
-    "load_nets",
     "init_state",
+    "load_nets",
     "load_params",
     "make_data",
     "masked_metrics",
@@ -79,8 +80,8 @@ __all__ = [
     "mlp_init",
     "mlp_pad",
     "n_weights",
-    "predict_many",
     "net_table",
+    "predict_many",
     "rbf_apply",
     "rbf_fit",
     "result",

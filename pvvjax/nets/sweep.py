@@ -140,7 +140,7 @@ def _barrier(name: str):
 def save_params(path, params: dict, meta: dict) -> Path:
     """Save parameters (one net's, or nets stacked on a leading axis) as `.npz` (no
     pickle), written atomically; `meta` is stored as JSON."""
-    write_npz(path, jax.tree.map(np.asarray, params), meta)
+    write_npz(path, params, meta)
     return Path(path)
 
 
