@@ -126,10 +126,8 @@ def main():
 
         res = pd.read_parquet(SWEEP / "results.parquet")
         cond = camp.counters.loc["11022", "condition"]
-        import json
-
         held = [r.net_id for r in res[res.database == "db1"].itertuples()
-                if dict(zip(json.loads(r.conditions), json.loads(r.split))).get(cond) == "test"]
+                if dict(zip(r.conditions, r.split)).get(cond) == "test"]
         nets = [NumpyNet(p, m) for p, m in load_nets(SWEEP, held, res)]
         t_np = best(lambda: numpy_replay(rec, nets, gw, sigma, 0.5, 8.0), 20)
         meas_np, pred_np = numpy_replay(rec, nets, gw, sigma, 0.5, 8.0)

@@ -175,3 +175,32 @@ def discovery_config(**settings):
         else:
             data[key] = value
     return from_dict(DiscoveryConfig, data)
+
+
+class Lowerings:
+    """Counts the programs JAX lowers for compilation, by function name, while active
+    (`with Lowerings() as n: ...; n["_segment"]`). A lowering happens for every program
+    compiled, whether or not the persistent cache then holds its binary, so the count is a
+    cache-independent measure of how many programs a piece of code needs."""
+
+    EVENT = "/jax/core/compile/jaxpr_to_mlir_module_duration"
+
+    def __init__(self):
+        from collections import Counter
+
+        self.counts = Counter()
+
+    def _listener(self, event, duration, **kw):
+        if event == self.EVENT:
+            self.counts[kw.get("fun_name", "?")] += 1
+
+    def __enter__(self):
+        import jax
+
+        jax.monitoring.register_event_duration_secs_listener(self._listener)
+        return self.counts
+
+    def __exit__(self, *exc):
+        import jax
+
+        jax.monitoring.unregister_event_duration_listener(self._listener)

@@ -1,12 +1,15 @@
 """The on-device trainer: many nets in one loop, equal to the per-net reference, and the
 same bits whatever the batch layout (alone, grouped, compacted, checkpointed)."""
 
+import dataclasses
+
 import jax
 import numpy as np
 import pytest
+from conftest import Lowerings
 
 from pvvjax.config import TrainConfig
-from pvvjax.nets import fit, make_data, mlp_init, stack_trees, train_nets
+from pvvjax.nets import fit, hyper, make_data, mlp_init, stack_trees, train_nets
 
 CFG = TrainConfig(learning_rate=1e-2, max_steps=600, eval_every=20, patience=3)
 
@@ -92,6 +95,35 @@ def test_on_done_reports_every_net_once_with_its_fit(problem, everything):
     for idx, fits, seconds in seen:
         assert (seconds > 0).all()
         _equal(fits, jax.tree.map(lambda a: a[idx], everything))
+
+
+def _hyper(n, **settings):
+    return jax.tree.map(lambda a: np.full(n, a), hyper(dataclasses.replace(CFG, **settings)))
+
+
+def test_training_settings_are_data_four_learning_rates_or_two_patiences_compile_once(problem, everything):
+    idx = np.arange(12)
+    _train(problem, idx)  # compiles the trainer for this layout
+    with Lowerings() as lowered:
+        fits = [_train(problem, idx, hyper=_hyper(12, learning_rate=lr)) for lr in (3e-3, 1e-2, 3e-2, 1e-1)]
+        fits += [_train(problem, idx, hyper=_hyper(12, patience=p)) for p in (1, 6)]
+        fits += [_train(problem, idx, hyper=_hyper(12, max_steps=200, divergence_factor=10.0, weight_decay=1e-3))]
+    assert lowered["_segment"] == 0 and lowered["_init"] == 0, dict(lowered)
+    _equal(fits[1], jax.tree.map(lambda a: a[idx], everything))  # lr 1e-2 as data: the bits of lr 1e-2 compiled in
+    assert len({float(f.best_val_rms.sum()) for f in fits[:4]}) == 4  # every rate trained its own nets
+    assert fits[4].steps.max() < fits[5].steps.max()  # patience 1 stops before patience 6
+    assert fits[6].steps.max() <= 200
+
+
+def test_nets_of_several_learning_rates_train_in_one_batch_as_each_alone(problem):
+    """A per-net learning rate in the batch gives each net the bits it gets in a batch of its rate."""
+    idx = np.arange(12)
+    rates = np.tile(np.float32([3e-3, 3e-2]), 6)
+    mixed = _train(problem, idx, hyper=_hyper(12)._replace(learning_rate=rates))
+    for lr in (3e-3, 3e-2):
+        sel = idx[rates == np.float32(lr)]
+        alone = _train(problem, sel, hyper=_hyper(len(sel), learning_rate=lr))
+        _equal(alone, jax.tree.map(lambda a: a[sel], mixed))
 
 
 @pytest.mark.parametrize("n", [1, 5, 8, 137])

@@ -43,10 +43,12 @@ def test_sweep_results_params_and_resume(tmp_path, small_dbs):
     db = small_dbs[row.database]
     x = np.zeros((len(db), 8), np.float32)
     x[:, : len(meta["inputs"])] = db[meta["inputs"]].to_numpy(np.float32)
-    np.testing.assert_allclose(mlp_apply(params, x), pd.read_json(pd.io.common.StringIO(row.predictions)).iloc[:, 0],
-                               atol=1e-5)
-    split = pd.Series(pd.read_json(pd.io.common.StringIO(row.split)).iloc[:, 0].to_numpy(), index=db.condition)
-    assert split.groupby(level=0).nunique().max() == 1
+    # predictions, conditions and split are list columns at full precision, also read back from disk
+    saved = pd.read_parquet(tmp_path / "results.parquet").set_index("net_id").loc[row.net_id]
+    assert saved.predictions.dtype == np.float64 and list(saved.conditions) == db.condition.astype(str).tolist()
+    np.testing.assert_allclose(mlp_apply(params, x), saved.predictions, rtol=0, atol=2e-7)
+    split = pd.Series(saved.split, index=db.condition)
+    assert split.groupby(level=0).nunique().max() == 1 and set(split) == {"train", "val", "test"}
     # a second run trains nothing and changes nothing
     lines = []
     res2 = run_sweep(cfg, small_dbs, tmp_path, log=lines.append)
@@ -63,6 +65,24 @@ def test_net_ids_are_stable_and_config_sensitive():
     assert list(a.net_id) == list(b.net_id)
     c = net_table(ExperimentConfig(sweep=_cfg().sweep, train=TrainConfig(learning_rate=0.1)))
     assert set(a.net_id).isdisjoint(c.net_id)
+
+
+def test_a_learning_rate_axis_trains_in_one_program(tmp_path, small_dbs):
+    from conftest import Lowerings
+
+    cfg = _cfg(databases=("db1",), hidden=((4,),), seeds=2, learning_rates=(3e-3, 1e-2, 3e-2, 1e-1))
+    with Lowerings() as lowered:
+        res = run_sweep(cfg, small_dbs, tmp_path, log=lambda *a: None)
+    assert len(res) == 8 and sorted(set(res.learning_rate)) == [3e-3, 1e-2, 3e-2, 1e-1]
+    assert lowered["_segment"] <= 1 and lowered["_init"] <= 1, dict(lowered)  # once (zero when already compiled)
+    assert res.groupby("learning_rate").val_rms_g.median().nunique() == 4
+    # a net of the axis is the net of a sweep at that one rate
+    one = run_sweep(_cfg(databases=("db1",), hidden=((4,),), seeds=2, learning_rates=(1e-2,)), small_dbs,
+                    tmp_path / "one", log=lambda *a: None)
+    both = res[res.learning_rate == 1e-2].set_index("net_id").loc[one.net_id]
+    np.testing.assert_array_equal(np.stack(both.predictions), np.stack(one.predictions))
+    with pytest.raises(ValueError, match="learning_rates lists a value twice"):
+        SweepConfig(learning_rates=(1e-2, 1e-2))
 
 
 def test_rbf_family(tmp_path, small_dbs):

@@ -3,6 +3,7 @@ sweep, replay, calibration and the main job."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -115,6 +116,10 @@ class SweepConfig:
         hidden: MLP hidden-layer widths per architecture, e.g. [[10, 5], [15, 5]].
         centers: RBF centre counts per architecture.
         seeds: number of initialisation seeds (0 .. seeds-1).
+        learning_rates: Adam step sizes, an axis of the sweep (empty: `train.learning_rate`).
+            Nets of every rate train in one batch and one compiled program.
+        weight_decays: AdamW weight decays, an axis like `learning_rates` (empty:
+            `train.weight_decay`).
         folds: k of the k-fold split by condition.
         test_folds: outer folds to run (empty: all k, so every condition is held out once).
         split_seed: seed of the assignment of conditions to folds.
@@ -132,6 +137,8 @@ class SweepConfig:
     hidden: tuple[tuple[int, ...], ...] = ((10, 5),)
     centers: tuple[int, ...] = (20,)
     seeds: int = 1
+    learning_rates: tuple[float, ...] = ()
+    weight_decays: tuple[float, ...] = ()
     folds: int = 5
     test_folds: tuple[int, ...] = ()
     split_seed: int = 0
@@ -151,6 +158,14 @@ class SweepConfig:
             raise ValueError(f"sweep.checkpoint_s must be > 0 s, got {self.checkpoint_s}")
         if any(not 0 <= f < self.folds for f in self.test_folds):
             raise ValueError(f"sweep.test_folds must lie in 0..{self.folds - 1}, got {self.test_folds}")
+        if any(not (math.isfinite(v) and v > 0) for v in self.learning_rates):
+            raise ValueError(f"sweep.learning_rates must be finite and > 0, got {list(self.learning_rates)}")
+        if any(not (math.isfinite(v) and v >= 0) for v in self.weight_decays):
+            raise ValueError(f"sweep.weight_decays must be finite and >= 0, got {list(self.weight_decays)}")
+        for name in ("learning_rates", "weight_decays", "test_folds"):
+            values = getattr(self, name)
+            if len(set(values)) < len(values):
+                raise ValueError(f"sweep.{name} lists a value twice: {list(values)}")
 
     @property
     def fold_list(self) -> tuple[int, ...]:

@@ -77,30 +77,32 @@ def _inner(f):
     return jax.vmap(f, in_axes=(0, 0, None))  # the nets of a group share its data
 
 
-@partial(jax.jit, static_argnames=("cfg", "apply"))
-def _init(train_params, consts, data, cfg, apply):
-    return jax.vmap(_inner(lambda p, c, d: _train.init_state({**c, **p}, d, cfg, apply)))(train_params, consts, data)
+@partial(jax.jit, static_argnames=("apply",))
+def _init(train_params, consts, hp, data, apply):
+    init = jax.vmap(lambda p, c, h, d: _train.init_state({**c, **p}, d, h, apply), in_axes=(0, 0, 0, None))
+    return jax.vmap(init)(train_params, consts, hp, data)
 
 
-@partial(jax.jit, static_argnames=("cfg", "apply"))
-def _segment(state, consts, data, evals, cfg, apply):
+@partial(jax.jit, static_argnames=("eval_every", "apply"))
+def _segment(state, consts, data, evals, eval_every, apply):
     """At most `evals` evaluations of every net of the (G, W) batch (a traced count: one
     program for any segment length); the nets' stop flags (G, W)."""
-    run = _inner(lambda s, c, d: _train.run(s, c, d, cfg, evals, apply))
+    run = _inner(lambda s, c, d: _train.run(s, c, d, eval_every, evals, apply))
     new = jax.vmap(run)(state, consts, data)
-    return new, jax.vmap(jax.vmap(lambda s: _train.done(s, cfg)))(new)
+    return new, jax.vmap(jax.vmap(_train.done))(new)
 
 
 _PROGRAMS: dict = {}  # compiled segments by layout
 
 
-def _program(state, consts, data, evals, cfg, apply):
+def _program(state, consts, data, evals, eval_every, apply):
     """The compiled segment for these shapes (compiled once per process; `pvvjax sweep`
-    also keeps them on disk: `experiment.enable_compilation_cache`)."""
-    key = (cfg, apply, jax.tree.structure((state, consts, data)),
+    also keeps them on disk: `experiment.enable_compilation_cache`). The training settings
+    are in the state, so they are not part of the key."""
+    key = (eval_every, apply, jax.tree.structure((state, consts, data)),
            tuple((a.shape, a.dtype, getattr(a, "sharding", None)) for a in jax.tree.leaves((state, consts, data))))
     if key not in _PROGRAMS:
-        _PROGRAMS[key] = _segment.lower(state, consts, data, evals, cfg=cfg, apply=apply).compile()
+        _PROGRAMS[key] = _segment.lower(state, consts, data, evals, eval_every=eval_every, apply=apply).compile()
     return _PROGRAMS[key]
 
 
@@ -153,15 +155,18 @@ def _pull(state, consts, entries):
     return jax.tree.map(lambda a: a[: len(g)], fits)
 
 
-def train_nets(params, data: _train.Data, group, cfg, *, chunk_evals: int = 8, checkpoint_s: float | None = None,
-               compact: bool | None = None, on_done=None, apply=mlp_apply):
+def train_nets(params, data: _train.Data, group, cfg, *, hyper: _train.Hyper | None = None, chunk_evals: int = 8,
+               checkpoint_s: float | None = None, compact: bool | None = None, on_done=None, apply=mlp_apply):
     """Train a stack of nets (leading axis N) to completion in one on-device loop.
 
     Args:
         params: stacked parameters (N, ...).
         data: `Data` of each group, stacked (G, ...).
         group: (N,) group index of each net.
-        cfg: `TrainConfig`.
+        cfg: `TrainConfig` (its `eval_every` is the one setting compiled into the program).
+        hyper: each net's training settings, a `Hyper` of (N,) arrays (None: the config's
+            for every net); traced, so nets of other learning rates, weight decays, budgets
+            or patiences share the batch and the compiled program.
         chunk_evals: with compaction, evaluations between looks at the stop flags.
         checkpoint_s: hand finished nets to `on_done` at least this often, s (None: once,
             at the end).
@@ -193,18 +198,20 @@ def train_nets(params, data: _train.Data, group, cfg, *, chunk_evals: int = 8, c
 
     table, real = _layout(per, width(largest))
     consts = {k: v for k, v in params.items() if k not in _train.TRAINABLE}
+    if hyper is None:
+        hyper = jax.tree.map(lambda a: np.full(n, a), _train.hyper(cfg))
     c = place.batch(_take(consts, table))
     data = place.data(data)
-    state = _init(place.batch({k: v for k, v in _take(params, table).items() if k in _train.TRAINABLE}), c, data,
-                  cfg, apply)
+    state = _init(place.batch({k: v for k, v in _take(params, table).items() if k in _train.TRAINABLE}), c,
+                  place.batch(_take(jax.tree.map(np.asarray, hyper), table)), data, apply)
     ledger = _Ledger(n, on_done)
-    total_evals = -(-cfg.max_steps // cfg.eval_every) + 1
+    total_evals = -(-int(np.max(hyper.max_steps)) // cfg.eval_every) + 1
     # Segments: `chunk_evals` while the batch may still narrow, else to the end or to the
     # next checkpoint.
     narrows = lambda: compact and table.shape[1] > least  # noqa: E731
     evals, last = (chunk_evals if narrows() or checkpoint_s is not None else total_evals), time.perf_counter()
     while True:
-        program = _program(state, c, data, jnp.int32(evals), cfg, apply)
+        program = _program(state, c, data, jnp.int32(evals), cfg.eval_every, apply)
         t0 = time.perf_counter()
         state, stop = program(state, c, data, jnp.int32(evals))
         ledger.stopped(table, real, _to_host(stop), time.perf_counter() - t0)

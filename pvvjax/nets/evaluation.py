@@ -3,8 +3,6 @@ and the paper's architecture-search rule. Tables in, tables out (pandas)."""
 
 from __future__ import annotations
 
-import json
-
 import numpy as np
 import pandas as pd
 
@@ -14,22 +12,26 @@ BAND_G = 0.05  # the paper's error band
 
 
 def heldout_predictions(results: pd.DataFrame) -> pd.DataFrame:
-    """Each condition's prediction by the nets that held it out (test fold), per database
-    and architecture; the median over seeds is the ensemble prediction.
+    """Each condition's prediction by the nets that held it out (test fold), per database,
+    architecture and (where the sweep had those axes) learning rate and weight decay; the
+    median over seeds is the ensemble prediction.
 
     Returns:
-        Long table: database, architecture, condition, predicted, n_nets (see
-        `attach_measured` for the measured values and the band flag).
+        Long table: database, architecture, [learning_rate, weight_decay,] condition,
+        predicted, n_nets (see `attach_measured` for the measured values and the band flag).
     """
+    keys = ["database", "architecture"] + [k for k in ("learning_rate", "weight_decay")
+                                           if k in results and results[k].nunique(dropna=False) > 1]
     rows = []
     for r in results.itertuples():
-        pred = np.asarray(json.loads(r.predictions))
-        cond = np.asarray(json.loads(r.conditions))
-        split = np.asarray(json.loads(r.split))
+        pred = np.asarray(r.predictions, np.float64)
+        cond = np.asarray(r.conditions)
+        split = np.asarray(r.split)
+        head = tuple(getattr(r, k) for k in keys)
         for c, p in zip(cond[split == "test"], pred[split == "test"]):
-            rows.append((r.database, r.architecture, r.seed, c, p))
-    long = pd.DataFrame(rows, columns=["database", "architecture", "seed", "condition", "predicted"])
-    out = (long.groupby(["database", "architecture", "condition"])
+            rows.append(head + (r.seed, c, p))
+    long = pd.DataFrame(rows, columns=keys + ["seed", "condition", "predicted"])
+    out = (long.groupby(keys + ["condition"])
            .agg(predicted=("predicted", "median"), n_nets=("predicted", "size")).reset_index())
     return out
 

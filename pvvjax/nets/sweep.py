@@ -1,8 +1,10 @@
-"""Sweeps: many nets (databases × architectures × seeds × folds) trained in one program.
+"""Sweeps: many nets (databases × architectures × learning rates × weight decays × seeds ×
+folds) trained in one program.
 
 Nets of one depth share a compiled program: hidden layers are allocated at the widest
 architecture of the sweep and masked (`networks`), and the inputs of db1-db3 (6, 8 and 7)
-are padded to 8 with an input mask. They train together in one on-device loop
+are padded to 8 with an input mask. Learning rates and weight decays are data (`train.Hyper`),
+so nets of every rate share the batch too. They train together in one on-device loop
 (`batched.train_nets`).
 
 The shell around it (`run_sweep`) is resumable. At every checkpoint (`sweep.checkpoint_s`)
@@ -17,6 +19,7 @@ no duplicate row and no half-written file. `results.parquet` gathers the parts a
 from __future__ import annotations
 
 import hashlib
+import itertools
 import json
 import time
 from pathlib import Path
@@ -65,13 +68,15 @@ def databases_fingerprint(dbs: dict, databases) -> str:
 
 # The sweep's axes: they decide which nets exist, not how each is trained, so a sweep grows
 # (or narrows) in its folder; every other setting is the folder's own.
-SWEEP_AXES = ("databases", "hidden", "centers", "seeds", "test_folds")
+SWEEP_AXES = ("databases", "hidden", "centers", "seeds", "learning_rates", "weight_decays", "test_folds")
 _NOT_RESULTS = ("checkpoint_s",)  # how often results are written, not what they are
 
 
 # How a sweep folder is laid out and its nets computed: 2 = a parameter file per checkpoint,
-# and a net's arithmetic independent of its batch (a folder of format 1 holds other bits).
-FOLDER_FORMAT = 2
+# and a net's arithmetic independent of its batch (a folder of format 1 holds other bits);
+# 3 = predictions, conditions and split as list columns at full precision, learning rate
+# and weight decay per net (format 2 held them as JSON strings).
+FOLDER_FORMAT = 3
 
 
 def sweep_settings(cfg: ExperimentConfig) -> dict:
@@ -80,28 +85,42 @@ def sweep_settings(cfg: ExperimentConfig) -> dict:
     (`SWEEP_AXES`) are not among them."""
     campaign = {k: v for k, v in to_dict(cfg.campaign).items() if k != "path"}  # the content counts, not where
     sweep = {k: v for k, v in to_dict(cfg.sweep).items() if k not in SWEEP_AXES + _NOT_RESULTS}
-    return dict(sweep=sweep, train=to_dict(cfg.train), analysis=to_dict(cfg.analysis), campaign=campaign,
+    train = to_dict(cfg.train)
+    for axis, name in (("learning_rates", "learning_rate"), ("weight_decays", "weight_decay")):
+        if getattr(cfg.sweep, axis):  # an axis of the sweep, not a setting of its folder
+            train.pop(name)
+    return dict(sweep=sweep, train=train, analysis=to_dict(cfg.analysis), campaign=campaign,
                 seed=cfg.seed, format=FOLDER_FORMAT)
+
+
+def _train_axes(cfg: ExperimentConfig) -> list[tuple[float, float]]:
+    """(learning rate, weight decay) of each point of the sweep's training axes."""
+    lrs = cfg.sweep.learning_rates or (cfg.train.learning_rate,)
+    wds = cfg.sweep.weight_decays or (cfg.train.weight_decay,)
+    return [(float(lr), float(wd)) for lr in lrs for wd in wds]
 
 
 def net_table(cfg: ExperimentConfig, data: str = "") -> pd.DataFrame:
     """One row per net of the sweep, with a stable id: the same config and data (the
     `databases_fingerprint`) give the same ids, and nothing else does."""
-    sw, tr = cfg.sweep, cfg.train
+    sw = cfg.sweep
     archs = sw.hidden if sw.family == "mlp" else tuple((c,) for c in sw.centers)
+    rates = _train_axes(cfg) if sw.family == "mlp" else [(np.nan, np.nan)]  # RBF nets are fitted, not trained
+    campaign = sweep_settings(cfg)["campaign"]
     rows = []
-    for db in sw.databases:
-        for hidden in archs:
-            for seed in range(sw.seeds):
-                for fold in sw.fold_list:
-                    key = dict(db=db, family=sw.family, hidden=list(hidden), seed=seed, fold=fold, k=sw.folds,
-                               split_seed=sw.split_seed, train=to_dict(tr), analysis=to_dict(cfg.analysis),
-                               campaign=sweep_settings(cfg)["campaign"], exp_seed=cfg.seed, data=data)
-                    net_id = hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:16]
-                    rows.append(dict(net_id=net_id, database=db, family=sw.family, hidden="-".join(map(str, hidden)),
-                                     architecture=architecture_name(len(DB_INPUTS[db]), hidden) if sw.family == "mlp"
-                                     else f"rbf-{hidden[0]}", depth=len(hidden), seed=seed, test_fold=fold,
-                                     optimizer="adam" if sw.family == "mlp" else "kmeans+lstsq"))
+    for db, hidden, (lr, wd), seed, fold in itertools.product(sw.databases, archs, rates, range(sw.seeds),
+                                                              sw.fold_list):
+        train = to_dict(cfg.train)
+        if sw.family == "mlp":
+            train.update(learning_rate=lr, weight_decay=wd)
+        key = dict(db=db, family=sw.family, hidden=list(hidden), seed=seed, fold=fold, k=sw.folds,
+                   split_seed=sw.split_seed, train=train, analysis=to_dict(cfg.analysis), campaign=campaign,
+                   exp_seed=cfg.seed, data=data)
+        rows.append(dict(net_id=hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:16],
+                         database=db, family=sw.family, hidden="-".join(map(str, hidden)),
+                         architecture=architecture_name(len(DB_INPUTS[db]), hidden) if sw.family == "mlp"
+                         else f"rbf-{hidden[0]}", depth=len(hidden), learning_rate=lr, weight_decay=wd, seed=seed,
+                         test_fold=fold, optimizer="adam" if sw.family == "mlp" else "kmeans+lstsq"))
     return pd.DataFrame(rows)
 
 
@@ -252,7 +271,10 @@ def run_sweep(cfg: ExperimentConfig, dbs: dict, out: Path, *, progress=None, log
             if bar is not None:
                 bar.update(len(idx))
 
-        train_nets(stack_trees(params), stack_trees(gdata), gid, cfg.train, chunk_evals=sw.chunk_evals,
+        hp = _train.hyper(cfg.train, group.learning_rate.to_numpy(np.float32),
+                          group.weight_decay.to_numpy(np.float32))
+        hp = jax.tree.map(lambda a: np.broadcast_to(a, len(group)), hp)
+        train_nets(stack_trees(params), stack_trees(gdata), gid, cfg.train, hyper=hp, chunk_evals=sw.chunk_evals,
                    checkpoint_s=sw.checkpoint_s, on_done=on_done)
     if bar is not None:
         bar.close()
@@ -310,9 +332,8 @@ def _net_row(r, pred, seconds, best_step, steps, data, dbs, cfg, chash) -> tuple
     hidden = [int(v) for v in r.hidden.split("-")]
     row.update(best_step=best_step, steps=steps, wall_s=seconds, config_hash=chash, n_inputs=n_in,
                n_weights=n_weights(n_in, hidden) if r.family == "mlp" else hidden[0] * (n_in + 2) + 1,
-               predictions=json.dumps(np.round(pred, 6).tolist()),
-               conditions=json.dumps(dbs[r.database].condition.tolist()),
-               split=json.dumps(np.where(w_te > 0, "test", np.where(w_va > 0, "val", "train")).tolist()))
+               predictions=np.asarray(pred, np.float64), conditions=dbs[r.database].condition.astype(str).tolist(),
+               split=np.where(w_te > 0, "test", np.where(w_va > 0, "val", "train")).tolist())
     meta = dict(net_id=r.net_id, database=r.database, architecture=r.architecture, family=r.family,
                 inputs=list(DB_INPUTS[r.database]), seed=int(r.seed), test_fold=int(r.test_fold))
     return row, meta
@@ -369,7 +390,7 @@ def heldout_models(out: Path, database: str, conditions, architecture: str | Non
         raise ValueError(f"{out}: {database} has several architectures {archs}; choose one")
     fold_of = {}
     for r in sel.itertuples():
-        for c, s in zip(json.loads(r.conditions), json.loads(r.split)):
+        for c, s in zip(r.conditions, r.split):
             if s == "test":
                 fold_of[c] = int(r.test_fold)
     missing = sorted({c for c in conditions if c not in fold_of})

@@ -7,7 +7,11 @@ trains. Across the k folds every condition is predicted exactly once by a net th
 saw it: the held-out predictions of the correlation plots.
 
 Data enter as full arrays with 0/1 row weights (train, validation, test), so nets trained
-on different splits, databases and seeds have the same shapes and vmap together.
+on different splits, databases and seeds have the same shapes and vmap together. The
+training settings a user changes (learning rate, weight decay, step budget, patience,
+divergence factor) enter as arrays too (`Hyper`), so one compiled trainer serves every value
+and nets with different settings train side by side; only `eval_every`, the length of the
+inner scan, is part of the program.
 """
 
 from __future__ import annotations
@@ -22,8 +26,8 @@ import optax
 from ._sums import pairwise_sum
 from .networks import mlp_apply
 
-__all__ = ["TRAINABLE", "Data", "Fit", "TrainState", "TrainingError", "condition_folds", "descend", "done", "fit",
-           "init_state", "make_data", "masked_metrics", "result", "run", "split_masks"]
+__all__ = ["TRAINABLE", "Data", "Fit", "Hyper", "TrainState", "TrainingError", "condition_folds", "descend", "done",
+           "fit", "hyper", "init_state", "make_data", "masked_metrics", "optimizer", "result", "run", "split_masks"]
 
 
 class TrainingError(RuntimeError):
@@ -84,10 +88,47 @@ def _wrms(pred, y, w):
     return jnp.sqrt(pairwise_sum(w * (pred - y) ** 2) / jnp.maximum(pairwise_sum(w), 1.0))
 
 
+class Hyper(NamedTuple):
+    """A net's training settings as arrays: traced, so changing one compiles nothing, and
+    nets with different settings train in one batch (stack them on a leading axis).
+
+    Attributes:
+        learning_rate: AdamW step size (float32).
+        weight_decay: decoupled weight decay (float32; 0: plain Adam).
+        max_steps: optimizer steps at most (int32).
+        patience: evaluations without a better validation RMS before stopping (int32).
+        divergence_factor: a training loss above this multiple of the initial loss is
+            divergence (float32).
+    """
+
+    learning_rate: jax.Array
+    weight_decay: jax.Array
+    max_steps: jax.Array
+    patience: jax.Array
+    divergence_factor: jax.Array
+
+
+def hyper(cfg, learning_rate=None, weight_decay=None) -> Hyper:
+    """A `TrainConfig`'s settings as a `Hyper` (NumPy scalars; `learning_rate` and
+    `weight_decay`, when given, replace the config's: a sweep's per-net axes)."""
+    lr = cfg.learning_rate if learning_rate is None else learning_rate
+    wd = cfg.weight_decay if weight_decay is None else weight_decay
+    return Hyper(np.float32(lr), np.float32(wd), np.int32(cfg.max_steps), np.int32(cfg.patience),
+                 np.float32(cfg.divergence_factor))
+
+
+def optimizer(learning_rate=0.0, weight_decay=0.0) -> optax.GradientTransformation:
+    """AdamW whose step size and weight decay live in its state, not in the program
+    (`optax.inject_hyperparams`): its `update` reads them from the state `init` made, so
+    one compiled step serves every value. A zero weight decay adds `0 * w`, which leaves
+    Adam's update unchanged."""
+    return optax.inject_hyperparams(optax.adamw)(learning_rate=learning_rate, weight_decay=weight_decay)
+
+
 class TrainState(NamedTuple):
     """Everything a net's training needs to continue (vmap it over nets)."""
 
-    opt: tuple  # (weights, Adam state)
+    opt: tuple  # (weights, AdamW state with its step size and weight decay)
     best: dict  # weights at the best validation RMS
     best_val: jax.Array
     best_step: jax.Array
@@ -95,6 +136,8 @@ class TrainState(NamedTuple):
     since: jax.Array  # evaluations since the last improvement
     failed: jax.Array  # first step with a non-finite or diverging loss, -1: none
     limit: jax.Array  # loss above which training counts as diverging
+    max_steps: jax.Array
+    patience: jax.Array
 
 
 class Data(NamedTuple):
@@ -128,12 +171,6 @@ def make_data(x, y, w_train, w_val, n_train: int | None = None, n_val: int | Non
     return Data(*take(w_train, n_train), *take(w_val, n_val))
 
 
-def _optimizer(cfg):
-    if cfg.weight_decay:
-        return optax.adamw(cfg.learning_rate, weight_decay=cfg.weight_decay)
-    return optax.adam(cfg.learning_rate)
-
-
 def descend(loss, params, opt_state, optimizer: optax.GradientTransformation, steps: int, *args):
     """`steps` steps of an optax optimizer on `loss(params, *args)`, as one scan: every
     training in pvvjax takes its gradient steps here.
@@ -153,52 +190,54 @@ def descend(loss, params, opt_state, optimizer: optax.GradientTransformation, st
     return params, opt_state, values
 
 
-def init_state(params: dict, data: Data, cfg, apply=mlp_apply) -> TrainState:
-    """Initial training state of one net (`cfg`: a `TrainConfig`)."""
+def init_state(params: dict, data: Data, hp: Hyper, apply=mlp_apply) -> TrainState:
+    """Initial training state of one net (`hp`: its `Hyper`, traced)."""
     t, const = _split(params)
     loss0 = _wmse(apply(params, data.x), data.y, data.w, const["y_scale"])
-    opt = (t, _optimizer(cfg).init(t))
+    opt = (t, optimizer(jnp.asarray(hp.learning_rate, jnp.float32), jnp.asarray(hp.weight_decay, jnp.float32)).init(t))
     zero = jnp.zeros((), jnp.int32)
     val0 = _wrms(apply(params, data.x_val), data.y_val, data.w_val)
     return TrainState(opt, t, val0, zero, zero, zero, jnp.full((), -1, jnp.int32),
-                      cfg.divergence_factor * (loss0 + 1e-12))
+                      hp.divergence_factor * (loss0 + 1e-12), jnp.asarray(hp.max_steps, jnp.int32),
+                      jnp.asarray(hp.patience, jnp.int32))
 
 
-def done(state: TrainState, cfg) -> jax.Array:
+def done(state: TrainState) -> jax.Array:
     """Whether training stops: the step budget is spent, validation stopped improving for
     `patience` evaluations, or the loss went non-finite."""
-    return (state.step >= cfg.max_steps) | (state.since >= cfg.patience) | (state.failed >= 0)
+    return (state.step >= state.max_steps) | (state.since >= state.patience) | (state.failed >= 0)
 
 
-def run(state: TrainState, const: dict, data: Data, cfg, max_evals: int | None = None, apply=mlp_apply) -> TrainState:
+def run(state: TrainState, const: dict, data: Data, eval_every: int, max_evals=None, apply=mlp_apply) -> TrainState:
     """Continue training one net for at most `max_evals` evaluations (None: until done).
 
-    Each evaluation follows `cfg.eval_every` optimizer steps; the weights of the best
-    validation RMS are kept, and training stops after `cfg.patience` evaluations without
-    improvement, at `cfg.max_steps`, or at the first non-finite or diverging loss.
-    Only weights and biases train: masks and scalings (`const`) are constants.
+    Each evaluation follows `eval_every` optimizer steps (static: the inner scan's length);
+    the weights of the best validation RMS are kept, and training stops after the state's
+    patience in evaluations without improvement, at its step budget, or at the first
+    non-finite or diverging loss. Only weights and biases train: masks and scalings
+    (`const`) are constants.
     """
-    opt = _optimizer(cfg)
     full = lambda t: {**const, **t}  # noqa: E731
     loss_fn = lambda t: _wmse(apply(full(t), data.x), data.y, data.w, const["y_scale"])  # noqa: E731
 
     def cond(c):
         st, n = c
-        ok = ~done(st, cfg)
+        ok = ~done(st)
         return ok if max_evals is None else ok & (n < max_evals)
 
     def body(c):
         st, n = c
-        t, s, losses = descend(loss_fn, *st.opt, opt, cfg.eval_every)
+        t, s, losses = descend(loss_fn, *st.opt, optimizer(), eval_every)
         o, bad = (t, s), jnp.any(~jnp.isfinite(losses) | (losses > state.limit))
-        stp = st.step + cfg.eval_every
+        stp = st.step + eval_every
         val = _wrms(apply(full(o[0]), data.x_val), data.y_val, data.w_val)
         bad = bad | ~jnp.isfinite(val)
         better = (val < st.best_val) & ~bad
         best = jax.tree.map(lambda new, old: jnp.where(better, new, old), o[0], st.best)
-        return TrainState(o, best, jnp.where(better, val, st.best_val), jnp.where(better, stp, st.best_step), stp,
-                          jnp.where(better, 0, st.since + 1), jnp.where(bad & (st.failed < 0), stp, st.failed),
-                          st.limit), n + 1
+        return st._replace(opt=o, best=best, best_val=jnp.where(better, val, st.best_val),
+                           best_step=jnp.where(better, stp, st.best_step), step=stp,
+                           since=jnp.where(better, 0, st.since + 1),
+                           failed=jnp.where(bad & (st.failed < 0), stp, st.failed)), n + 1
 
     return jax.lax.while_loop(cond, body, (state, jnp.zeros((), jnp.int32)))[0]
 
@@ -209,10 +248,13 @@ def result(state: TrainState, const: dict) -> Fit:
     return Fit({**const, **state.best}, state.best_step, state.best_val, state.step, state.failed)
 
 
-def fit(params: dict, data: Data, cfg, apply=mlp_apply) -> Fit:
-    """Train one net to completion (pure; jit and vmap it). See `run` and `make_data`."""
+def fit(params: dict, data: Data, cfg, apply=mlp_apply, hp: Hyper | None = None) -> Fit:
+    """Train one net to completion (pure; jit and vmap it): the per-net reference of
+    `batched.train_nets`. `cfg`: a `TrainConfig` (its `eval_every` is static); `hp`: the
+    traced settings (default: the config's). See `run` and `make_data`."""
     _, const = _split(params)
-    return result(run(init_state(params, data, cfg, apply), const, data, cfg, apply=apply), const)
+    hp = hyper(cfg) if hp is None else hp
+    return result(run(init_state(params, data, hp, apply), const, data, cfg.eval_every, apply=apply), const)
 
 
 def masked_metrics(pred, y, w) -> dict:
