@@ -1,16 +1,37 @@
-"""The one folder where pvvjax keeps what it can recompute (generated campaigns, campaign
-fingerprints): `$PVVJAX_CACHE`, else `.cache/` of a source checkout, else `~/.cache/pvvjax`."""
+"""Where pvvjax keeps what it can recompute.
+
+Generated campaigns and campaign fingerprints go to `cache_dir()`: `$PVVJAX_CACHE`, else
+`.cache/` of a source checkout (their keys name the generator's version, which a checkout
+may change without a new release), else `~/.cache/pvvjax`. Compiled XLA programs go to
+`compile_cache_dir()`, outside any checkout: JAX keys each program by its computation,
+compiler and devices, never by the path of the code, so every clone and installed copy on a
+machine shares them, and a fresh clone starts warm.
+"""
 
 from __future__ import annotations
 
 import os
 from pathlib import Path
 
+COMPILE_CACHE_BYTES = 2 << 30  # the compiled-program cache is pruned (least recently used first) above 2 GiB
+
 
 def cache_dir() -> Path:
-    """pvvjax's cache folder (not created here)."""
+    """pvvjax's cache folder for campaigns and fingerprints (not created here)."""
     env = os.environ.get("PVVJAX_CACHE")
     if env:
         return Path(env)
     root = Path(__file__).resolve().parents[1]
-    return root / ".cache" if (root / "pyproject.toml").exists() else Path.home() / ".cache" / "pvvjax"
+    return root / ".cache" if (root / "pyproject.toml").exists() else user_cache_dir()
+
+
+def user_cache_dir() -> Path:
+    """`$XDG_CACHE_HOME/pvvjax`, else `~/.cache/pvvjax`."""
+    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "pvvjax"
+
+
+def compile_cache_dir() -> Path:
+    """The persistent compilation cache: `$PVVJAX_CACHE/jax`, else `~/.cache/pvvjax/jax`
+    (the user's, shared by every checkout)."""
+    env = os.environ.get("PVVJAX_CACHE")
+    return (Path(env) if env else user_cache_dir()) / "jax"

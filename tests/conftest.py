@@ -6,15 +6,16 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-# Every test process (two xdist workers, the notebooks' kernels, CLI subprocesses) shares one
-# persistent compilation cache, and keeps every program, small ones too: on a cold cache (CI)
-# about 40 % of the workers' CPU time is XLA compiling, most of it a few large programs
-# (calibrate, harmonic_windows, cost_grid) and ~100 s op-by-op programs under 0.3 s, which
-# the processes compile alike. Set before JAX is imported (it reads these at import;
-# children inherit them).
-os.environ.setdefault("JAX_COMPILATION_CACHE_DIR",
-                      str(Path(os.environ.get("PVVJAX_CACHE", Path(__file__).parents[1] / ".cache")) / "jax"))
+# Every test process (two xdist workers, the notebooks' kernels, CLI subprocesses) shares the
+# user's persistent compilation cache (the one the CLI uses, outside the checkout, so a second
+# clone starts warm), and keeps every program, small ones too: on a cold cache (CI) much of
+# the workers' CPU time is XLA compiling, programs which the processes compile alike. Set
+# before JAX is imported (it reads these at import; children inherit them).
+from pvvjax._cache import COMPILE_CACHE_BYTES, compile_cache_dir  # noqa: E402  (imports no JAX)
+
+os.environ.setdefault("JAX_COMPILATION_CACHE_DIR", str(compile_cache_dir()))
 os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0")
+os.environ.setdefault("JAX_COMPILATION_CACHE_MAX_SIZE", str(COMPILE_CACHE_BYTES))
 
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402

@@ -1,5 +1,8 @@
 """Result tables: Parquet and CSV with their config, and Markdown for reports."""
 
+import os
+from pathlib import Path
+
 import numpy as np
 import pandas as pd
 
@@ -21,3 +24,22 @@ def test_markdown_table_formats_floats_and_nan():
     assert markdown_table(df).splitlines() == [
         "| name | g | n | f32 |", "|---|---|---|---|", "| a | 0.123 | 3 | 1.500 |", "| b | nan | 4 | 2.250 |"]
     assert markdown_table(df, "{:.3g}", nan="").splitlines()[3] == "| b |  | 4 | 2.25 |"
+
+
+def test_compiled_programs_are_cached_for_the_user_outside_any_checkout(tmp_path):
+    """The CLI's persistent compilation cache is the user's (shared by every clone, so a new
+    clone starts warm), or under $PVVJAX_CACHE, and it is bounded in size."""
+    import subprocess
+    import sys
+
+    probe = ("import jax; from pvvjax.experiment import enable_compilation_cache; enable_compilation_cache(); "
+             "print(jax.config.jax_compilation_cache_dir); print(jax.config.jax_compilation_cache_max_size)")
+    env = {k: v for k, v in os.environ.items() if k not in ("JAX_COMPILATION_CACHE_DIR", "PVVJAX_CACHE",
+                                                              "XDG_CACHE_HOME", "JAX_COMPILATION_CACHE_MAX_SIZE")}
+    home = subprocess.run([sys.executable, "-c", probe], env={**env, "HOME": str(tmp_path)}, cwd=tmp_path,
+                          capture_output=True, text=True, check=True).stdout.split()
+    assert home == [str(tmp_path / ".cache" / "pvvjax" / "jax"), str(2 << 30)]
+    assert Path(__file__).parents[1] not in Path(home[0]).parents
+    own = subprocess.run([sys.executable, "-c", probe], env={**env, "PVVJAX_CACHE": str(tmp_path / "c")},
+                         capture_output=True, text=True, check=True).stdout.split()
+    assert own[0] == str(tmp_path / "c" / "jax")
