@@ -14,6 +14,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .data.batch import bucket_size
+
 __all__ = ["Lookup", "make_lookup", "search"]
 
 
@@ -44,7 +46,7 @@ def make_lookup(xp) -> Lookup:
     if not (d > 0).all():
         raise ValueError("lookup table needs a strictly increasing array")
     step = 0.5 * float(d.min())
-    K = int(np.ceil((xp[-1] - xp[0]) / step)) + 2
+    K = bucket_size(int(np.ceil((xp[-1] - xp[0]) / step)) + 2)  # few table sizes, so few compiled programs
     table = np.searchsorted(xp, xp[0] + step * np.arange(K)).astype(np.int32)
     dt = np.float32
     return Lookup(np.asarray(xp[0], dt), np.asarray(1.0 / step, dt), table)

@@ -193,7 +193,8 @@ class Lowerings:
 
     def _listener(self, event, duration, **kw):
         if event == self.EVENT:
-            self.counts[kw.get("fun_name", "?")] += 1
+            name = kw.get("fun_name", "?")
+            self.counts[name[4:-1] if name.startswith("jit(") else name] += 1
 
     def __enter__(self):
         import jax

@@ -8,6 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 import pandas as pd
 import pytest
+from conftest import Lowerings
 
 from pvvjax import _lookup
 from pvvjax.analysis.databases import STATE_CHANNELS
@@ -264,7 +265,6 @@ def test_replays_at_other_offsets_share_one_program_and_equal_replays_that_bake_
     # the compiled replay as data (a `Settings` PyTree): replaying at another offset reuses the
     # program, and gives what a replay with the settings as static constants gives.
     from pvvjax.nets.networks import mlp_init
-    from pvvjax.replay.tables import replay_all, replay_windows, settings_at
 
     camp = lagged_campaign(0.5, n=2, seconds=20.0)
     batch = to_batch(camp, STATE_CHANNELS)
@@ -273,7 +273,14 @@ def test_replays_at_other_offsets_share_one_program_and_equal_replays_that_bake_
     net = dict(params=jax.tree.map(lambda *a: jnp.stack(a), *seeds), idx=jnp.asarray(R.input_index("db1")))
     model = jax.tree.map(lambda a: jnp.broadcast_to(a, (2, *jnp.shape(a))), net)
     info = camp.counters[["maneuver", "condition"]]
-    n0 = replay_all._cache_size()
+    with Lowerings() as lowered:
+        _replays_at_offsets(batch, recs, model, info)
+    assert lowered["_replay_all"] <= 1
+
+
+def _replays_at_offsets(batch, recs, model, info):
+    from pvvjax.replay.tables import replay_windows, settings_at
+
     for tau in (0.0, 0.5, 1.25):
         s = settings_at(batch, (tau, 8.0, 0.0))
         w = replay_windows(info, recs, {"db1": model}, (tau, 8.0, 0.0), s)
@@ -283,4 +290,34 @@ def test_replays_at_other_offsets_share_one_program_and_equal_replays_that_bake_
             np.testing.assert_allclose(w[col].to_numpy(), np.asarray(ref).ravel()[keep], rtol=1e-6, atol=1e-7)
         # Inputs τ > 0 before the first windows reach before the record: weighted out (the bound is data).
         assert ((~keep).sum() + (w.weight < 0.999).sum() > 0) == (tau > 0)
-    assert replay_all._cache_size() - n0 <= 1
+
+
+def test_campaigns_of_different_sizes_in_one_bucket_share_the_compiled_analysis_and_replay():
+    """Record counts, lengths and window counts come in buckets: two campaigns of other sizes
+    (3 counters of 20 s, 4 of 19 s) compile the analysis, the replay's preparation and the
+    replay once, and each equals its own replay computed without the shared padding."""
+    from pvvjax.analysis.harmonics import analyze
+    from pvvjax.nets.networks import mlp_init
+    from pvvjax.replay.tables import replay_all, settings_at
+
+    net = mlp_init(jax.random.key(0), 8, (4,), in_mask=np.r_[np.ones(6), np.zeros(2)])
+    runs = []
+    with Lowerings() as lowered:
+        for n, seconds in ((3, 20.0), (4, 19.0)):
+            batch = to_batch(lagged_campaign(0.5, n=n, seconds=seconds, seed=n), STATE_CHANNELS)
+            win = analyze(batch, 8.0)
+            recs = R.prepare(batch)
+            settings = settings_at(batch, (0.5, 8.0, 0.0))
+            model = dict(params=jax.tree.map(lambda a: jnp.broadcast_to(a, (n, *jnp.shape(a))), net),
+                         idx=jnp.asarray(np.broadcast_to(R.input_index("db1"), (n, 8))))
+            rep = replay_all(model, recs, jnp.asarray([0.5, 8.0, 0.0]), settings=settings)
+            runs.append((batch, win, recs, settings, model, rep))
+    assert runs[0][0].time.shape[1] == runs[1][0].time.shape[1] and runs[0][3].plan == runs[1][3].plan
+    assert lowered["_replay_all"] == 1 and lowered["_prepare"] == 1, dict(lowered)
+    assert lowered["harmonic_windows"] == 1, dict(lowered)
+    for batch, win, recs, settings, model, rep in runs:  # the padded batch's rows equal the rows alone
+        assert rep.time.shape[0] == win.amplitude.shape[0] == len(batch.counters)
+        one = jax.jit(lambda m, r: R.replay(m, r, 0.5, 8.0, settings=settings))(  # noqa: B023
+            jax.tree.map(lambda a: a[-1], model), jax.tree.map(lambda a: a[-1], recs))
+        np.testing.assert_allclose(np.asarray(rep.predicted[-1]), one.predicted, rtol=1e-6, atol=1e-7)
+        np.testing.assert_allclose(np.asarray(rep.measured[-1]), one.measured, rtol=1e-6, atol=1e-7)

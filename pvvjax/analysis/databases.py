@@ -20,7 +20,7 @@ import numpy as np
 import pandas as pd
 
 from ..config import AnalysisConfig
-from ..data.batch import to_batch
+from ..data.batch import bucket_size, to_batch
 from ..data.campaign import Campaign
 from ..data.features import derive_features
 from .harmonics import Windows, analyze
@@ -118,8 +118,10 @@ def peak_table(campaign: Campaign, analysis: AnalysisConfig = AnalysisConfig()) 
         raise ValueError(f"counters with no complete analysis window: {short}")
     cond_names = list(conds)
     cond_ids = np.array([cond_names.index(campaign.counters.loc[c, "condition"]) for c in counters])
-    pk = condition_peaks(win.amplitude, win.valid, jnp.asarray(cond_ids), num_conditions=len(cond_names))
-    row, col = np.asarray(pk.counter), np.asarray(pk.window)
+    # Conditions counted in buckets (an empty condition's peak is -inf, and it is sliced off).
+    pk = condition_peaks(win.amplitude, win.valid, jnp.asarray(cond_ids), num_conditions=bucket_size(len(cond_names)))
+    pk = jax.tree.map(lambda a: np.asarray(a)[: len(cond_names)], pk)
+    row, col = pk.counter, pk.window
     source = win.means if analysis.inputs == "mean" else win.center
     vals = np.asarray(source)[row, col]  # (K, C)
     ch = {name: vals[:, i] for i, name in enumerate(STATE_CHANNELS)}

@@ -33,7 +33,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._lookup import Lookup, make_lookup, search
-from ..data.batch import RecordBatch
+from ..data.batch import RecordBatch, bucket_size, pad_rows
 
 __all__ = [
     "Columns",
@@ -225,8 +225,9 @@ def with_prefix(c: Columns) -> Columns:
         hi[r] = p
         lo[r] = p - hi[r]
     hi, lo = hi.reshape(*lead, T + 1, n + 1), lo.reshape(*lead, T + 1, n + 1)
-    return c._replace(prefix=(jnp.asarray(hi), jnp.asarray(lo)),
-                                     lookup=jax.tree.map(jnp.asarray, make_lookup(c.rev)))
+    # device_put, not jnp.asarray: the latter compiles a small copy program per shape.
+    return c._replace(prefix=(jax.device_put(hi), jax.device_put(lo)),
+                      lookup=jax.tree.map(jax.device_put, make_lookup(c.rev)))
 
 
 def _prefix_window_sums(c: Columns, a, b, reach, kind, taper_revs, plan, select, every, keep):
@@ -377,7 +378,9 @@ def harmonic_windows(az, cos_psi, sin_psi, rev, width, time, x, mask, window_rev
 def plan_windows(batch: RecordBatch, max_window_revs: float, min_hop_revs: float, taper_revs: float = 0.0,
                  start_revs: float = 0.0, block: int = 16, edge: str = "cell") -> WindowPlan:
     """Static sizes that cover every window of every record for window lengths up to
-    `max_window_revs` and hops down to `min_hop_revs` (needs a concrete batch)."""
+    `max_window_revs` and hops down to `min_hop_revs` (needs a concrete batch). Each size
+    is rounded up to a `bucket_size`, so that campaigns of similar records share programs
+    (the extra windows lie past the record and are invalid)."""
     rev = np.asarray(batch.rev, np.float64)
     mask = np.asarray(batch.mask)
     d = np.diff(rev, axis=-1)
@@ -390,7 +393,8 @@ def plan_windows(batch: RecordBatch, max_window_revs: float, min_hop_revs: float
     ramp = 2.0 * _reach(_edge_kind(edge, taper_revs)) * h_max
     n_edge = int(math.ceil((ramp + 3.0 * dmax) / (block * dmin))) + 1
     interior = int(math.ceil((max_window_revs + h_max) / (block * dmin))) + 2
-    return WindowPlan(n_windows, block, n_edge, interior, int(math.ceil(ramp / dmin)) + 2)
+    return WindowPlan(bucket_size(n_windows), block, bucket_size(n_edge), bucket_size(interior),
+                      bucket_size(int(math.ceil(ramp / dmin)) + 2))
 
 
 def analyze(batch: RecordBatch, window_revs: float = 8.0, hop_revs: float | None = None, *, harmonic: int = 4,
@@ -410,6 +414,9 @@ def analyze(batch: RecordBatch, window_revs: float = 8.0, hop_revs: float | None
 
     Returns:
         `Windows` with shapes (B, W) and (B, W, C).
+
+    The records are padded to a `bucket_size` count for the computation (and the results
+    sliced back), so that batches of similar size share one compiled program.
     """
     hop = window_revs if hop_revs is None else hop_revs
     if plan is None:
@@ -418,5 +425,9 @@ def analyze(batch: RecordBatch, window_revs: float = 8.0, hop_revs: float | None
         partial(harmonic_windows, harmonic=harmonic, taper_revs=float(taper_revs), plan=plan, edge=edge),
         in_axes=(0, 0, 0, 0, 0, 0, 0, 0, None, None, None),
     )
-    return fn(batch.az, batch.cos_psi, batch.sin_psi, batch.rev, batch.width, batch.time, batch.x, batch.mask,
-              window_revs, hop, start_revs)
+    arrays = (batch.az, batch.cos_psi, batch.sin_psi, batch.rev, batch.width, batch.time, batch.x, batch.mask)
+    n = arrays[0].shape[0]
+    if isinstance(arrays[0], jax.core.Tracer):  # under a caller's jit or vmap: its shapes, as given
+        return fn(*arrays, window_revs, hop, start_revs)
+    out = fn(*pad_rows(arrays, bucket_size(n)), window_revs, hop, start_revs)
+    return jax.tree.map(lambda a: jax.device_put(np.asarray(a)[:n]), out)  # sliced on the host: no program per n

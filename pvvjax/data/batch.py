@@ -4,6 +4,11 @@ Records of different lengths are padded to a common length with a mask, so that 
 compiled function serves the whole campaign and vmaps over counters. Padding continues
 time and rotor azimuth linearly (so searches stay monotonic) and holds channel values
 (so interpolation near the end never sees a jump); padded samples carry zero weight.
+
+Compiled programs are keyed on shapes, so sizes that follow the data (samples per record,
+records, windows, conditions) are rounded up to a few buckets (`bucket_size`: steps of
+about 1.25×, at most 25 % padding): campaigns of similar size then share every compiled
+analysis, replay and calibration program instead of compiling their own.
 """
 
 from __future__ import annotations
@@ -16,9 +21,36 @@ import numpy as np
 
 from .campaign import Campaign
 
-__all__ = ["BLOCK", "RecordBatch", "sample_widths", "to_batch"]
+__all__ = ["BLOCK", "RecordBatch", "bucket_size", "pad_rows", "sample_widths", "to_batch"]
 
 BLOCK = 64  # batches are padded to a multiple of this many samples
+
+
+def bucket_size(n: int) -> int:
+    """The smallest bucket >= n: 1, 2, 4, 8, then m·2^k with m in {4, 5, 6, 7} (10, 12,
+    14, 16, 20, 24, ...), so that sizes come in few values and, above 8, padding adds at
+    most 25 %."""
+    n = max(int(n), 1)
+    if n <= 8:
+        return 1 << (n - 1).bit_length()
+    k = (n - 1).bit_length() - 3  # 2^(k+2) < n <= 2^(k+3)
+    return -(-n // (1 << k)) << k
+
+
+def pad_rows(tree, n: int):
+    """Every leaf of a PyTree padded along its leading axis to `n` rows with copies of its
+    first row (real data, so the padded rows compute finite results; slice them off).
+    Padded on the host, so that no small program is compiled per size; a JAX array comes
+    back as one."""
+    def pad(a):
+        extra = n - np.shape(a)[0]
+        if extra <= 0:
+            return a
+        h = np.asarray(a)
+        out = np.concatenate([h, np.repeat(h[:1], extra, axis=0)])
+        return jax.device_put(out) if isinstance(a, jax.Array) else out
+
+    return jax.tree.map(pad, tree)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -88,6 +120,8 @@ def to_batch(campaign: Campaign, channels: Sequence[str], counters: Sequence[str
         min_length: pad to at least this many samples.
         dtype: floating dtype of the arrays.
 
+    The length is padded to whole `BLOCK`s, in `bucket_size` steps of blocks.
+
     Returns:
         The batch (NumPy arrays; JAX converts them on first use).
     """
@@ -100,7 +134,7 @@ def to_batch(campaign: Campaign, channels: Sequence[str], counters: Sequence[str
         if missing:
             raise KeyError(f"counter {c!r} has no channel(s) {missing}")
     T = max(max(len(r) for r in recs), min_length)
-    T = -(-T // BLOCK) * BLOCK  # whole blocks for the harmonic analysis
+    T = bucket_size(-(-T // BLOCK)) * BLOCK  # whole blocks for the harmonic analysis, few distinct lengths
     B, C = len(recs), len(channels)
     out = {k: np.zeros((B, T), dtype) for k in ("time", "rev", "cos_psi", "sin_psi", "width", "az")}
     x = np.zeros((B, T, C), dtype)

@@ -28,7 +28,7 @@ PARAMS = ("offset_s", "window_revs", "stick_offset_s")
 
 
 class Bounds(NamedTuple):
-    """(lo, hi) of each calibrated parameter (s, revolutions, s)."""
+    """(lo, hi) of each calibrated parameter (s, revolutions, s); traced by `calibrate`."""
 
     offset_s: tuple[float, float] = (-1.0, 3.0)
     window_revs: tuple[float, float] = (4.0, 16.0)
@@ -74,10 +74,10 @@ def _take(tree, idx):
     return jax.tree.map(lambda a: a[idx], tree)
 
 
-def _clip(theta, bounds: Bounds):
-    lo = jnp.array([b[0] for b in bounds], theta.dtype)
-    hi = jnp.array([b[1] for b in bounds], theta.dtype)
-    return jnp.clip(theta, lo, hi)
+def _clip(theta, bounds):
+    """θ clipped to `bounds`, a (3, 2) array of (lo, hi) (data: other bounds, same program)."""
+    bounds = jnp.asarray(bounds, theta.dtype)
+    return jnp.clip(theta, bounds[:, 0], bounds[:, 1])
 
 
 def _replay_counter(model, rec, theta, settings, apply):
@@ -95,7 +95,7 @@ def _group_cost(theta, models, recs, mask, settings, weights, apply):
     return jnp.sum(_group_residuals(theta, models, recs, mask, settings, weights, apply) ** 2)
 
 
-@partial(jax.jit, static_argnames=("weights", "apply"))
+@partial(jax.jit, static_argnames=("apply",))
 def counter_costs(models, recs: ReplayRecord, theta, *, settings: Settings, weights: CostWeights = CostWeights(),
                   apply=None) -> dict:
     """Cost terms of every counter at its own θ.
@@ -117,7 +117,7 @@ def counter_costs(models, recs: ReplayRecord, theta, *, settings: Settings, weig
     return jax.vmap(one)(models, recs, theta)
 
 
-@partial(jax.jit, static_argnames=("weights", "apply"))
+@partial(jax.jit, static_argnames=("apply",))
 def cost_grid(models, recs: ReplayRecord, members, mask, offsets, lengths, base=(0.0, 8.0, 0.0), *,
               settings: Settings, weights: CostWeights = CostWeights(), apply=None):
     """Brute-force group cost on a grid of offsets × window lengths.
@@ -192,11 +192,15 @@ def _levenberg_marquardt(fn, y0, *, max_steps: int, rtol: float, atol: float):
     return y, r, steps, ok
 
 
-@partial(jax.jit, static_argnames=("free", "bounds", "weights", "apply", "max_steps", "rtol", "atol"))
+@partial(jax.jit, static_argnames=("free", "apply"))
 def calibrate(models, recs: ReplayRecord, members, mask, init, coarse, *, free: tuple[str, ...] = ("offset_s",),
               bounds: Bounds = Bounds(), settings: Settings, weights: CostWeights = CostWeights(), apply=None,
               max_steps: int = 64, rtol: float = 1e-5, atol: float = 1e-6) -> Calibration:
     """Fit θ per group: coarse grid, then Levenberg-Marquardt on the residuals.
+
+    Only the structure keys the compiled program (`free`, `apply`, and the shapes and
+    static plan of the records and settings); bounds, cost weights, step budget and
+    tolerances are traced data, so calibrating with other values reuses it.
 
     Args:
         models, recs: per-counter models and records (leading axis N).
@@ -207,6 +211,7 @@ def calibrate(models, recs: ReplayRecord, members, mask, init, coarse, *, free: 
         free: names of the fitted parameters (in `PARAMS`).
         bounds: parameter bounds (θ is clipped to them).
         settings, weights, apply: see `replay` and `CostWeights`.
+        max_steps, rtol, atol: Levenberg-Marquardt's step budget and convergence tolerances.
 
     Returns:
         `Calibration` with leading axis G.
@@ -216,6 +221,7 @@ def calibrate(models, recs: ReplayRecord, members, mask, init, coarse, *, free: 
         raise ValueError(f"free parameters must be a non-empty subset of {PARAMS}, got {free}")
     fi = jnp.array([PARAMS.index(f) for f in free])
     dt = recs.time.dtype
+    bounds = jnp.asarray(bounds, dt)
     init = jnp.broadcast_to(jnp.asarray(init, dt), (members.shape[0], 3))
     coarse = jnp.asarray(coarse, dt)
 

@@ -45,7 +45,7 @@ from ..analysis.harmonics import (
     window_sums,
     with_prefix,
 )
-from ..data.batch import RecordBatch
+from ..data.batch import RecordBatch, bucket_size, pad_rows
 from ..data.constants import UH60A, Aircraft
 from ..data.features import derive_features
 from ..nets.networks import apply_for
@@ -104,10 +104,11 @@ class ReplayRecord(NamedTuple):
 
 @struct.dataclass
 class Settings:
-    """Replay settings (`make_settings` fills in the plan). A PyTree: the plan, hop, fade,
-    stick lag and aircraft are static fields that key the compiled program; the offset bounds
-    and the reference window length are data, so that replays at another offset, or with
-    another reference length, reuse the program instead of compiling the replay again.
+    """Replay settings (`make_settings` fills in the plan). A PyTree: the plan (array
+    sizes), the stick lag (whether the sticks get their own input windows) and the aircraft
+    are static fields that key the compiled program; the offset bounds, hop, fade and the
+    reference window length are data, so that replays with other values reuse the program
+    instead of compiling the replay again.
 
     Attributes:
         plan: window plan covering the longest window and the shortest hop.
@@ -124,9 +125,9 @@ class Settings:
     """
 
     plan: WindowPlan = struct.field(pytree_node=False)
-    hop_revs: float = struct.field(pytree_node=False, default=0.0)
+    hop_revs: float = 0.0
     offset_bounds: tuple[float, float] = (-1.0, 3.0)
-    fade_s: float = struct.field(pytree_node=False, default=0.25)
+    fade_s: float = 0.25
     stick_lag: bool = struct.field(pytree_node=False, default=False)
     reference_revs: float = 0.0
     aircraft: Aircraft = struct.field(pytree_node=False, default=UH60A)
@@ -150,10 +151,8 @@ def _prepare_one(az, cos_psi, sin_psi, rev, width, time, x, mask, harmonic, bloc
 
 
 @partial(jax.jit, static_argnames=("harmonic", "block"))
-def _prepare(batch, harmonic, block):
-    fn = partial(_prepare_one, harmonic=harmonic, block=block)
-    return jax.vmap(fn)(batch.az, batch.cos_psi, batch.sin_psi, batch.rev, batch.width, batch.time, batch.x,
-                        batch.mask)
+def _prepare(arrays, harmonic, block):
+    return jax.vmap(partial(_prepare_one, harmonic=harmonic, block=block))(*arrays)
 
 
 def prepare(batch: RecordBatch, *, harmonic: int = 4, block: int = 16) -> ReplayRecord:
@@ -161,12 +160,18 @@ def prepare(batch: RecordBatch, *, harmonic: int = 4, block: int = 16) -> Replay
 
     Returns:
         `ReplayRecord` with a leading counter axis (index it, or vmap over it).
+
+    The arrays alone enter the compiled program (not the counter names), padded to a
+    `bucket_size` count of records, so that batches of similar size share it.
     """
     if tuple(batch.channels) != STATE_CHANNELS:
         raise ValueError(f"replay needs a batch of the channels {STATE_CHANNELS}, got {batch.channels}")
-    recs = _prepare(batch, harmonic, block)
+    arrays = (batch.az, batch.cos_psi, batch.sin_psi, batch.rev, batch.width, batch.time, batch.x, batch.mask)
+    n = arrays[0].shape[0]
+    recs = _prepare(pad_rows(arrays, bucket_size(n)), harmonic, block)
+    recs = jax.tree.map(lambda a: jax.device_put(np.asarray(a)[:n]), recs)
     return recs._replace(columns=with_prefix(recs.columns),
-                         time_lookup=jax.tree.map(jnp.asarray, make_lookup(recs.time)))
+                         time_lookup=jax.tree.map(jax.device_put, make_lookup(recs.time)))
 
 
 class Replay(NamedTuple):
@@ -229,7 +234,8 @@ def replay(model: dict, rec: ReplayRecord, offset_s, window_revs, stick_offset_s
         L_ref = L if ref <= 0 else jnp.asarray(ref, dt)
     else:  # data (traced): one compiled program for every reference length
         L_ref = jnp.where(ref > 0, jnp.asarray(ref, dt), L)
-    hop = L_ref if settings.hop_revs <= 0 else jnp.asarray(settings.hop_revs, dt)
+    hop_revs = jnp.asarray(settings.hop_revs, dt)
+    hop = jnp.where(hop_revs > 0, hop_revs, L_ref)
     a = rec.rev_start + hop * jnp.arange(W, dtype=dt)
     b = a + L_ref
     # Input windows: length L, centred on the measured window, then τ seconds earlier
@@ -273,7 +279,8 @@ def _interp(x, xp, fp, lookup=None):
 
 
 class CostWeights(NamedTuple):
-    """Weights and scales of the replay cost (a NamedTuple of floats: static and hashable).
+    """Weights and scales of the replay cost (a NamedTuple of floats, traced under jit:
+    other weights reuse the compiled cost).
 
     cost = peak·(Δpeak / peak_scale_g)² + phase·(c·tanh(Δt / c) / phase_scale_s)² + rms·(RMS / peak_scale_g)²
 
@@ -326,9 +333,8 @@ def residuals(rep: Replay, weights: CostWeights = CostWeights()):
     on = rep.weight > 0
     sqrt_w = jnp.where(on, jnp.sqrt(jnp.where(on, rep.weight, 1.0)), 0.0)  # d√w/dw is infinite at 0
     per_window = jnp.sqrt(weights.rms / wsum) * sqrt_w * (rep.predicted - rep.measured) / weights.peak_scale_g
-    dt = t["phase_error_s"]
-    if weights.phase_cap_s > 0:
-        dt = weights.phase_cap_s * jnp.tanh(dt / weights.phase_cap_s)
+    dt, cap = t["phase_error_s"], jnp.asarray(weights.phase_cap_s, per_window.dtype)
+    dt = jnp.where(cap > 0, cap * jnp.tanh(dt / jnp.where(cap > 0, cap, 1.0)), dt)
     head = jnp.stack([jnp.sqrt(weights.peak) * t["peak_error_g"] / weights.peak_scale_g,
                       jnp.sqrt(weights.phase) * dt / weights.phase_scale_s])
     return jnp.concatenate([head, per_window])

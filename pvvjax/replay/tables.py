@@ -17,7 +17,7 @@ import pandas as pd
 
 from ..analysis.databases import STATE_CHANNELS
 from ..config import CalibrationConfig, ReplayConfig
-from ..data.batch import to_batch
+from ..data.batch import bucket_size, pad_rows, to_batch
 from ..data.campaign import Campaign
 from ..nets.sweep import heldout_models
 from .calibration import PARAMS, Bounds, calibrate, cost_grid, counter_costs, group_members
@@ -84,9 +84,32 @@ def _bounds(cfg: CalibrationConfig) -> Bounds:
 
 
 @jax.jit
-def replay_all(m, r, th, *, settings):
-    """Every counter's replay (leading axis N) at its θ (N, 3)."""
+def _replay_all(m, r, th, settings):
     return jax.vmap(lambda m, r, th: replay(m, r, th[0], th[1], th[2], settings=settings))(m, r, th)
+
+
+def replay_all(m, r, th, *, settings):
+    """Every counter's replay (leading axis N) at its θ (N, 3). The counters are padded to
+    a `bucket_size` count for the computation, so that campaigns of similar size share the
+    compiled replay."""
+    n = r.time.shape[0]
+    th = jnp.broadcast_to(jnp.asarray(th, r.time.dtype), (n, 3))
+    out = _replay_all(*pad_rows((m, r, th), bucket_size(n)), settings)
+    return jax.tree.map(lambda a: jax.device_put(np.asarray(a)[:n]), out)  # sliced on the host: no program per n
+
+
+def _bucketed(models, recs, members=None, mask=None):
+    """Models and records padded to a `bucket_size` count of counters, and groups to a
+    `bucket_size` count of groups and of members (padded groups have no members: their
+    results are sliced off), so that a calibration's programs serve campaigns of similar size."""
+    models, recs = pad_rows((models, recs), bucket_size(recs.time.shape[0]))
+    if members is None:
+        return models, recs
+    (G, M), G2 = members.shape, bucket_size(members.shape[0])
+    M2 = bucket_size(M)
+    members = np.pad(members, ((0, G2 - G), (0, M2 - M)), mode="edge")
+    mask = np.pad(mask, ((0, G2 - G), (0, M2 - M)), constant_values=False)
+    return models, recs, members, mask
 
 
 def replay_windows(info: pd.DataFrame, recs: ReplayRecord, models: dict, theta, settings: Settings) -> pd.DataFrame:
@@ -193,12 +216,12 @@ def calibration_table(info: pd.DataFrame, batch, recs: ReplayRecord, models: dic
     free = tuple(free or cfg.free)
     how = groups or cfg.groups
     gid, names = _groups(info, how)
-    members, mask = group_members(gid, len(names))
     settings = calibration_settings(batch, cfg, "stick_offset_s" in free)
     weights = cost_weights(cfg)
     coarse = _coarse(cfg, free)
     dbs = list(models)
-    stacked = jax.tree.map(lambda *a: jnp.stack(a), *[models[d] for d in dbs])
+    stacked = jax.tree.map(lambda *a: jnp.stack(a), *[_bucketed(models[d], recs)[0] for d in dbs])
+    _, recs, members, mask = _bucketed(models[dbs[0]], recs, *group_members(gid, len(names)))
     run = lambda m: calibrate(m, recs, members, mask, jnp.asarray(init, jnp.float32), coarse, free=free,  # noqa: E731
                               bounds=_bounds(cfg), settings=settings, weights=weights, max_steps=cfg.max_steps)
     t0 = time.perf_counter()
@@ -227,6 +250,7 @@ def grid_table(info: pd.DataFrame, recs: ReplayRecord, models: dict, cfg: Calibr
     gid, names = _groups(info, how)
     members, mask = group_members(gid, len(names))
     settings = calibration_settings(batch, cfg, False)
+    n_groups = len(names)
     # Only the fitted parameters span the grid; the others stay at `base`, as in the fit.
     offsets = (np.arange(cfg.offset_bounds[0], cfg.offset_bounds[1] + 1e-9, cfg.grid_offset_step_s)
                if "offset_s" in cfg.free else np.array([base[0]]))
@@ -234,8 +258,9 @@ def grid_table(info: pd.DataFrame, recs: ReplayRecord, models: dict, cfg: Calibr
                if "window_revs" in cfg.free else np.array([base[1]]))
     parts = []
     for db, model in models.items():
-        g = np.asarray(cost_grid(model, recs, members, mask, offsets, lengths, jnp.asarray(base, jnp.float32),
-                                 settings=settings, weights=cost_weights(cfg)))
+        g = np.asarray(cost_grid(*_bucketed(model, recs, members, mask), offsets, lengths,
+                                 jnp.asarray(base, jnp.float32), settings=settings, weights=cost_weights(cfg)))
+        g = g[:n_groups]
         G, J, K = g.shape
         parts.append(pd.DataFrame({
             "database": db, "group": np.repeat(names, J * K),
@@ -249,7 +274,10 @@ def counter_cost_table(info, recs, models, theta, settings, weights) -> pd.DataF
     parts = []
     for db, model in models.items():
         th = theta[db] if isinstance(theta, dict) else theta
-        out = counter_costs(model, recs, jnp.asarray(th, jnp.float32), settings=settings, weights=weights)
+        n = len(info)
+        th = pad_rows(np.broadcast_to(np.asarray(th, np.float32), (n, 3)), bucket_size(n))
+        out = counter_costs(*_bucketed(model, recs), jnp.asarray(th), settings=settings, weights=weights)
+        out = {k: np.asarray(v)[:n] for k, v in out.items()}
         parts.append(pd.DataFrame({"database": db, "counter": info.index, "maneuver": info.maneuver.to_numpy(),
                                    **{k: np.asarray(v) for k, v in out.items()}}))
     return pd.concat(parts, ignore_index=True)
