@@ -22,7 +22,7 @@ demo: venv
 	$(VENV)/bin/pvvjax run experiments/paper.toml
 
 test: venv
-	$(PY) -m pytest -q -n 2 -m "not slow"
+	$(PY) -m pytest -q -n 2 -m "not slow" --durations=25
 
 # pip, not uv, for the bench extra: pip finds torch's CPU build on these machines' disk.
 bench: venv

@@ -1,6 +1,7 @@
 """Sweeps: many nets in one program, resumable, sharded when devices allow."""
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -219,14 +220,18 @@ def test_a_groups_nets_are_not_padded_beyond_its_size_up_to_8(monkeypatch, per_g
     assert fits.best_val_rms.shape == (n,) and np.isfinite(fits.best_val_rms).all()
 
 
-def test_a_sweep_folder_of_the_earlier_format_is_refused_naming_it(tmp_path, small_dbs):
-    # Format 1 held a parameter file per net and nets whose bits followed their batch: its
-    # nets are not this pvvjax's, so the folder is not resumed.
+@pytest.mark.parametrize("format", [None, 2])
+def test_a_sweep_folder_of_an_earlier_format_is_refused_naming_it(tmp_path, small_dbs, format):
+    # Format 1 held a parameter file per net and nets whose bits followed their batch, format 2
+    # predictions as rounded JSON strings: their folders are not this pvvjax's, so not resumed.
     from pvvjax.io import ResultsFolderError, claim_folder
-    from pvvjax.nets.sweep import databases_fingerprint, sweep_settings
+    from pvvjax.nets.sweep import FOLDER_FORMAT, databases_fingerprint, sweep_settings
 
     cfg = _cfg()
     old = {k: v for k, v in sweep_settings(cfg).items() if k != "format"}
+    if format is not None:
+        old["format"] = format
     claim_folder(tmp_path, old, databases_fingerprint(small_dbs, ["db1", "db2", "db3"]))
-    with pytest.raises(ResultsFolderError, match=r"format: '\(unset\)' there, 2 now"):
+    there = "'(unset)'" if format is None else format
+    with pytest.raises(ResultsFolderError, match=rf"format: {re.escape(str(there))} there, {FOLDER_FORMAT} now"):
         run_sweep(cfg, small_dbs, tmp_path, log=lambda *a: None)

@@ -4,6 +4,7 @@ seeds; the replay windows every model is judged on; a model's predictions and me
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import partial
 from typing import NamedTuple
 
 import jax
@@ -13,6 +14,7 @@ import pandas as pd
 
 from ..analysis.databases import DB_INPUTS
 from ..config import ExperimentConfig
+from ..data.batch import bucket_size, pad_rows
 from ..data.campaign import Campaign
 from ..nets import train as _train
 from ..nets.batched import stack_trees, train_nets
@@ -111,18 +113,23 @@ def fit_ensemble(x, y, folds, *, k: int, seeds: int, hidden, train_cfg, seed: in
     return jax.tree.map(lambda a: np.asarray(a).reshape((k, seeds) + a.shape[1:]), fits.params)
 
 
-_apply_seeds = {f: jax.jit(jax.vmap(f, in_axes=(0, None))) for f in (mlp_apply, gain_apply)}
+@partial(jax.jit, static_argnames=("apply",))
+def _predict_folds(params, fold, x, apply):
+    """(S, n): every fold's nets on every row, then each row's own fold taken (a mask, not a
+    loop over folds, so one program serves every split of the rows)."""
+    pred = jax.vmap(jax.vmap(apply, in_axes=(0, None)), in_axes=(0, None))(params, x)  # (k, S, n)
+    return jnp.take_along_axis(pred, fold[None, None, :], axis=0)[0]
 
 
 def _predict(params, fold, x) -> np.ndarray:
-    """(S, n) predictions of each seed's net that held out each row's fold."""
-    S = jax.tree.leaves(params)[0].shape[1]
-    apply = _apply_seeds[gain_apply if "gain" in params else mlp_apply]
-    out = np.zeros((S, len(fold)), np.float64)
-    for f in np.unique(fold):
-        rows = fold == f
-        out[:, rows] = np.asarray(apply(jax.tree.map(lambda a: a[f], params), jnp.asarray(x[rows], jnp.float32)))
-    return out
+    """(S, n) predictions of each seed's net that held out each row's fold (rows padded to
+    a `bucket_size` count: one compiled program per bucket)."""
+    n = len(fold)
+    m = bucket_size(n)
+    apply = gain_apply if "gain" in params else mlp_apply
+    out = _predict_folds(params, pad_rows(np.asarray(fold, np.int32), m), pad_rows(np.asarray(x, np.float32), m),
+                         apply)
+    return np.asarray(out, np.float64)[:, :n]
 
 
 # --------------------------------------------------------------------------- model and replay

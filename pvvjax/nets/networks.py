@@ -16,6 +16,7 @@ output and receives no gradient: the padded net computes what its unpadded twin 
 
 from __future__ import annotations
 
+from functools import partial
 from typing import Sequence
 
 import flax.linen as nn
@@ -23,6 +24,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..data.batch import bucket_size, pad_rows
 from ._sums import affine
 
 __all__ = [
@@ -48,15 +50,29 @@ def scaling(x, y, in_mask=None):
 
     Returns:
         dict with x_shift, x_scale (d,), y_shift, y_scale ().
+
+    The rows are padded to a `bucket_size` count with weight 0, so one compiled program
+    serves every training set of similar size.
     """
-    x, y = jnp.asarray(x), jnp.asarray(y)
-    in_mask = jnp.ones(x.shape[-1], x.dtype) if in_mask is None else jnp.asarray(in_mask, x.dtype)
-    sd = jnp.std(x, axis=0)
+    x, y = np.asarray(x, np.float32), np.asarray(y, np.float32)
+    in_mask = np.ones(x.shape[-1], np.float32) if in_mask is None else np.asarray(in_mask, np.float32)
+    n = x.shape[0]
+    m = bucket_size(n)
+    w = (np.arange(m) < n).astype(np.float32)
+    return _weighted_scaling(pad_rows(x, m), pad_rows(y, m), w, in_mask)
+
+
+@jax.jit
+def _weighted_scaling(x, y, w, in_mask):
+    """`scaling` over the rows of weight w (0/1)."""
+    n = jnp.maximum(jnp.sum(w), 1.0)
+    mx, my = (w @ x) / n, jnp.sum(w * y) / n
+    sd = jnp.sqrt((w @ (x - mx) ** 2) / n)
     return dict(
-        x_shift=jnp.mean(x, axis=0) * in_mask,
+        x_shift=mx * in_mask,
         x_scale=jnp.where((sd > 0) & (in_mask > 0), sd, 1.0),
-        y_shift=jnp.mean(y),
-        y_scale=jnp.maximum(jnp.std(y), 1e-6),
+        y_shift=my,
+        y_scale=jnp.maximum(jnp.sqrt(jnp.sum(w * (y - my) ** 2) / n), 1e-6),
     )
 
 
@@ -199,21 +215,37 @@ def rbf_fit(key, x, y, n_centers: int, *, kmeans_steps: int = 30, width_factor: 
     """A Moody-Darken radial-basis-function network: k-means centres in scaled input space,
     widths of `width_factor` times the distance to the nearest other centre (so that
     neighbouring units overlap), and output weights by
-    (ridge-regularised) linear least squares. Pure and jittable (n_centers static).
+    (ridge-regularised) linear least squares.
+
+    One compiled program per `n_centers`, `kmeans_steps` and `bucket_size` of the rows: the
+    rows are padded with weight 0 (a zero-weight row is no candidate centre, no member of a
+    cluster and a zero row of the least squares), and the width factor and ridge are data.
 
     Returns:
         Parameter dict: centers (m, d), log_width (m,), w (m,), b (), in_mask and scaling.
     """
-    x, y = jnp.asarray(x, jnp.float32), jnp.asarray(y, jnp.float32)
-    sc = scaling(x, y, in_mask)
-    in_mask = jnp.ones(x.shape[1]) if in_mask is None else jnp.asarray(in_mask, jnp.float32)
+    x, y = np.asarray(x, np.float32), np.asarray(y, np.float32)
+    in_mask = np.ones(x.shape[1], np.float32) if in_mask is None else np.asarray(in_mask, np.float32)
+    n = x.shape[0]
+    if n < n_centers:
+        raise ValueError(f"{n_centers} RBF centres need at least as many training rows, got {n}")
+    m = bucket_size(n)
+    w = (np.arange(m) < n).astype(np.float32)
+    return _rbf_fit(key, pad_rows(x, m), pad_rows(y, m), w, in_mask, np.float32(width_factor), np.float32(ridge),
+                    n_centers=n_centers, kmeans_steps=kmeans_steps)
+
+
+@partial(jax.jit, static_argnames=("n_centers", "kmeans_steps"))
+def _rbf_fit(key, x, y, w, in_mask, width_factor, ridge, *, n_centers, kmeans_steps):
+    """`rbf_fit` on the rows of weight w (0/1)."""
+    sc = _weighted_scaling(x, y, w, in_mask)
     z = (x - sc["x_shift"]) / sc["x_scale"] * in_mask
-    idx = jax.random.choice(key, x.shape[0], (n_centers,), replace=False)
+    idx = jax.random.choice(key, x.shape[0], (n_centers,), replace=False, p=w / jnp.sum(w))
     c = z[idx]
 
     def step(c, _):
         d2 = jnp.sum((z[:, None, :] - c[None]) ** 2, -1)
-        assign = jax.nn.one_hot(jnp.argmin(d2, 1), n_centers)
+        assign = jax.nn.one_hot(jnp.argmin(d2, 1), n_centers) * w[:, None]
         counts = assign.sum(0)
         new = (assign.T @ z) / jnp.maximum(counts, 1.0)[:, None]
         return jnp.where(counts[:, None] > 0, new, c), None
@@ -223,8 +255,8 @@ def rbf_fit(key, x, y, n_centers: int, *, kmeans_steps: int = 30, width_factor: 
     width = width_factor * jnp.maximum(jnp.min(dc, 1), 1e-3)
     params = dict(centers=c, log_width=jnp.log(width), w=jnp.zeros(n_centers), b=jnp.zeros(()), in_mask=in_mask, **sc)
     phi = _rbf_features(params, x)
-    design = jnp.concatenate([phi, jnp.ones((x.shape[0], 1))], 1)
-    t = (y - sc["y_shift"]) / sc["y_scale"]
+    design = jnp.concatenate([phi, jnp.ones((x.shape[0], 1))], 1) * w[:, None]
+    t = (y - sc["y_shift"]) / sc["y_scale"] * w
     # Ridge least squares as ordinary least squares on [A; sqrt(ridge)·I] (SVD): the normal
     # equations of overlapping Gaussians are too ill-conditioned for float32.
     aug = jnp.concatenate([design, jnp.sqrt(ridge) * jnp.eye(n_centers + 1)], 0)
