@@ -16,7 +16,12 @@ fold 0 of a 5-fold split by condition of the embedded campaign, at each size of 
 All report net-steps per second; the bare loop and PyTorch start from the same weights and
 print their median final training loss, which must agree. Then single-prediction latency.
 
-    python benchmarks/bench_sweep.py [--sizes 384,3072] [--peer-steps 2000] [--sklearn-nets 48]
+With --learning-rates K, the same number of nets is also trained as a sweep over K learning
+rates (3e-3 times 3^i, as seeds / K seeds each) in one call, warm after a cold run, beside the
+single-rate sweep: its net-steps per second, and how many trainer programs each compiled (the
+rates are data, so the count must not grow with K).
+
+    python benchmarks/bench_sweep.py [--sizes 384,3072] [--peer-steps 2000] [--sklearn-nets 48] [--learning-rates 4]
 
 On a GPU (`pip install "jax[cuda13]" torch`), the issue's sizes and its five-fold sweep:
 
@@ -159,13 +164,25 @@ def torch_ensemble(prob: dict, steps: int) -> tuple[float, float] | None:
 # --------------------------------------------------------------------------- pvvjax and scikit-learn
 
 
-def pvvjax_sweep(dbs, n_nets: int, folder: Path, all_folds: bool = False):
-    """(seconds, results) of `run_sweep` over n_nets nets of fold 0 (x5: every fold) into `folder`."""
-    cfg = ExperimentConfig(sweep=SweepConfig(hidden=ARCHS, seeds=n_nets // 48, folds=5,
-                                             test_folds=() if all_folds else (0,)), train=TRAIN)
-    t0 = time.perf_counter()
-    res = run_sweep(cfg, dbs, folder, log=lambda *a: None)
-    return time.perf_counter() - t0, res
+def pvvjax_sweep(dbs, n_nets: int, folder: Path, all_folds: bool = False, rates: int = 0):
+    """(seconds, results, trainer programs lowered) of `run_sweep` over n_nets nets of fold 0
+    (x5: every fold) into `folder`; with `rates`, over that many learning rates."""
+    lrs = tuple(TRAIN.learning_rate * 3.0**i for i in range(rates))
+    cfg = ExperimentConfig(sweep=SweepConfig(hidden=ARCHS, seeds=n_nets // 48 // max(rates, 1), folds=5,
+                                             learning_rates=lrs, test_folds=() if all_folds else (0,)), train=TRAIN)
+    lowered = []
+
+    def listener(event, duration, fun_name="", **kw):
+        if event == "/jax/core/compile/jaxpr_to_mlir_module_duration" and "_segment" in fun_name:
+            lowered.append(fun_name)
+
+    jax.monitoring.register_event_duration_secs_listener(listener)
+    try:
+        t0 = time.perf_counter()
+        res = run_sweep(cfg, dbs, folder, log=lambda *a: None)
+        return time.perf_counter() - t0, res, len(lowered)
+    finally:
+        jax.monitoring.unregister_event_duration_listener(listener)
 
 
 def sklearn_net(x, y, tr, va, hidden, seed):
@@ -236,6 +253,8 @@ def main():
     ap.add_argument("--sklearn-nets", type=int, default=48, help="nets scikit-learn trains (0: none)")
     ap.add_argument("--all-folds", action="store_true", help="pvvjax trains every fold of each size (x5 nets, "
                                                              "in one call): 3072 gives the issue's 15 360")
+    ap.add_argument("--learning-rates", type=int, default=0, help="also a sweep of each size over this many "
+                                                                  "learning rates (0: none)")
     args = ap.parse_args()
     sizes = [int(s) for s in args.sizes.split(",")]
     if any(n % 96 for n in sizes):
@@ -257,13 +276,24 @@ def main():
         jax.config.update("jax_compilation_cache_dir", str(tmp / "xla"))
         jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
         for i, n in enumerate(sizes):
-            cold, res = pvvjax_sweep(dbs, n, tmp / f"cold-{n}", args.all_folds)
-            warm, res = pvvjax_sweep(dbs, n, tmp / f"warm-{n}", args.all_folds)
+            cold, res, progs = pvvjax_sweep(dbs, n, tmp / f"cold-{n}", args.all_folds)
+            warm, res, _ = pvvjax_sweep(dbs, n, tmp / f"warm-{n}", args.all_folds)
             ns = int(res.steps.sum())
             n = len(res)
-            line(n, "pvvjax sweep, cold", cold, ns, "compiling")
+            line(n, "pvvjax sweep, cold", cold, ns, f"compiling ({progs} trainer programs)")
             line(n, "pvvjax sweep, warm", warm, ns, f"{ns / n:.0f} steps per net, median val RMS "
                                                     f"{res.val_rms_g.median():.4f} g")
+            if args.learning_rates:
+                k = args.learning_rates
+                cold_k, _, progs_k = pvvjax_sweep(dbs, n, tmp / f"cold-{n}-lr", args.all_folds, rates=k)
+                warm_k, res_k, _ = pvvjax_sweep(dbs, n, tmp / f"warm-{n}-lr", args.all_folds, rates=k)
+                ns_k = int(res_k.steps.sum())
+                line(len(res_k), f"pvvjax sweep, {k} rates, cold", cold_k, ns_k,
+                     f"compiling ({progs_k} trainer programs)")
+                best = res_k.groupby("learning_rate").val_rms_g.median()
+                line(len(res_k), f"pvvjax sweep, {k} rates, warm", warm_k, ns_k,
+                     f"{(ns_k / warm_k) / (ns / warm):.2f}x the single rate's net-steps/s; median val RMS by "
+                     "rate " + ", ".join(f"{lr:g}: {v:.4f}" for lr, v in best.items()))
             prob = peer_problem(dbs, n)
             t, loss = bare_jax(prob, args.peer_steps)
             line(n, "bare JAX vmap + scan", t, n * args.peer_steps, f"median final loss {loss:.4f}")

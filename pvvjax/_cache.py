@@ -35,3 +35,30 @@ def compile_cache_dir() -> Path:
     (the user's, shared by every checkout)."""
     env = os.environ.get("PVVJAX_CACHE")
     return (Path(env) if env else user_cache_dir()) / "jax"
+
+
+def prune_compile_cache(folder: Path | None = None, max_bytes: int = COMPILE_CACHE_BYTES) -> int:
+    """Delete the least recently used entries of the compiled-program cache until it holds
+    at most `max_bytes`; the number deleted.
+
+    One scan of the folder, run once as a process enables the cache: JAX's own bound
+    (`jax_compilation_cache_max_size`) rescans the whole folder at every write, which costs
+    more than the compilations it saves once the folder holds thousands of small programs.
+    """
+    folder = compile_cache_dir() if folder is None else Path(folder)
+    try:
+        entries = [(max(st.st_atime, st.st_mtime), st.st_size, p) for p in folder.iterdir()
+                   if p.is_file() and (st := p.stat())]
+    except OSError:  # no cache yet, or another process is pruning it
+        return 0
+    total, removed = sum(size for _, size, _ in entries), 0
+    for _, size, path in sorted(entries, key=lambda e: e[0]):
+        if total <= max_bytes:
+            break
+        try:
+            path.unlink()
+        except OSError:
+            continue
+        total -= size
+        removed += 1
+    return removed

@@ -70,16 +70,16 @@ def progress_bar(desc):
 
 def enable_compilation_cache():
     """Reuse compiled XLA programs across runs and checkouts (`~/.cache/pvvjax/jax`, or
-    `$PVVJAX_CACHE/jax`; pruned above 2 GiB, least recently used first), unless the user
+    `$PVVJAX_CACHE/jax`; pruned to 2 GiB here, least recently used first), unless the user
     set a cache of their own (`JAX_COMPILATION_CACHE_DIR`)."""
     import jax
 
-    from ._cache import COMPILE_CACHE_BYTES, compile_cache_dir
+    from ._cache import compile_cache_dir, prune_compile_cache
 
     if not os.environ.get("JAX_COMPILATION_CACHE_DIR"):
+        prune_compile_cache()
         jax.config.update("jax_compilation_cache_dir", str(compile_cache_dir()))
         jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
-        jax.config.update("jax_compilation_cache_max_size", COMPILE_CACHE_BYTES)
 
 
 def start_distributed(coordinator: str, num_processes: int, process_id: int) -> None:

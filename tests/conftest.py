@@ -11,18 +11,50 @@ from pathlib import Path
 # clone starts warm), and keeps every program, small ones too: on a cold cache (CI) much of
 # the workers' CPU time is XLA compiling, programs which the processes compile alike. Set
 # before JAX is imported (it reads these at import; children inherit them).
-from pvvjax._cache import COMPILE_CACHE_BYTES, compile_cache_dir  # noqa: E402  (imports no JAX)
+from pvvjax._cache import compile_cache_dir  # noqa: E402  (imports no JAX)
 
 os.environ.setdefault("JAX_COMPILATION_CACHE_DIR", str(compile_cache_dir()))
 os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0")
-os.environ.setdefault("JAX_COMPILATION_CACHE_MAX_SIZE", str(COMPILE_CACHE_BYTES))
 
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 import pytest  # noqa: E402
 
+_COMPILE_EVENTS = ("/jax/core/compile/jaxpr_trace_duration", "/jax/core/compile/jaxpr_to_mlir_module_duration",
+                   "/jax/core/compile/backend_compile_duration")
+_compile_seconds: dict = {}
+
+
+def _record_compile(event, duration, **kw):
+    if event in _COMPILE_EVENTS:
+        name = kw.get("fun_name", "?")
+        row = _compile_seconds.setdefault(name, [0, 0.0, 0.0, 0.0])
+        i = _COMPILE_EVENTS.index(event)
+        row[0] += i == 1  # programs lowered
+        row[1 + i] += duration  # seconds tracing, lowering, compiling (or reading the persistent cache)
+
+
+def pytest_unconfigure(config):
+    """With PVVJAX_COMPILE_REPORT=PREFIX, each test process writes PREFIX.<worker>.json: per
+    function name, the programs it lowered and the seconds spent tracing, lowering and
+    compiling them (where a cold suite's time goes; subprocesses are not counted)."""
+    prefix = os.environ.get("PVVJAX_COMPILE_REPORT")
+    if prefix:
+        import json
+
+        worker = os.environ.get("PYTEST_XDIST_WORKER", "main")
+        Path(f"{prefix}.{worker}.json").write_text(json.dumps(_compile_seconds, indent=0))
+
 
 def pytest_configure(config):
+    if not hasattr(config, "workerinput"):  # the controller, once per run: the cache's bound
+        from pvvjax._cache import prune_compile_cache
+
+        prune_compile_cache(Path(os.environ["JAX_COMPILATION_CACHE_DIR"]))
+    if os.environ.get("PVVJAX_COMPILE_REPORT"):
+        import jax
+
+        jax.monitoring.register_event_duration_secs_listener(_record_compile)
     # xdist hands tests out one at a time (two pending per worker), so that the heavy tests,
     # collected first, spread over the workers and the light ones fill the gaps: in chunks
     # of consecutive tests one worker would take most heavy tests (a minute or more at the end).
