@@ -156,3 +156,20 @@ def test_hop_gives_overlapping_windows_and_start_shift():
     assert np.asarray(out.valid).sum() == 7  # starts 0, 2, ..., 12
     t = np.asarray(out.time)
     np.testing.assert_allclose(np.diff(t[:7]), 2 * SPR * (t[1] - t[0]) / (2 * SPR), rtol=1e-3)
+
+
+def test_sizes_come_in_buckets_of_at_most_a_quarter_padding_and_padding_repeats_the_first_row():
+    import jax
+
+    from pvvjax.data import bucket_size, pad_rows
+
+    sizes = [bucket_size(n) for n in range(1, 5000)]
+    assert sizes[:12] == [1, 2, 4, 4, 8, 8, 8, 8, 10, 10, 12, 12]
+    assert all(b >= n and (n <= 8 or b <= 1.25 * n) for n, b in zip(range(1, 5000), sizes))
+    assert len(set(sizes)) == 41  # 1..8: 4 sizes, then 4 per octave
+    assert all(bucket_size(b) == b for b in set(sizes))
+    tree = dict(a=np.arange(6.0).reshape(3, 2), b=jax.numpy.arange(3))
+    padded = pad_rows(tree, 5)
+    np.testing.assert_array_equal(padded["a"], [[0, 1], [2, 3], [4, 5], [0, 1], [0, 1]])
+    assert isinstance(padded["b"], jax.Array) and padded["b"].tolist() == [0, 1, 2, 0, 0]
+    assert pad_rows(tree, 3)["a"] is tree["a"]

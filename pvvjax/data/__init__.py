@@ -6,7 +6,7 @@ its records into arrays with a mask; `features` derives μ, MLF, C_W and C_W/σ�
 converts foreign columns; `constants` holds the aircraft's rotor constants.
 """
 
-from .batch import BLOCK, RecordBatch, sample_widths, to_batch
+from .batch import BLOCK, RecordBatch, bucket_size, pad_rows, sample_widths, to_batch
 from .campaign import (
     MANEUVERS,
     REQUIRED_CHANNELS,
@@ -56,6 +56,7 @@ __all__ = [
     "UH60A",
     "advance_ratio",
     "blade_loading",
+    "bucket_size",
     "campaign_files",
     "campaign_fingerprint",
     "campaign_from_frames",
@@ -64,6 +65,7 @@ __all__ = [
     "frames_fingerprint",
     "load_campaign",
     "maneuver_load_factor",
+    "pad_rows",
     "plausibility",
     "sample_widths",
     "tables_fingerprint",
