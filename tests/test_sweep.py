@@ -100,8 +100,10 @@ def test_nan_stops_the_sweep_naming_net_and_step(tmp_path, small_dbs):
         run_sweep(_cfg(databases=("db1",), hidden=((4,),), seeds=1), dbs, tmp_path, log=lambda *a: None)
 
 
-def _sweep_config_file(tmp_path, campaign_dir, n_archs):
+def _sweep_config_file(tmp_path, campaign_dir, n_archs, databases=("db1", "db2", "db3"), patience=12,
+                       checkpoint_s=0.5):
     hidden = ", ".join(f"[{h}]" for h in range(2, 2 + n_archs))
+    dbs = ", ".join(f'"{d}"' for d in databases)
     cfg = tmp_path / "sweep.toml"
     cfg.write_text(textwrap.dedent(f"""
         name = "kill"
@@ -109,24 +111,28 @@ def _sweep_config_file(tmp_path, campaign_dir, n_archs):
         [campaign]
         path = "{Path(campaign_dir).as_posix()}"
         [sweep]
-        databases = ["db1", "db2", "db3"]
+        databases = [{dbs}]
         hidden = [{hidden}]
         seeds = 2
         folds = 3
         chunk_evals = 1
-        checkpoint_s = 0.5
+        checkpoint_s = {checkpoint_s}
         [train]
         learning_rate = 0.003
-        max_steps = 3000
+        max_steps = 6000
         eval_every = 25
-        patience = 12
+        patience = {patience}
     """))
     return cfg
 
 
 @pytest.mark.heavy
 def test_killed_sweep_resumes_without_duplicates_or_corrupt_files(tmp_path, small_campaign_dir):
-    cfg = _sweep_config_file(tmp_path, small_campaign_dir, n_archs=8)
+    # 48 nets with a long patience: the training outlasts the first checkpoint by seconds even
+    # when every program comes compiled from the cache (a warm run trains 144 nets of patience
+    # 12 within one checkpoint interval, and leaves nothing to kill).
+    cfg = _sweep_config_file(tmp_path, small_campaign_dir, n_archs=8, databases=("db1",), patience=80,
+                             checkpoint_s=0.2)
     out = tmp_path / "kill" / "sweep"
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     proc = subprocess.Popen([sys.executable, "-m", "pvvjax", "sweep", str(cfg)], env=env,
@@ -139,8 +145,9 @@ def test_killed_sweep_resumes_without_duplicates_or_corrupt_files(tmp_path, smal
     os.killpg(proc.pid, signal.SIGKILL)
     proc.wait()
     finished_before = {p.name for p in (out / "parts").glob("*.parquet")}
+    total = 8 * 2 * 3
     assert finished_before and not (out / "results.parquet").exists()
-    total = 3 * 8 * 2 * 3
+    assert sum(len(pd.read_parquet(out / "parts" / p)) for p in finished_before) < total  # killed mid-training
     done = subprocess.run([sys.executable, "-m", "pvvjax", "sweep", str(cfg)], capture_output=True, text=True,
                           timeout=600)
     assert done.returncode == 0, done.stderr[-2000:]
