@@ -136,8 +136,8 @@ class TrainState(NamedTuple):
     since: jax.Array  # evaluations since the last improvement
     failed: jax.Array  # first step with a non-finite or diverging loss, -1: none
     limit: jax.Array  # loss above which training counts as diverging
-    max_steps: jax.Array
-    patience: jax.Array
+    max_steps: jax.Array  # the net's step budget (`Hyper`)
+    patience: jax.Array  # evaluations without improvement before it stops (`Hyper`)
 
 
 class Data(NamedTuple):
