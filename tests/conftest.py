@@ -238,3 +238,60 @@ class Lowerings:
         import jax
 
         jax.monitoring.unregister_event_duration_listener(self._listener)
+
+
+# The small trained sweep several tests export, replay or resume: MLP nets of db1 and db3 on
+# the small campaign, every fold. A test copies it to its own folder and runs `pvvjax sweep`
+# with `small_sweep_config` there: the folder is claimed for these settings, so the sweep
+# resumes with nothing to train, and any axis subset (one database, some folds) resumes too.
+SMALL_SWEEP = '''name = "{name}"\nout_dir = "{out}"\n[campaign]\npath = "{campaign}"
+[sweep]\ndatabases = {databases}\nhidden = [[4]]\nseeds = 1\nfolds = 3\ntest_folds = {test_folds}\ncpu_devices = 1
+[train]\nmax_steps = 300\nlearning_rate = 0.01\n'''
+
+
+def small_sweep_config(path, out, campaign, name="s", databases=("db1", "db3"), test_folds=()) -> Path:
+    """Write the shared small sweep's config (some of its axes) to `path`; its sweep folder
+    is `out/name/sweep`."""
+    path = Path(path)
+    path.write_text(SMALL_SWEEP.format(name=name, out=Path(out).as_posix(), campaign=Path(campaign).as_posix(),
+                                       databases=list(databases), test_folds=list(test_folds)).replace("'", '"'))
+    return path
+
+
+def _code_key() -> str:
+    """Hash of the package's source: a cached sweep is trained again whenever the code changes."""
+    import hashlib
+
+    h = hashlib.sha256()
+    for p in sorted((Path(__file__).parents[1] / "pvvjax").rglob("*.py")):
+        h.update(p.read_bytes())
+    return h.hexdigest()[:16]
+
+
+@pytest.fixture(scope="session")
+def small_sweep(small_campaign_dir) -> Path:
+    """The shared small sweep's folder (read-only: copy it), trained once per code version
+    and cached beside the campaigns, under a lock so that the workers train it once."""
+    import fcntl
+    import shutil
+    import tempfile
+
+    from pvvjax._cache import cache_dir
+    from pvvjax.cli import main
+
+    root = cache_dir() / "sweeps"
+    final = root / f"small-{_code_key()}"
+    if (final / "results.parquet").exists():
+        return final
+    root.mkdir(parents=True, exist_ok=True)
+    with open(root / f"{final.name}.lock", "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+        if not (final / "results.parquet").exists():
+            tmp = Path(tempfile.mkdtemp(dir=root, prefix=".tmp-"))
+            try:
+                cfg = small_sweep_config(tmp / "s.toml", tmp, small_campaign_dir)
+                assert main(["sweep", str(cfg), "--out", str(tmp / "sweep")]) == 0
+                os.rename(tmp / "sweep", final)
+            finally:
+                shutil.rmtree(tmp, ignore_errors=True)
+    return final

@@ -1,9 +1,11 @@
+import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 import pandas as pd
 import pytest
+from conftest import small_sweep_config
 
 from pvvjax import _apidoc
 from pvvjax.cli import build_parser, main
@@ -58,13 +60,13 @@ def test_discover_on_fewer_conditions_than_folds_names_the_setting_and_the_campa
 
 
 @pytest.mark.heavy
-def test_sweep_then_export_a_numpy_net(tmp_path, small_campaign_dir, capsys):
-    cfg = tmp_path / "s.toml"
-    cfg.write_text(f'''name = "s"\nout_dir = "{tmp_path.as_posix()}"
-[campaign]\npath = "{small_campaign_dir.as_posix()}"
-[sweep]\ndatabases = ["db1"]\nhidden = [[4]]\nseeds = 1\nfolds = 3\ntest_folds = [0]
-[train]\nmax_steps = 300\nlearning_rate = 0.01\n''')
+def test_sweep_then_export_a_numpy_net(tmp_path, small_campaign_dir, small_sweep, capsys):
+    # The shared small sweep (trained once by `pvvjax sweep`), resumed here with one database
+    # and fold of its axes: nothing left to train.
+    cfg = small_sweep_config(tmp_path / "s.toml", tmp_path, small_campaign_dir, databases=("db1",), test_folds=(0,))
+    shutil.copytree(small_sweep, tmp_path / "s" / "sweep")
     assert main(["sweep", str(cfg)]) == 0
+    assert "1 already finished, 0 to train" in capsys.readouterr().out
     assert main(["export", str(tmp_path / "s" / "sweep"), "--out", str(tmp_path / "exp")]) == 0
     code = ("import sys; sys.path.insert(0, sys.argv[1]); from npnet import NumpyNet; "
             "net = NumpyNet.load(sys.argv[1] + '/net.npz'); "

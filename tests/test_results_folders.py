@@ -8,6 +8,7 @@ import shutil
 import numpy as np
 import pandas as pd
 import pytest
+from conftest import small_sweep_config
 
 from pvvjax.cli import main
 from pvvjax.data import campaign_fingerprint
@@ -96,9 +97,13 @@ def test_claims_resume_the_same_settings_and_refuse_files_and_foreign_folders(tm
     assert (tmp_path / "old.old" / "results.parquet").exists()
 
 
-def test_the_main_jobs_sweep_folder_exports_an_element(tmp_path, campaign_copy, capsys):
-    cfg = _sweep(tmp_path, campaign_copy)
-    assert _run(["sweep", str(cfg)], capsys)[0] == 0  # into OUT_DIR/NAME/sweep, as the main job does
+def test_the_main_jobs_sweep_folder_exports_an_element(tmp_path, campaign_copy, small_sweep, capsys):
+    # A sweep folder trained elsewhere (the shared small sweep), on a copy of its campaign: the
+    # claim is the campaign's content, so the sweep resumes there with nothing to train.
+    cfg = small_sweep_config(tmp_path / "cfg.toml", tmp_path, campaign_copy, name="r")
+    shutil.copytree(small_sweep, tmp_path / "r" / "sweep")
+    code, text = _run(["sweep", str(cfg)], capsys)  # into OUT_DIR/NAME/sweep, as the main job does
+    assert code == 0 and "6 already finished, 0 to train" in text, text
     code, text = _run(["export", str(tmp_path / "r" / "sweep"), "--element", "--out", str(tmp_path / "el")], capsys)
     assert code == 0 and (tmp_path / "el").is_dir(), text
     assert np.isfinite(pd.read_parquet(tmp_path / "r" / "sweep" / "results.parquet").test_rms_g).all()
