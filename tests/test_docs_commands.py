@@ -30,7 +30,7 @@ def _small(data: dict, campaign: Path) -> dict:
     def merge(a, b):
         return {**a, **{k: merge(a.get(k, {}), v) if isinstance(v, dict) else v for k, v in b.items()}}
     small = {"sweep": {"hidden": [[4]], "seeds": 1, "folds": 3, "test_folds": [0], "cpu_devices": 1},
-             "train": {"max_steps": 200}, "run": {"networks": False, "discovery_scenario": ""}}
+             "train": {"max_steps": 300, "learning_rate": 0.01}, "run": {"networks": False, "discovery_scenario": ""}}
     if not data.get("campaign", {}).get("path"):
         small["campaign"] = {"path": str(campaign)}
     if "sweep" in data and "databases" in data["sweep"]:
@@ -39,12 +39,16 @@ def _small(data: dict, campaign: Path) -> dict:
 
 
 @pytest.fixture
-def workdir(tmp_path, monkeypatch, small_campaign_dir):
-    """A fresh folder holding `experiments/` with every experiment config made small."""
+def workdir(tmp_path, monkeypatch, small_campaign_dir, small_sweep):
+    """A fresh folder holding `experiments/` with every experiment config made small. A
+    config whose sweep is trained as the shared small sweep finds that sweep in its folder
+    (`OUT_DIR/NAME/sweep`), so its `pvvjax sweep` resumes it instead of training."""
     import tomli_w
 
-    from pvvjax.config import ExperimentConfig, from_dict, load_toml
+    from pvvjax.config import ExperimentConfig, from_dict, load_config, load_toml
+    from pvvjax.nets import sweep_settings
 
+    shared = sweep_settings(load_config(small_sweep / "config.toml"))
     shutil.copytree(ROOT / "experiments", tmp_path / "experiments", ignore=shutil.ignore_patterns("*.py"))
     for p in (tmp_path / "experiments").rglob("*.toml"):
         data = load_toml(p)
@@ -52,7 +56,11 @@ def workdir(tmp_path, monkeypatch, small_campaign_dir):
             from_dict(ExperimentConfig, data)
         except Exception:  # a generator or benchmark config: left as it is
             continue
-        p.write_text(tomli_w.dumps(_small(data, small_campaign_dir)))
+        small = _small(data, small_campaign_dir)
+        p.write_text(tomli_w.dumps(small))
+        cfg = from_dict(ExperimentConfig, small)
+        if sweep_settings(cfg) == shared and not (tmp_path / cfg.out_dir / cfg.name / "sweep").exists():
+            shutil.copytree(small_sweep, tmp_path / cfg.out_dir / cfg.name / "sweep")
     monkeypatch.chdir(tmp_path)
     monkeypatch.setenv("PVVJAX_CACHE", str(Path(small_campaign_dir).parents[1]))
     return tmp_path
