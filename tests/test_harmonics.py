@@ -161,7 +161,7 @@ def test_hop_gives_overlapping_windows_and_start_shift():
 def test_sizes_come_in_buckets_of_at_most_a_quarter_padding_and_padding_repeats_the_first_row():
     import jax
 
-    from pvvjax.data import bucket_size, pad_rows
+    from pvvjax.data import bucket_size, pad_rows, unpad_rows
 
     sizes = [bucket_size(n) for n in range(1, 5000)]
     assert sizes[:12] == [1, 2, 4, 4, 8, 8, 8, 8, 10, 10, 12, 12]
@@ -173,3 +173,7 @@ def test_sizes_come_in_buckets_of_at_most_a_quarter_padding_and_padding_repeats_
     np.testing.assert_array_equal(padded["a"], [[0, 1], [2, 3], [4, 5], [0, 1], [0, 1]])
     assert isinstance(padded["b"], jax.Array) and padded["b"].tolist() == [0, 1, 2, 0, 0]
     assert pad_rows(tree, 3)["a"] is tree["a"]
+    back = unpad_rows(padded, 3)
+    assert all(isinstance(v, jax.Array) for v in back.values())
+    np.testing.assert_array_equal(back["a"], tree["a"])
+    np.testing.assert_array_equal(back["b"], tree["b"])

@@ -33,7 +33,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._lookup import Lookup, make_lookup, search
-from ..data.batch import RecordBatch, bucket_size, pad_rows
+from ..data.batch import RecordBatch, bucket_size, pad_rows, unpad_rows
 
 __all__ = [
     "Columns",
@@ -429,5 +429,4 @@ def analyze(batch: RecordBatch, window_revs: float = 8.0, hop_revs: float | None
     n = arrays[0].shape[0]
     if isinstance(arrays[0], jax.core.Tracer):  # under a caller's jit or vmap: its shapes, as given
         return fn(*arrays, window_revs, hop, start_revs)
-    out = fn(*pad_rows(arrays, bucket_size(n)), window_revs, hop, start_revs)
-    return jax.tree.map(lambda a: jax.device_put(np.asarray(a)[:n]), out)  # sliced on the host: no program per n
+    return unpad_rows(fn(*pad_rows(arrays, bucket_size(n)), window_revs, hop, start_revs), n)

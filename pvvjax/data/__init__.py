@@ -6,7 +6,7 @@ its records into arrays with a mask; `features` derives μ, MLF, C_W and C_W/σ�
 converts foreign columns; `constants` holds the aircraft's rotor constants.
 """
 
-from .batch import BLOCK, RecordBatch, bucket_size, pad_rows, sample_widths, to_batch
+from .batch import BLOCK, RecordBatch, bucket_size, pad_rows, sample_widths, to_batch, unpad_rows
 from .campaign import (
     MANEUVERS,
     REQUIRED_CHANNELS,
@@ -72,6 +72,7 @@ __all__ = [
     "thrust_coefficient",
     "tip_speed_ft_s",
     "to_batch",
+    "unpad_rows",
     "validate_campaign",
     "write_campaign",
 ]

@@ -21,7 +21,7 @@ import numpy as np
 
 from .campaign import Campaign
 
-__all__ = ["BLOCK", "RecordBatch", "bucket_size", "pad_rows", "sample_widths", "to_batch"]
+__all__ = ["BLOCK", "RecordBatch", "bucket_size", "pad_rows", "sample_widths", "to_batch", "unpad_rows"]
 
 BLOCK = 64  # batches are padded to a multiple of this many samples
 
@@ -51,6 +51,12 @@ def pad_rows(tree, n: int):
         return jax.device_put(out) if isinstance(a, jax.Array) else out
 
     return jax.tree.map(pad, tree)
+
+
+def unpad_rows(tree, n: int):
+    """The first `n` rows of every leaf of a PyTree (what `pad_rows` added, removed), sliced
+    on the host so that no program is compiled per `n`; JAX arrays on the default device."""
+    return jax.tree.map(lambda a: jax.device_put(np.asarray(a)[:n]), tree)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -45,7 +45,7 @@ from ..analysis.harmonics import (
     window_sums,
     with_prefix,
 )
-from ..data.batch import RecordBatch, bucket_size, pad_rows
+from ..data.batch import RecordBatch, bucket_size, pad_rows, unpad_rows
 from ..data.constants import UH60A, Aircraft
 from ..data.features import derive_features
 from ..nets.networks import apply_for
@@ -168,8 +168,7 @@ def prepare(batch: RecordBatch, *, harmonic: int = 4, block: int = 16) -> Replay
         raise ValueError(f"replay needs a batch of the channels {STATE_CHANNELS}, got {batch.channels}")
     arrays = (batch.az, batch.cos_psi, batch.sin_psi, batch.rev, batch.width, batch.time, batch.x, batch.mask)
     n = arrays[0].shape[0]
-    recs = _prepare(pad_rows(arrays, bucket_size(n)), harmonic, block)
-    recs = jax.tree.map(lambda a: jax.device_put(np.asarray(a)[:n]), recs)
+    recs = unpad_rows(_prepare(pad_rows(arrays, bucket_size(n)), harmonic, block), n)
     return recs._replace(columns=with_prefix(recs.columns),
                          time_lookup=jax.tree.map(jax.device_put, make_lookup(recs.time)))
 

@@ -17,7 +17,7 @@ import pandas as pd
 
 from ..analysis.databases import STATE_CHANNELS
 from ..config import CalibrationConfig, ReplayConfig
-from ..data.batch import bucket_size, pad_rows, to_batch
+from ..data.batch import bucket_size, pad_rows, to_batch, unpad_rows
 from ..data.campaign import Campaign
 from ..nets.sweep import heldout_models
 from .calibration import PARAMS, Bounds, calibrate, cost_grid, counter_costs, group_members
@@ -94,8 +94,7 @@ def replay_all(m, r, th, *, settings):
     compiled replay."""
     n = r.time.shape[0]
     th = jnp.broadcast_to(jnp.asarray(th, r.time.dtype), (n, 3))
-    out = _replay_all(*pad_rows((m, r, th), bucket_size(n)), settings)
-    return jax.tree.map(lambda a: jax.device_put(np.asarray(a)[:n]), out)  # sliced on the host: no program per n
+    return unpad_rows(_replay_all(*pad_rows((m, r, th), bucket_size(n)), settings), n)
 
 
 def _bucketed(models, recs, members=None, mask=None):
