@@ -43,7 +43,10 @@ def claim_folder(out: str | Path, settings: dict, campaign: str, log=print) -> P
 
     A folder belongs to the settings that first wrote into it (recorded in `owner.json`):
     the same settings and campaign again resume or rerun there; anything else is refused,
-    naming what differs, so that the rows of two configs never mix in one table.
+    naming what differs, so that the rows of two configs never mix in one table. A folder
+    holding only results folders (each with its own record, as `pvvjax sweep` leaves
+    `OUT_DIR/NAME/sweep` for the main job) is claimed as it is: each keeps its own record,
+    checked when its stage resumes it.
 
     Args:
         out: the results folder (created if missing).
@@ -80,7 +83,9 @@ def claim_folder(out: str | Path, settings: dict, campaign: str, log=print) -> P
     if out.exists() and any(out.iterdir()) and parent is not None:
         raise ResultsFolderError(f"{out}: is part of the results folder {parent}, written there with its settings; "
                                  "give another output folder")
-    if out.exists() and any(out.iterdir()):
+    # Only results folders of its stages (`pvvjax sweep` into OUT_DIR/NAME/sweep): a job resumes them.
+    stages = out.exists() and all((p / OWNER_FILE).exists() for p in out.iterdir())
+    if out.exists() and any(out.iterdir()) and not stages:
         if not any((out / name).exists() for name in _RESULTS):
             raise ResultsFolderError(f"{out}: is not empty and holds no pvvjax results; give another output "
                                      "folder, or delete this one")

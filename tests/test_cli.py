@@ -107,17 +107,21 @@ def test_cli_reference_in_the_docs_is_current():
 
 
 @pytest.mark.heavy
-def test_main_job_with_networks_reports_table1_beside_the_paper(tmp_path, small_campaign_dir, capsys):
+def test_main_job_with_networks_reports_table1_beside_the_paper(tmp_path, small_campaign_dir, small_sweep, capsys):
+    # Its sweep is the shared small sweep, run before into OUT_DIR/NAME/sweep (as `pvvjax
+    # sweep` of the same config leaves it): the job claims the folder and resumes the sweep.
+    shutil.copytree(small_sweep, tmp_path / "p" / "sweep")
     cfg = tmp_path / "p.toml"
     cfg.write_text(f'''name = "p"\nout_dir = "{tmp_path.as_posix()}"
 [campaign]\npath = "{small_campaign_dir.as_posix()}"
 [run]\nnetworks = true\nhtml = false
-[sweep]\ndatabases = ["db1", "db3"]\nhidden = [[4]]\nseeds = 1\nfolds = 3
+[sweep]\ndatabases = ["db1", "db3"]\nhidden = [[4]]\nseeds = 1\nfolds = 3\ncpu_devices = 1
 [train]\nmax_steps = 300\nlearning_rate = 0.01
 [replay]\ndatabases = ["db1", "db3"]
 [calibration]\ngrid_offset_step_s = 0.5\ngrid_window_step_revs = 2.0\n''')
     assert main(["run", str(cfg)]) == 0
-    assert "[4/6] networks" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "[4/6] networks" in out and "6 already finished, 0 to train" in out
     report = (tmp_path / "p" / "report.md").read_text()
     assert "| zero offset | db1 | 0.000 |" in report and "figures/fig13a_replay_11022.png" in report
     assert "| condition | paper test | test | paper db1 | db1 | paper db3 | db3 |" in report

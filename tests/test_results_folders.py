@@ -95,6 +95,13 @@ def test_claims_resume_the_same_settings_and_refuse_files_and_foreign_folders(tm
     assert claim_folder(tmp_path / "old", {"a": 1}, "f", log=said.append) == tmp_path / "old"
     assert [p.name for p in (tmp_path / "old").iterdir()] == ["owner.json"] and "moved to" in said[0]
     assert (tmp_path / "old.old" / "results.parquet").exists()
+    # A folder holding only results folders (a sweep run into OUT_DIR/NAME/sweep) is a job's to claim.
+    claim_folder(tmp_path / "job" / "sweep", {"s": 1}, "f")
+    assert claim_folder(tmp_path / "job", {"a": 1}, "f") == tmp_path / "job"
+    assert sorted(p.name for p in (tmp_path / "job").iterdir()) == ["owner.json", "sweep"]
+    (tmp_path / "job2" / "mine").mkdir(parents=True)  # a user's folder among them: refused
+    with pytest.raises(ResultsFolderError, match="holds no pvvjax results"):
+        claim_folder(tmp_path / "job2", {}, "")
 
 
 def test_the_main_jobs_sweep_folder_exports_an_element(tmp_path, campaign_copy, small_sweep, capsys):
