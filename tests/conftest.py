@@ -295,3 +295,42 @@ def small_sweep(small_campaign_dir) -> Path:
             finally:
                 shutil.rmtree(tmp, ignore_errors=True)
     return final
+
+
+_DISCOVERY_BASELINES: dict = {}
+
+
+@pytest.fixture
+def small_discovery(small_campaign_dir, monkeypatch):
+    """The small campaign's folder, with discovery's context and baseline (its peak nets,
+    their offset and replay) computed once per test process for each config and rule
+    constants: the tests that run `discover` on it with patched later stages share them.
+    Each run gets its own copy of the context (its replay cache shallow-copied)."""
+    import dataclasses
+
+    from pvvjax.discovery import _rules, _workflow
+
+    context, baseline = _workflow._context, _workflow._baseline
+
+    def key_of(campaign, cfg):
+        rules = {k: v for k, v in vars(_rules).items() if k.isupper()}
+        return campaign.fingerprint, repr(cfg), repr(sorted(rules.items()))
+
+    def shared_context(campaign, cfg, log):
+        key = key_of(campaign, cfg)
+        if key not in _DISCOVERY_BASELINES:
+            _DISCOVERY_BASELINES[key] = {"ctx": context(campaign, cfg, log)}
+        ctx = _DISCOVERY_BASELINES[key]["ctx"]
+        return dataclasses.replace(ctx, replay_params=dict(ctx.replay_params), cache=dict(ctx.cache))
+
+    def shared_baseline(ctx, clock, log, lag_trials):
+        entry = _DISCOVERY_BASELINES[key_of(ctx.campaign, ctx.cfg)]
+        if lag_trials not in entry:
+            entry[lag_trials] = (baseline(ctx, clock, log, lag_trials), ctx.replay_params, dict(ctx.cache))
+        base, ctx.replay_params, cache = entry[lag_trials]
+        ctx.cache.update(cache)
+        return base
+
+    monkeypatch.setattr(_workflow, "_context", shared_context)
+    monkeypatch.setattr(_workflow, "_baseline", shared_baseline)
+    return small_campaign_dir

@@ -872,7 +872,7 @@ def test_a_gains_column_is_its_band_in_units_of_its_gain_unit():
 
 @pytest.mark.parametrize("beats_it_alone, control_worse", [(False, False), (True, False), (True, True)])
 def test_a_try_must_confirm_again_on_top_of_the_floor_control_or_beat_it_alone(
-        monkeypatch, tmp_path, small_campaign_dir, beats_it_alone, control_worse):
+        monkeypatch, tmp_path, small_discovery, beats_it_alone, control_worse):
     # floor_control: a round's floor refinements (the selection's, taken over all windows) are
     # added to the current model as inputs and it is retrained (the control); a try confirmed
     # against the current model is added to the control the same way and must confirm again
@@ -914,7 +914,7 @@ def test_a_try_must_confirm_again_on_top_of_the_floor_control_or_beat_it_alone(
     monkeypatch.setattr(_round, "_modes", lambda operator, d: ("input",))  # one way: the control's logic alone
     d = discovery_config(seeds=1, folds=3, max_effects=1, offset_step_s=0.5)
     cfg = ExperimentConfig(train=TrainConfig(max_steps=100), discovery=d)
-    res = discover(load_campaign(small_campaign_dir), cfg, log=lambda m: None)
+    res = discover(load_campaign(small_discovery), cfg, log=lambda m: None)
 
     # the try on the current model, then on top of the control, then alone against the control
     # (not against a control worse than the current model)
@@ -946,7 +946,7 @@ def test_a_try_must_confirm_again_on_top_of_the_floor_control_or_beat_it_alone(
 
 @pytest.mark.parametrize("weak", [True, False])
 def test_a_weak_name_brings_its_runner_up_on_other_channels_which_is_retrained_and_can_be_named(
-        monkeypatch, small_campaign_dir, weak):
+        monkeypatch, small_discovery, weak):
     # The round's one proposal confirms on the current model; on top of its floor control it
     # keeps 1 % (weak) or 6 % (not). Weak, the selection's best runner-up built from other
     # channels is retrained too; tied with the proposal and keeping 8 % on its own control, it
@@ -983,7 +983,7 @@ def test_a_weak_name_brings_its_runner_up_on_other_channels_which_is_retrained_a
     monkeypatch.setattr(_round, "_confirm", confirm_forced)
     monkeypatch.setattr(_round, "_modes", lambda operator, d: ("input",))  # one way: the choice's logic alone
     d = discovery_config(seeds=1, folds=3, max_effects=1, offset_step_s=0.5)
-    res = discover(small_campaign_dir, ExperimentConfig(train=TrainConfig(max_steps=100), discovery=d),
+    res = discover(small_discovery, ExperimentConfig(train=TrainConfig(max_steps=100), discovery=d),
                    log=lambda m: None)
 
     tries = res.rounds[res.rounds["round"] == 1]
@@ -1055,7 +1055,7 @@ def test_an_additive_term_is_refitted_on_the_residual_of_the_nets_its_refit_name
 
 @pytest.mark.parametrize("kept", [True, False])
 def test_only_the_named_term_is_refitted_on_window_nets_and_kept_if_it_confirms(
-        monkeypatch, tmp_path, small_campaign_dir, kept):
+        monkeypatch, tmp_path, small_discovery, kept):
     # Every try is refitted on the peak nets; the round's named additive
     # term alone is refitted on window nets, from the same current model, and replaces the
     # try where that model confirms too. The proposal and the confirmations' verdicts are
@@ -1087,7 +1087,7 @@ def test_only_the_named_term_is_refitted_on_window_nets_and_kept_if_it_confirms(
     monkeypatch.setattr(_rules, "TRAIN_STRIDE", 16)
     d = discovery_config(seeds=1, folds=3, max_effects=1, offset_step_s=0.5)
     cfg = ExperimentConfig(train=TrainConfig(max_steps=100), discovery=d)
-    res = discover(small_campaign_dir, cfg, log=lambda m: None)
+    res = discover(small_discovery, cfg, log=lambda m: None)
 
     row = res.rounds.iloc[0]
     assert row.chosen and len(res.effects) == 1
@@ -1109,7 +1109,7 @@ def test_only_the_named_term_is_refitted_on_window_nets_and_kept_if_it_confirms(
 
 @pytest.mark.parametrize("shrinks, way", [((0.05, 0.06), "additive"), ((0.01, 0.20), "input")])
 def test_a_named_input_gives_way_to_its_proposals_term_where_they_tie(
-        monkeypatch, tmp_path, small_campaign_dir, shrinks, way):
+        monkeypatch, tmp_path, small_discovery, shrinks, way):
     # The proposal is retrained as a term and as an input; the input confirms, the term does
     # not (forced), and their shrinks over all windows are forced. The term is named where it
     # ties with the input (within SHRINK_NOISE, 0.05 against 0.06) though it did not confirm
@@ -1137,7 +1137,7 @@ def test_a_named_input_gives_way_to_its_proposals_term_where_they_tie(
     monkeypatch.setattr(_round._Round, "_refit_named", lambda self, named: named)  # the way alone
     d = discovery_config(seeds=1, folds=3, max_effects=1, offset_step_s=0.5)
     cfg = ExperimentConfig(train=TrainConfig(max_steps=100), discovery=d)
-    res = discover(small_campaign_dir, cfg, log=lambda m: None)
+    res = discover(small_discovery, cfg, log=lambda m: None)
 
     rows = res.rounds[res.rounds["round"] == 1]
     assert list(rows.augment) == ["additive", "input"] and list(rows.confirmed) == [False, True]
@@ -1151,7 +1151,7 @@ def test_a_named_input_gives_way_to_its_proposals_term_where_they_tie(
     assert "p_input_better" in write_discovery(res, tmp_path / "out", cfg).read_text()
 
 
-def test_every_confirmed_inputs_term_logs_the_p_of_the_way_it_was_chosen(monkeypatch, small_campaign_dir):
+def test_every_confirmed_inputs_term_logs_the_p_of_the_way_it_was_chosen(monkeypatch, small_discovery):
     # Two proposals, each retrained as a term (forced not to confirm) and as an input
     # (confirms): both terms log `p_input_better`, the p of the way chosen for whichever input
     # a round names.
@@ -1174,7 +1174,7 @@ def test_every_confirmed_inputs_term_logs_the_p_of_the_way_it_was_chosen(monkeyp
     monkeypatch.setattr(_round, "_confirm", confirm_forced)
     monkeypatch.setattr(_round._Round, "_refit_named", lambda self, named: named)  # the way alone
     d = discovery_config(seeds=1, folds=3, max_effects=1, offset_step_s=0.5)
-    res = discover(small_campaign_dir, ExperimentConfig(train=TrainConfig(max_steps=100), discovery=d),
+    res = discover(small_discovery, ExperimentConfig(train=TrainConfig(max_steps=100), discovery=d),
                    log=lambda m: None)
     rows = res.rounds[res.rounds["round"] == 1]
     assert list(rows.augment) == ["additive", "input"] * 2 and rows.proposal.nunique() == 2
@@ -1210,7 +1210,7 @@ def test_a_term_on_top_of_itself_keeps_little_of_its_coefficient_and_on_top_of_a
     (0.1, (0.0, 0.3), "rival"), (0.1, (0.3, 0.0), "proposal"), (0.1, (0.3, 0.35), "proposal"),
     (0.0, (0.3, 0.35), "rival")])
 def test_of_two_tied_channels_the_term_that_keeps_more_on_top_of_the_other_is_named(
-        monkeypatch, small_campaign_dir, margin, kept, named):
+        monkeypatch, small_discovery, margin, kept, named):
     # Two proposals on other channels, both confirmed as terms and tied (shrinks 0.10 and
     # 0.095, forced); the selection credits the first with more gain, which names it. Then
     # each term is fitted on top of the other's model (`_kept_on_top`,
@@ -1252,7 +1252,7 @@ def test_of_two_tied_channels_the_term_that_keeps_more_on_top_of_the_other_is_na
     monkeypatch.setattr(_round._Round, "_refit_named", lambda self, named: named)
     monkeypatch.setattr(_rules, "ENCOMPASSING_MARGIN", margin)
     d = discovery_config(seeds=1, folds=3, max_effects=1, offset_step_s=0.5)
-    res = discover(small_campaign_dir, ExperimentConfig(train=TrainConfig(max_steps=100), discovery=d),
+    res = discover(small_discovery, ExperimentConfig(train=TrainConfig(max_steps=100), discovery=d),
                    log=lambda m: None)
     tries = res.rounds[res.rounds["round"] == 1]
     assert len(tries) == 2 and tries.confirmed.all() and tries.chosen.sum() == 1
