@@ -37,9 +37,13 @@ from pvvjax.config import ExperimentConfig, SweepConfig
 from pvvjax.replay.calibration import calibrate, cost_grid, group_members
 from pvvjax.replay.quasistatic import make_settings, replay, replay_cost
 from pvvjax.replay.tables import load_replay_set, peak_summary, replay_windows
-from pvvjax.synth import cached_campaign
+from pvvjax.synth import SynthConfig, cached_campaign
 
-campaign = pvvjax.load_campaign(cached_campaign())
+# %% tags=["parameters"]
+campaign_config = SynthConfig()  # the embedded campaign; set `counts`, `seed`, ... for another
+
+# %%
+campaign = pvvjax.load_campaign(cached_campaign(campaign_config))
 dbs = pvvjax.build_databases(campaign)
 sweep_dir = tempfile.mkdtemp()
 cfg = ExperimentConfig(sweep=SweepConfig(databases=("db1", "db3"), family="rbf", centers=(24,), seeds=2))

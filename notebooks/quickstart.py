@@ -23,9 +23,13 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import pvvjax
-from pvvjax.synth import cached_campaign
+from pvvjax.synth import SynthConfig, cached_campaign
 
-folder = cached_campaign()  # generated once (a few seconds), then cached
+# %% tags=["parameters"]
+campaign_config = SynthConfig()  # the embedded campaign; set `counts`, `seed`, ... for another
+
+# %%
+folder = cached_campaign(campaign_config)  # generated once (a few seconds), then cached
 campaign = pvvjax.load_campaign(folder)
 print(len(campaign), "counters;", len(campaign.conditions()), "conditions")
 campaign.counters.head()
