@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import math
 import types
 import typing
 from typing import Any, Literal, Union
@@ -73,12 +74,27 @@ def _convert(tp: Any, value: Any, where: str) -> Any:
     if tp is float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise ConfigError(f"{where}: expected a number, got {value!r}")
+        if not math.isfinite(value):
+            raise ConfigError(f"{where}: {value!r} is not a finite number; give a number")
         return float(value)
     if tp is str:
         if not isinstance(value, str):
             raise ConfigError(f"{where}: expected a string, got {value!r}")
         return value
     raise TypeError(f"unsupported config type {_type_name(tp)} at {where}")
+
+
+def _distinct(values: tuple, where: str) -> None:
+    """A list setting is a set of choices (databases, seeds' axes, counters): a value given
+    twice is a mistake (it would train or replay the same thing twice), refused by name.
+    Fields whose values may repeat (layer widths) carry `metadata={"repeats": True}`."""
+    seen, twice = set(), []
+    for v in values:
+        if v in seen and v not in twice:
+            twice.append(v)
+        seen.add(v)
+    if twice:
+        raise ConfigError(f"{where}: {', '.join(map(repr, twice))} given twice in {list(values)}; list each once")
 
 
 def from_dict(cls: type, data: dict, *, where: str = "") -> Any:
@@ -91,7 +107,8 @@ def from_dict(cls: type, data: dict, *, where: str = "") -> Any:
 
     Returns:
         An instance of `cls`. Raises `ConfigError` naming the key on an unknown key, a
-        wrong type, or a value that the dataclass's own checks refuse.
+        wrong type, a NaN or infinite number, a list value given twice, or a value that
+        the dataclass's own checks refuse.
     """
     hints = typing.get_type_hints(cls)
     fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
@@ -103,6 +120,9 @@ def from_dict(cls: type, data: dict, *, where: str = "") -> Any:
             hint = f" (did you mean {close[0]!r}?)" if close else ""
             raise ConfigError(f"{at}: unknown key{hint}; allowed: {', '.join(sorted(fields))}")
         kwargs[key] = _convert(hints[key], value, at)
+        if typing.get_origin(hints[key]) is tuple and typing.get_args(hints[key])[-1:] == (Ellipsis,) \
+                and not fields[key].metadata.get("repeats"):
+            _distinct(kwargs[key], at)
     try:
         return cls(**kwargs)
     except (ValueError, TypeError) as e:

@@ -19,7 +19,7 @@ class EnsembleConfig:
         split_seed: seed of the assignment of conditions to folds.
     """
 
-    hidden: tuple[int, ...] = (10, 5)
+    hidden: tuple[int, ...] = field(default=(10, 5), metadata={"repeats": True})  # layer widths
     seeds: int = 4
     folds: int = 5
     split_seed: int = 0
