@@ -40,7 +40,10 @@ def main(argv=None) -> int:
     from .._strict import ConfigError
     from ..data.campaign import CampaignError
 
-    args = build_parser().parse_args(argv)
+    try:  # a flag's mistake: argparse has said which (status 2); a caller gets the status
+        args = build_parser().parse_args(argv)
+    except SystemExit as e:
+        return e.code if isinstance(e.code, int) else 2
     use_deterministic_gpu()  # before any command starts JAX
     try:
         code = args.fn(args)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import os
 
 from . import _commands as C
@@ -11,6 +12,55 @@ _CAMPAIGN = "campaign folder (default: the embedded synthetic campaign, generate
 _CONFIG = "experiment config (default: none, the defaults)"
 _CAMPAIGN_OF_CONFIG = ("campaign folder (default: the config's [campaign] path, else the embedded synthetic "
                        "campaign)")
+
+
+def _number(lo: float | None = None, hi: float | None = None, *, above: bool = False, below: bool = False):
+    """An argparse type: a finite float within [lo, hi] (`above`/`below`: the bound itself
+    excluded), so that a flag's mistake is refused by name before any work starts."""
+
+    def parse(text: str) -> float:
+        try:
+            v = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+        low_ok = lo is None or (v > lo if above else v >= lo)
+        high_ok = hi is None or (v < hi if below else v <= hi)
+        if not (math.isfinite(v) and low_ok and high_ok):
+            lo_s = "" if lo is None else f"{'above' if above else 'at least'} {lo:g}"
+            hi_s = "" if hi is None else f"{'below' if below else 'at most'} {hi:g}"
+            raise argparse.ArgumentTypeError(f"{text}: must be a finite number" + (
+                f" {' and '.join(x for x in (lo_s, hi_s) if x)}" if lo_s or hi_s else ""))
+        return v
+
+    parse.__name__ = "number"  # argparse names the type in its own messages
+    return parse
+
+
+def _count(lo: int):
+    """An argparse type: an integer of at least `lo`."""
+
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+        if v < lo:
+            raise argparse.ArgumentTypeError(f"{text}: must be at least {lo}")
+        return v
+
+    parse.__name__ = "integer"
+    return parse
+
+
+def _host_port(text: str) -> str:
+    """An argparse type: HOST:PORT, the port within 1 to 65535."""
+    host, _, port = text.rpartition(":")
+    if not host or not port.isdigit() or not 1 <= int(port) <= 65535:
+        raise argparse.ArgumentTypeError(f"{text!r}: give HOST:PORT, e.g. localhost:12355 (port within 1 to 65535)")
+    return text
+
+
+_host_port.__name__ = "HOST:PORT"
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -52,11 +102,12 @@ def _data_commands(sub):
                                     "(experiments/configs/scenarios/), or a small campaign "
                                     "(experiments/configs/small-campaign.toml: [counts] of random conditions per "
                                     "maneuver kind) (default: the embedded campaign's)")
-    s.add_argument("--seed", type=int, default=None, help="random seed (default: the config's, 0)")
+    s.add_argument("--seed", type=_count(0), default=None, help="random seed (default: the config's, 0)")
     s.add_argument("--truth", default=None, help="ground-truth file (default: OUT.truth.json, beside OUT)")
     s.add_argument("--plots", default=None, metavar="DIR", help="also write the check figures to DIR (default: no)")
     s.add_argument("--force", action="store_true",
-                   help="write into a non-empty folder that is not a synthetic campaign (default: refused)")
+                   help="write the campaign into a non-empty folder that is not a synthetic campaign, beside its "
+                        "files (they are kept; files of a campaign there are refused even so) (default: refused)")
     s.set_defaults(fn=C.cmd_synth)
 
     s = campaign_command("plot", C.cmd_plot, "figures of a campaign (PVV vs airspeed, pull-up, autorotation)",
@@ -73,11 +124,12 @@ def _net_commands(sub):
     s.add_argument("config", help="experiment config (TOML), e.g. experiments/configs/sweep-small.toml")
     s.add_argument("--campaign", default=None, help=_CAMPAIGN_OF_CONFIG)
     s.add_argument("--out", default=None, help="sweep folder (default: OUT_DIR/NAME/sweep)")
-    s.add_argument("--coordinator", default=None,
+    s.add_argument("--coordinator", default=None, type=_host_port,
                    help="several processes (one per host, jax.distributed): HOST:PORT of process 0 (default: none, "
                         "one process)")
-    s.add_argument("--num-processes", type=int, default=1, help="with --coordinator: how many processes (default: 1)")
-    s.add_argument("--process-id", type=int, default=0, help="with --coordinator: this process, 0 to N-1 "
+    s.add_argument("--num-processes", type=_count(1), default=1,
+                   help="with --coordinator: how many processes (default: 1)")
+    s.add_argument("--process-id", type=_count(0), default=0, help="with --coordinator: this process, 0 to N-1 "
                                                               "(default: 0)")
     s.set_defaults(fn=C.cmd_sweep)
 
@@ -96,19 +148,20 @@ def _net_commands(sub):
                         "median (default: one net)")
     s.add_argument("--architecture", default=None,
                    help="element: the architecture, e.g. 6-10-5-1 (default: the best median held-out RMS)")
-    s.add_argument("--offset", type=float, default=0.0, help="element: input-to-vibration offset, s, within "
+    s.add_argument("--offset", type=_number(), default=0.0, help="element: input-to-vibration offset, s, within "
                                                              "-1 to 3 (default: 0)")
-    s.add_argument("--stick-offset", type=float, default=0.0, help="element: extra offset of the sticks, s, within "
+    s.add_argument("--stick-offset", type=_number(), default=0.0, help="element: extra offset of the sticks, s, within "
                                                                    "-2 to 2 (default: 0)")
-    s.add_argument("--window", type=float, default=8.0, help="element: window length, revolutions, within 4 to 16 "
+    s.add_argument("--window", type=_number(), default=8.0, help="element: window length, revolutions, within 4 to 16 "
                                                              "(default: 8)")
-    s.add_argument("--hop", type=float, default=1.0, help="element: window spacing (update interval), revolutions, "
-                                                          "above 0 and at most the window (default: 1)")
+    s.add_argument("--hop", type=_number(0.0, above=True), default=1.0,
+                   help="element: window spacing (update interval), revolutions, above 0 and at most the window "
+                        "(default: 1)")
     s.add_argument("--format", default="numpy", choices=["numpy", "c", "fmu"],
                    help="element: numpy (element.json, the nets and the NumPy modules), c (pvv_element.h and "
                         "pvv_element.c, C99, <math.h> only) or fmu (pvv_element.fmu, FMI 2.0 co-simulation, built "
                         "with the machine's C compiler) (default: numpy)")
-    s.add_argument("--max-rate", type=float, default=1000.0,
+    s.add_argument("--max-rate", type=_number(0.0, above=True), default=1000.0,
                    help="element, c and fmu: highest frame rate the fixed buffers are sized for, Hz (default: 1000)")
     s.set_defaults(fn=C.cmd_export)
 
@@ -118,9 +171,10 @@ def _net_commands(sub):
     s.add_argument("--model", required=True, help="element folder (pvvjax export --element)")
     s.add_argument("--record", required=True, help="counter to play, e.g. 11022")
     s.add_argument("--campaign", default=None, help=_CAMPAIGN)
-    s.add_argument("--rate", type=float, default=None, help="frame rate, Hz (default: the record's)")
-    s.add_argument("--jitter", type=float, default=0.0, help="random frame-time jitter, fraction of a frame "
-                                                             "(default: 0)")
+    s.add_argument("--rate", type=_number(0.0, above=True), default=None,
+                   help="frame rate, Hz, above 0 (default: the record's)")
+    s.add_argument("--jitter", type=_number(0.0, 1.0, below=True), default=0.0,
+                   help="random frame-time jitter, fraction of a frame, from 0 to below 1 (default: 0)")
     s.add_argument("--out", default=None, help="CSV file of the output signal (default: none)")
     s.set_defaults(fn=C.cmd_realtime)
 
@@ -132,10 +186,12 @@ def _replay_commands(sub):
                                    "trains the config's sweep first when [replay] sweep is empty).")
     s.add_argument("config", help="experiment config (TOML), e.g. experiments/configs/replay.toml")
     s.add_argument("--campaign", default=None, help=_CAMPAIGN_OF_CONFIG)
-    s.add_argument("--offset", type=float, default=None, help="input-to-vibration offset, s (default: the config's)")
-    s.add_argument("--window", type=float, default=None, help="window length, revolutions (default: the config's)")
+    s.add_argument("--offset", type=_number(), default=None,
+                   help="input-to-vibration offset, s (default: the config's)")
+    s.add_argument("--window", type=_number(1.0, 64.0), default=None,
+                   help="window length, revolutions, within 1 to 64 (default: the config's)")
     s.add_argument("--counters", nargs="+", default=None, help="counters to replay (default: the config's)")
-    s.add_argument("--plots", type=int, default=4, help="figures for the first N counters (default: 4)")
+    s.add_argument("--plots", type=_count(0), default=4, help="figures for the first N counters (default: 4)")
     s.add_argument("--out", default=None, help="output folder (default: OUT_DIR/NAME/replay)")
     s.set_defaults(fn=C.cmd_replay)
 
