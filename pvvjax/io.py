@@ -13,8 +13,8 @@ import pyarrow.parquet as pq
 
 from ._strict import to_dict
 
-__all__ = ["OWNER_FILE", "ResultsFolderError", "claim_folder", "markdown_table", "read_table", "write_config",
-           "write_table"]
+__all__ = ["OWNER_FILE", "ResultsFolderError", "claim_folder", "markdown_table", "new_file", "own_folder",
+           "read_table", "refuse_in_campaign", "write_config", "write_table"]
 
 _META_KEY = b"pvvjax.config"
 OWNER_FILE = "owner.json"
@@ -36,6 +36,74 @@ def _flat(tree, prefix=""):
 # Files by which a folder without an owner record is known as pvvjax's results.
 _RESULTS = ("report.md", "results.parquet", "discovery.json", "config.toml", "windows.parquet", "databases",
             "calibration.parquet", "summary.parquet")
+
+
+def refuse_in_campaign(path: str | Path, itself: bool = True) -> None:
+    """Refuse a path in a campaign folder (one holding `counters.csv` and `timeseries/`): a
+    command never writes among a campaign's files, where a result could pass for data.
+
+    Args:
+        path: the output.
+        itself: whether `path` being a campaign folder counts (not for a campaign's writer).
+
+    Raises:
+        ResultsFolderError: naming the path and the campaign folder.
+    """
+    path = Path(path)
+    for p in (path.resolve(), *path.resolve().parents)[0 if itself else 1:]:
+        if (p / "counters.csv").is_file() and (p / "timeseries").is_dir():
+            where = "is the campaign folder" if p == path.resolve() else f"lies inside the campaign folder {p}"
+            raise ResultsFolderError(f"{path}: {where}; give an output outside the campaign")
+
+
+def own_folder(out: str | Path, command: str) -> Path:
+    """Make `out` a folder of `command`'s outputs (figures, an exported net or element), or
+    refuse: a new or empty folder is claimed (`owner.json` names the command); one the same
+    command wrote before is written again (its files replaced); anything else (a user's
+    files, another command's results, a campaign) is refused by name, so that a command
+    never writes over a file it did not write.
+
+    Args:
+        out: the folder (created if missing).
+        command: what writes there, e.g. "pvvjax export"; recorded and compared.
+
+    Raises:
+        ResultsFolderError: as above.
+    """
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise ResultsFolderError(f"{out}: is a file, not a folder; give a folder for the output")
+    refuse_in_campaign(out)
+    record = {"written_by": command}
+    owner = out / OWNER_FILE
+    if owner.exists():
+        try:
+            old = json.loads(owner.read_text())
+        except ValueError:
+            old = {}
+        if old != record:
+            what = f"the output of {old['written_by']}" if "written_by" in old else "results of pvvjax's other commands"
+            raise ResultsFolderError(f"{out}: holds {what}, not of {command}; give another output folder")
+    elif out.exists() and any(out.iterdir()):
+        raise ResultsFolderError(f"{out}: is not empty and was not written by {command}; give a new or empty folder")
+    out.mkdir(parents=True, exist_ok=True)
+    owner.write_text(json.dumps(record))
+    return out
+
+
+def new_file(path: str | Path, flag: str = "--out") -> Path:
+    """Check that `path` is a new file outside any campaign folder, for a command that
+    writes one file (its parent folder is created). An existing file is never replaced.
+
+    Raises:
+        ResultsFolderError: naming `flag` and the path.
+    """
+    path = Path(path)
+    if path.exists():
+        raise ResultsFolderError(f"{flag} {path}: exists; give a new file name (a command never writes over a file)")
+    refuse_in_campaign(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return path
 
 
 def claim_folder(out: str | Path, settings: dict, campaign: str, log=print) -> Path:
@@ -62,6 +130,7 @@ def claim_folder(out: str | Path, settings: dict, campaign: str, log=print) -> P
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise ResultsFolderError(f"{out}: is a file, not a folder; give a folder for the results")
+    refuse_in_campaign(out)
     record = json.loads(json.dumps({"settings": settings, "campaign": campaign}, sort_keys=True, default=str))
     owner = out / OWNER_FILE
     if owner.exists():
@@ -71,6 +140,8 @@ def claim_folder(out: str | Path, settings: dict, campaign: str, log=print) -> P
             old = {}
         if old == record:
             return out
+        if "written_by" in old:
+            raise ResultsFolderError(f"{out}: holds the output of {old['written_by']}; give another output folder")
         was, now = _flat(old.get("settings", {})), _flat(record["settings"])
         diffs = [f"{k}: {was.get(k, '(unset)')!r} there, {now.get(k, '(unset)')!r} now"
                  for k in sorted(set(was) | set(now)) if was.get(k) != now.get(k)]
@@ -87,8 +158,8 @@ def claim_folder(out: str | Path, settings: dict, campaign: str, log=print) -> P
     stages = out.exists() and all((p / OWNER_FILE).exists() for p in out.iterdir())
     if out.exists() and any(out.iterdir()) and not stages:
         if not any((out / name).exists() for name in _RESULTS):
-            raise ResultsFolderError(f"{out}: is not empty and holds no pvvjax results; give another output "
-                                     "folder, or delete this one")
+            raise ResultsFolderError(f"{out}: is not empty and holds no pvvjax results; give a new or empty "
+                                     "output folder")
         # Results of an older pvvjax (no owner record): rerun, never reinterpreted; kept aside.
         names = (out.with_name(f"{out.name}.old{'' if i == 0 else f'-{i}'}") for i in range(1000))
         aside = next(p for p in names if not p.exists())

@@ -200,7 +200,13 @@ def _cli_unwritable_out(tmp_path):
 
 
 def _cli_synth_over_user_data(tmp_path):
-    return ["synth", "--out", str(write_tiny(tmp_path / "mine"))], "--force"
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "notes.txt").write_text("mine")
+    return ["synth", "--out", str(tmp_path / "mine")], "--force"
+
+
+def _cli_synth_over_a_campaign(tmp_path):
+    return ["synth", "--force", "--out", str(write_tiny(tmp_path / "mine"))], "pvvjax.synth did not write"
 
 
 def _cli_not_a_sweep(tmp_path):
@@ -211,6 +217,32 @@ def _cli_process_id(tmp_path):
     (tmp_path / "cfg.toml").write_text("")
     return ["sweep", str(tmp_path / "cfg.toml"), "--coordinator", "127.0.0.1:1", "--num-processes", "2",
             "--process-id", "2"], "--process-id 2"
+
+
+def _flag(command, flag, value, needle):
+    """A command whose flag is out of its range: refused by argparse before any work."""
+    def case(tmp_path):
+        (tmp_path / "cfg.toml").write_text("")
+        argv = {"realtime": ["realtime", "--model", str(tmp_path), "--record", "C1"],
+                "replay": ["replay", str(tmp_path / "cfg.toml")],
+                "sweep": ["sweep", str(tmp_path / "cfg.toml")]}[command]
+        return argv + [flag, value] if value is not None else argv + [flag], needle
+    return case
+
+
+def _cli_processes_without_coordinator(tmp_path):
+    (tmp_path / "cfg.toml").write_text("")
+    return ["sweep", str(tmp_path / "cfg.toml"), "--num-processes", "2"], "need --coordinator"
+
+
+def _cli_realtime_over_a_file(tmp_path):
+    (tmp_path / "s.csv").write_text("mine")
+    return ["realtime", "--model", str(tmp_path), "--record", "C1", "--out", str(tmp_path / "s.csv")], "s.csv: exists"
+
+
+def _cli_out_in_a_campaign(tmp_path):
+    camp = write_tiny(tmp_path / "c")
+    return ["build-db", "--campaign", str(camp), "--out", str(camp / "db")], f"lies inside the campaign folder {camp}"
 
 
 def _element(flag, value, needle):
@@ -226,16 +258,26 @@ CLI_KINDS = {
     "a campaign folder that is not there": _cli_missing_campaign,
     "a config file that is not there": _cli_missing_config,
     "synth --out over a folder it did not write": _cli_synth_over_user_data,
+    "synth --force over a campaign it did not write": _cli_synth_over_a_campaign,
     "export from a folder that is not a sweep": _cli_not_a_sweep,
-    "element offset NaN": _element("--offset", "nan", "--offset nan"),
+    "element offset NaN": _element("--offset", "nan", "argument --offset: nan"),
     "element offset beyond the calibration's bounds": _element("--offset", "7", "--offset 7"),
     "element window negative": _element("--window", "-3", "--window -3"),
     "element stick offset beyond the bounds": _element("--stick-offset", "5", "--stick-offset 5"),
     "element hop longer than the window": _element("--hop", "20", "--hop 20"),
     "element format without --element": lambda tmp_path: (
         ["export", str(tmp_path), "--format", "c", "--out", str(tmp_path / "e")], "add --element"),
-    "element frame rate not above 0": _element("--max-rate", "0", "--max-rate 0"),
+    "element frame rate not above 0": _element("--max-rate", "0", "argument --max-rate: 0"),
     "sweep process id outside the processes": _cli_process_id,
+    "sweep processes without a coordinator": _cli_processes_without_coordinator,
+    "sweep no processes": _flag("sweep", "--num-processes", "0", "argument --num-processes: 0: must be at least 1"),
+    "sweep coordinator without a port": _flag("sweep", "--coordinator", "localhost", "give HOST:PORT"),
+    "realtime frame rate negative": _flag("realtime", "--rate", "-5", "argument --rate: -5: must be a finite number"),
+    "realtime jitter of a whole frame": _flag("realtime", "--jitter", "1", "argument --jitter: 1"),
+    "replay window of zero revolutions": _flag("replay", "--window", "0", "argument --window: 0"),
+    "replay figures negative": _flag("replay", "--plots", "-1", "argument --plots: -1"),
+    "realtime --out over a file": _cli_realtime_over_a_file,
+    "--out inside a campaign folder": _cli_out_in_a_campaign,
 }
 
 CONFIG = {
@@ -243,6 +285,9 @@ CONFIG = {
     "mistyped config value": ("[analysis]\nwindow_revs = \"eight\"\n", "analysis.window_revs"),
     "config out of range": ("[analysis]\nharmonic = 0\n", "harmonic"),
     "config file not TOML": ("[analysis\n", "cfg.toml"),
+    "config value NaN": ("[analysis]\nhop_revs = nan\n", "analysis.hop_revs: nan is not a finite number"),
+    "config value infinite": ("[train]\nweight_decay = inf\n", "train.weight_decay: inf is not a finite number"),
+    "config list with a value twice": ('[sweep]\ndatabases = ["db1", "db1"]\n', "sweep.databases: 'db1' given twice"),
 }
 
 
@@ -375,13 +420,17 @@ def test_a_closed_pipe_ends_quietly(tmp_path):
     assert r.stderr == "", r.stderr  # quiet: no traceback, no error line
 
 
-def test_synth_replaces_its_own_campaign_and_writes_over_user_data_with_force(tmp_path, capsys):
+def test_synth_replaces_its_own_campaign_only_and_never_a_users(tmp_path, capsys):
     small = tmp_path / "small.toml"
     small.write_text('conditions = ["T1-level-135"]\n')
     out = tmp_path / "synth"
     assert _run(["synth", "--out", str(out), "--config", str(small)], capsys)[0] == 0
     (out / "timeseries" / "stray.csv").write_text("x\n")
-    assert _run(["synth", "--out", str(out), "--config", str(small), "--seed", "2"], capsys)[0] == 0
-    assert not (out / "timeseries" / "stray.csv").exists()  # replaced whole
+    code, text = _run(["synth", "--out", str(out), "--config", str(small), "--seed", "2"], capsys)
+    assert code == 0 and "replacing the synthetic campaign" in text and "1 other file(s) kept" in text
+    assert (out / "timeseries" / "stray.csv").read_text() == "x\n"  # not the generator's: kept
     mine = write_tiny(tmp_path / "mine")
-    assert _run(["synth", "--out", str(mine), "--config", str(small), "--force"], capsys)[0] == 0
+    before = sorted(p.read_bytes() for p in mine.rglob("*") if p.is_file())
+    code, text = _run(["synth", "--out", str(mine), "--config", str(small), "--force"], capsys)
+    assert code == 2 and "pvvjax.synth did not write" in text
+    assert sorted(p.read_bytes() for p in mine.rglob("*") if p.is_file()) == before

@@ -17,7 +17,7 @@ from ..experiment import (
     run_main_job,
     write_databases,
 )
-from ..io import claim_folder
+from ..io import claim_folder, new_file, own_folder
 
 
 def _experiment(args):
@@ -51,8 +51,9 @@ def cmd_build_db(args) -> int:
 
     cfg = _experiment(args)
     campaign, _ = resolve_campaign(cfg, args.campaign)
+    out = claim_folder(args.out, dict(command="build-db", analysis=to_dict(cfg.analysis),
+                                      columns=to_dict(cfg.campaign)["columns"]), campaign.fingerprint)
     dbs = build_databases(campaign, cfg.analysis)
-    out = Path(args.out)
     write_databases(dbs, out, cfg)
     print(database_summary(dbs))
     print(f"wrote db1, db2, db3 and peaks (.csv, .parquet) to {out}")
@@ -67,6 +68,7 @@ def cmd_synth(args) -> int:
     scfg = load_synth_config(args.config) if args.config else SynthConfig()
     if args.seed is not None:
         scfg = dataclasses.replace(scfg, seed=args.seed)
+    plots_dir = own_folder(args.plots, "pvvjax synth --plots") if args.plots else None
     t0 = time.perf_counter()
     folder, truth = write_synthetic(args.out, scfg, args.truth, force=args.force)
     print(f"wrote campaign {folder} ({time.perf_counter() - t0:.1f} s); ground truth: {truth}")
@@ -75,14 +77,15 @@ def cmd_synth(args) -> int:
 
         cfg = ExperimentConfig()
         campaign, _ = resolve_campaign(cfg, folder)
-        campaign_plots(campaign, cfg, Path(args.plots))  # the generator's check figures
+        campaign_plots(campaign, cfg, plots_dir)  # the generator's check figures
     return 0
 
 
 def cmd_plot(args) -> int:
     cfg = _experiment(args)
+    out = own_folder(args.out, "pvvjax plot")
     campaign, _ = resolve_campaign(cfg, args.campaign)
-    _, _, rows = campaign_plots(campaign, cfg, Path(args.out), paper=args.paper)
+    _, _, rows = campaign_plots(campaign, cfg, out, paper=args.paper)
     if rows is not None:
         from ..paper.comparison import comparison_markdown
 
@@ -101,6 +104,9 @@ def cmd_sweep(args) -> int:
     """Train the config's family of nets; resumable; across processes with --coordinator."""
     t0 = time.perf_counter()
     cfg = _experiment(args)
+    if not args.coordinator and (args.num_processes != 1 or args.process_id != 0):
+        raise ValueError(f"--num-processes {args.num_processes} --process-id {args.process_id}: several processes "
+                         "need --coordinator HOST:PORT (of process 0)")
     if args.coordinator:
         from ..experiment import start_distributed, use_cpu_cores
 
@@ -201,12 +207,11 @@ def cmd_export(args) -> int:
         _check_element_settings(args)
     elif args.format != "numpy":
         raise ValueError(f"--format {args.format}: a format of the real-time element; add --element")
-    if not (args.max_rate > 0 and args.max_rate < float("inf")):
-        raise ValueError(f"--max-rate {args.max_rate:g}: must be a frame rate above 0 Hz")
     sweep = Path(args.sweep)
     if not (sweep / "results.parquet").is_file():
         raise FileNotFoundError(f"{sweep}: not a sweep folder (no results.parquet); give the folder `pvvjax sweep` "
                                 "or the main job wrote (OUT_DIR/NAME/sweep)")
+    own_folder(args.out, "pvvjax export")
     res = pd.read_parquet(sweep / "results.parquet")
     if args.element:
         return _export_element(args, res, sweep)
@@ -344,6 +349,8 @@ def cmd_realtime(args) -> int:
     from ..config import ExperimentConfig
     from ..realtime.element import CHANNELS, VibrationElement
 
+    if args.out:
+        new_file(args.out)
     el = VibrationElement.load(args.model)
     cfg = ExperimentConfig()
     campaign, _ = resolve_campaign(cfg, args.campaign)
@@ -375,7 +382,6 @@ def cmd_realtime(args) -> int:
     if args.out:
         df = pd.DataFrame({"time_s": t, "azimuth_deg": az, "pvv_g": out[:, 0], "shake_g": out[:, 1],
                            "amplitude_g": out[:, 2], "out_of_envelope": out[:, 3].astype(bool), "latency_us": lat})
-        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
         df.to_csv(args.out, index=False)
         print(f"signal: {args.out}")
     return 0

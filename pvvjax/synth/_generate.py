@@ -26,6 +26,7 @@ from .._strict import to_dict
 from ..config import config_hash, load_config
 from ..data.campaign import write_campaign
 from ..data.constants import UH60A, Aircraft
+from ..io import refuse_in_campaign
 from . import _flight
 from ._conditions import DEFAULT_COUNTS, NAMED, Condition, catalogue, condition_rng, pilot_plan
 from ._scaling import scale_states, similarity
@@ -260,14 +261,20 @@ def _is_synthetic(folder: Path) -> bool:
         return False
 
 
-def write_synthetic(out, cfg: SynthConfig = SynthConfig(), truth_path=None, force: bool = False) -> tuple[Path, Path]:
+def write_synthetic(out, cfg: SynthConfig = SynthConfig(), truth_path=None, force: bool = False,
+                    log=print) -> tuple[Path, Path]:
     """Generate a campaign and write it to `out`; the ground truth goes to `truth_path`
     (default: `<out>.truth.json`, beside the folder, never inside it).
 
+    Only files the generator wrote are ever replaced: a synthetic campaign written to `out`
+    before loses its `counters.csv`, `campaign.toml` and records (said through `log`);
+    any other file there is kept. A folder holding a campaign (or its files) that the
+    generator did not write is refused, and so is a ground-truth file it did not write.
+
     Args:
-        force: write into a non-empty folder that is not a synthetic campaign (refused
-            otherwise: it may be a user's own data). A synthetic campaign's folder is
-            replaced whole either way.
+        force: also write into a non-empty folder that is not a synthetic campaign, beside
+            the files there (refused otherwise: it may be a user's own data).
+        log: where replaced files are reported.
 
     Returns:
         (campaign folder, ground-truth file).
@@ -275,15 +282,24 @@ def write_synthetic(out, cfg: SynthConfig = SynthConfig(), truth_path=None, forc
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise ValueError(f"{out}: is a file, not a folder; give a folder for the campaign")
-    if out.is_dir() and any(out.iterdir()) and not (force or _is_synthetic(out)):
-        raise ValueError(f"{out}: is not empty and not a synthetic campaign (no campaign.toml of pvvjax.synth); "
-                         "give an empty or new folder, or --force to write into it")
-    if out.is_dir() and _is_synthetic(out):
-        shutil.rmtree(out)  # a regenerated campaign keeps no file of the old one
+    refuse_in_campaign(out, itself=False)
+    synthetic = out.is_dir() and _is_synthetic(out)
+    if out.is_dir() and any(out.iterdir()) and not synthetic:
+        clash = [n for n in ("counters.csv", "campaign.toml", "timeseries") if (out / n).exists()]
+        if clash:
+            raise ValueError(f"{out}: holds {', '.join(clash)} that pvvjax.synth did not write (a campaign?); give a "
+                             "new or empty folder")
+        if not force:
+            raise ValueError(f"{out}: is not empty and not a synthetic campaign (no campaign.toml of pvvjax.synth); "
+                             "give an empty or new folder, or --force to write the campaign beside its files")
     truth_path = Path(truth_path) if truth_path else out.with_name(out.name + ".truth.json")
     if truth_path.resolve().is_relative_to(out.resolve()):
         raise ValueError(f"ground truth {truth_path} must not be inside the campaign folder {out}")
+    if truth_path.exists() and not _is_truth(truth_path):
+        raise ValueError(f"{truth_path}: exists and is not a ground truth of pvvjax.synth; give a new file (--truth)")
     counters, records, truth = generate(cfg)
+    if synthetic:
+        _remove_synthetic(out, log)
     ac = cfg.aircraft_constants()
     write_campaign(out, counters, records, fmt=cfg.format, aircraft=None if ac == UH60A else ac,
                    provenance=dict(generator="pvvjax.synth", generator_version=GENERATOR_VERSION,
@@ -291,6 +307,29 @@ def write_synthetic(out, cfg: SynthConfig = SynthConfig(), truth_path=None, forc
     truth_path.parent.mkdir(parents=True, exist_ok=True)
     truth_path.write_text(json.dumps(truth, indent=2))
     return out, truth_path
+
+
+def _is_truth(path: Path) -> bool:
+    try:
+        return {"generator_version", "effects", "hidden"} <= set(json.loads(path.read_text()))
+    except (OSError, ValueError, TypeError):
+        return False
+
+
+def _remove_synthetic(folder: Path, log) -> None:
+    """Delete the files a synthetic campaign of `folder` consists of (its counters' records,
+    `counters.csv`, `campaign.toml`), keeping anything else there."""
+    names = pd.read_csv(folder / "counters.csv", dtype=str).get("counter", pd.Series(dtype=str)).dropna()
+    records = [p for n in names for p in (folder / "timeseries" / f"{n}.parquet", folder / "timeseries" / f"{n}.csv")
+               if p.is_file()]
+    others = [p for p in folder.rglob("*") if p.is_file()
+              and p not in records and p.name not in ("counters.csv", "campaign.toml")]
+    log(f"{folder}: replacing the synthetic campaign written there before ({len(records)} records, counters.csv, "
+        f"campaign.toml)" + (f"; {len(others)} other file(s) kept" if others else ""))
+    for p in records + [folder / "counters.csv", folder / "campaign.toml"]:
+        p.unlink(missing_ok=True)
+    if (folder / "timeseries").is_dir() and not any((folder / "timeseries").iterdir()):
+        (folder / "timeseries").rmdir()
 
 
 def default_cache_dir() -> Path:
