@@ -100,7 +100,19 @@ def _gap(df):
 
 # (kind as the docs list it, make(folder), exit status, file named, column or key named,
 # config text or None). Exit 1: `validate` found errors; 0: warnings only.
+def _text_value(column, value, row=0):
+    def edit(c):
+        c = c.astype({column: object})
+        c.loc[row, column] = value
+        return c
+    return _counters(edit)
+
+
 CAMPAIGN = {
+    "a unit in a counters.csv value": (_text_value("gross_weight_lb", "16000 lb"), 1, "counters.csv", "gross_weight_lb",
+                                       "a unit in the value"),
+    "a decimal comma in counters.csv": (_text_value("density_ratio", "0,95", row=1), 1, "counters.csv",
+                                        "density_ratio", "write 0.95"),
     "az_g of 1e30": (_records(_set("az_g", 1e30, row=3)), 1, "C1.csv", "az_g", "row 3"),
     "az_g of 1e39 (beyond float32)": (_records(_set("az_g", 1e39, row=3)), 1, "C1.csv", "az_g", "row 3"),
     "acceleration in m/s²": (_records(_scaled("az_g", 9.80665)), 1, "C1.csv", "az_g", "m/s²"),
@@ -235,6 +247,18 @@ def _cli_processes_without_coordinator(tmp_path):
     return ["sweep", str(tmp_path / "cfg.toml"), "--num-processes", "2"], "need --coordinator"
 
 
+def _cli_unfinished_sweep(tmp_path):
+    (tmp_path / "sweep" / "parts").mkdir(parents=True)
+    (tmp_path / "sweep" / "config.toml").write_text("")
+    return ["export", str(tmp_path / "sweep"), "--out", str(tmp_path / "e")], "an unfinished sweep (0 nets finished"
+
+
+def _cli_replay_unknown_counter(tmp_path):
+    (tmp_path / "cfg.toml").write_text("")
+    return ["replay", str(tmp_path / "cfg.toml"), "--campaign", str(write_tiny(tmp_path / "c")), "--counters", "C1",
+            "NOPE"], "--counters: NOPE not in the campaign"
+
+
 def _cli_realtime_over_a_file(tmp_path):
     (tmp_path / "s.csv").write_text("mine")
     return ["realtime", "--model", str(tmp_path), "--record", "C1", "--out", str(tmp_path / "s.csv")], "s.csv: exists"
@@ -277,6 +301,8 @@ CLI_KINDS = {
     "replay window of zero revolutions": _flag("replay", "--window", "0", "argument --window: 0"),
     "replay figures negative": _flag("replay", "--plots", "-1", "argument --plots: -1"),
     "realtime --out over a file": _cli_realtime_over_a_file,
+    "export from an unfinished sweep": _cli_unfinished_sweep,
+    "replay of a counter not in the campaign": _cli_replay_unknown_counter,
     "--out inside a campaign folder": _cli_out_in_a_campaign,
 }
 
@@ -287,6 +313,8 @@ CONFIG = {
     "config file not TOML": ("[analysis\n", "cfg.toml"),
     "config value NaN": ("[analysis]\nhop_revs = nan\n", "analysis.hop_revs: nan is not a finite number"),
     "config value infinite": ("[train]\nweight_decay = inf\n", "train.weight_decay: inf is not a finite number"),
+    "config saved as UTF-16": ("[analysis]\nwindow_revs = 8.0\n".encode("utf-16"), "cfg.toml: saved as UTF-16"),
+    "config not UTF-8": ('name = "Müller"\n'.encode("latin-1"), "cfg.toml: not UTF-8 text (byte 0xfc on line 1)"),
     "config list with a value twice": ('[sweep]\ndatabases = ["db1", "db1"]\n', "sweep.databases: 'db1' given twice"),
 }
 
@@ -344,10 +372,17 @@ def test_bad_column_mapping_is_refused_naming_it(kind, tmp_path, capsys):
 @pytest.mark.parametrize("kind", list(CONFIG))
 def test_bad_config_is_refused_naming_the_key(kind, tmp_path, capsys):
     toml, key = CONFIG[kind]
-    (tmp_path / "cfg.toml").write_text(toml)
+    (tmp_path / "cfg.toml").write_bytes(toml if isinstance(toml, bytes) else toml.encode())
     code, text = _run(["build-db", "--campaign", str(write_tiny(tmp_path / "c")), "--config",
                        str(tmp_path / "cfg.toml"), "--out", str(tmp_path / "o")], capsys)
     assert code == 2 and key in text, text
+
+
+def test_a_config_with_a_utf8_byte_order_mark_is_read(tmp_path, capsys):
+    (tmp_path / "cfg.toml").write_bytes(b"\xef\xbb\xbf[analysis]\nwindow_revs = 6.0\n")  # as Notepad saves it
+    from pvvjax.config import load_config
+
+    assert load_config(tmp_path / "cfg.toml").analysis.window_revs == 6.0
 
 
 def test_a_utf8_byte_order_mark_is_read(tmp_path, capsys):

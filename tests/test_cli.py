@@ -96,7 +96,7 @@ def test_replay_config_mistakes_are_clear_errors(tmp_path, capsys, monkeypatch):
     assert "calibration.free" in capsys.readouterr().err
     cfg.write_text('[replay]\nsweep = "/nonexistent"\n')
     assert main(["replay", str(cfg)]) == 2
-    assert "not a sweep folder" in capsys.readouterr().err
+    assert "replay.sweep: /nonexistent: no such folder" in capsys.readouterr().err
 
 
 def test_cli_reference_in_the_docs_is_current():

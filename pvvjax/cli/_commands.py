@@ -198,9 +198,7 @@ def cmd_export(args) -> int:
     """Copy a trained net and the NumPy evaluator into a folder a simulator host can use."""
     import shutil
 
-    import pandas as pd
-
-    from ..nets.sweep import load_nets
+    from ..nets.sweep import finished_sweep, load_nets
     from ..realtime import npnet
 
     if args.element:
@@ -208,11 +206,8 @@ def cmd_export(args) -> int:
     elif args.format != "numpy":
         raise ValueError(f"--format {args.format}: a format of the real-time element; add --element")
     sweep = Path(args.sweep)
-    if not (sweep / "results.parquet").is_file():
-        raise FileNotFoundError(f"{sweep}: not a sweep folder (no results.parquet); give the folder `pvvjax sweep` "
-                                "or the main job wrote (OUT_DIR/NAME/sweep)")
+    res = finished_sweep(sweep)
     own_folder(args.out, "pvvjax export")
-    res = pd.read_parquet(sweep / "results.parquet")
     if args.element:
         return _export_element(args, res, sweep)
     if args.net:
@@ -244,17 +239,25 @@ def cmd_export(args) -> int:
 def _replay_inputs(args, cfg):
     """Campaign, counters, held-out models of the config's replay (training the sweep first
     if the config names none)."""
+    from ..nets.sweep import finished_sweep
     from ..replay.tables import load_replay_set, select_counters
 
     enable_compilation_cache()
-    if cfg.replay.sweep:
-        sweep = Path(cfg.replay.sweep)
-        if not (sweep / "parts").is_dir():
-            raise FileNotFoundError(f"{args.config}: replay.sweep = {cfg.replay.sweep!r} is not a sweep folder")
-    else:
-        _, _, _, sweep = prepare_sweep(cfg)
     campaign, _ = resolve_campaign(cfg)
     counters = list(args.counters) if getattr(args, "counters", None) else select_counters(campaign, cfg.replay)
+    unknown = [c for c in counters if c not in campaign.records]
+    if unknown:
+        known = list(campaign.records)
+        raise KeyError(f"--counters: {', '.join(unknown)} not in the campaign {campaign.source} (its {len(known)} "
+                       f"counters: {', '.join(known[:8])}{', ...' if len(known) > 8 else ''})")
+    if cfg.replay.sweep:
+        sweep = Path(cfg.replay.sweep)
+        try:
+            finished_sweep(sweep)
+        except FileNotFoundError as e:
+            raise FileNotFoundError(f"{args.config}: replay.sweep: {e}") from None
+    else:
+        _, _, _, sweep = prepare_sweep(cfg)
     info, batch, recs, models = load_replay_set(campaign, counters, sweep, cfg.replay.databases,
                                                 cfg.replay.architecture)
     print(f"replaying {len(counters)} counters through the held-out nets of {sweep} ({', '.join(models)})")

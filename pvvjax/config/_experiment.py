@@ -48,13 +48,25 @@ class ExperimentConfig:
 
 
 def load_toml(path: str | Path) -> dict:
-    """Read a TOML file; a syntax error names the file."""
+    """Read a TOML file (UTF-8, with or without a byte-order mark); a syntax error, or text
+    in another encoding, names the file and what to change."""
     path = Path(path)
     try:
-        with open(path, "rb") as f:
-            return tomllib.load(f)
+        raw = path.read_bytes()
     except FileNotFoundError:
         raise ConfigError(f"{path}: no such config file") from None
+    except IsADirectoryError:
+        raise ConfigError(f"{path}: is a folder, not a config file") from None
+    if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
+        raise ConfigError(f"{path}: saved as UTF-16; save it as UTF-8 (TOML is UTF-8 text)")
+    try:
+        text = raw.decode("utf-8-sig")  # a byte-order mark (some Windows editors write one) is dropped
+    except UnicodeDecodeError as e:
+        line = raw[:e.start].count(b"\n") + 1
+        raise ConfigError(f"{path}: not UTF-8 text (byte 0x{raw[e.start]:02x} on line {line}); save it as "
+                          "UTF-8") from None
+    try:
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise ConfigError(f"{path}: not valid TOML: {e}") from None
 
@@ -65,8 +77,9 @@ def load_config(path: str | Path, cls: type = ExperimentConfig):
     Raises:
         ConfigError: naming the file and the offending key.
     """
+    data = load_toml(path)
     try:
-        return from_dict(cls, load_toml(path))
+        return from_dict(cls, data)
     except ConfigError as e:
         raise ConfigError(f"{path}: {e}") from None
 

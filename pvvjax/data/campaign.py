@@ -330,7 +330,7 @@ def _assemble(counters: pd.DataFrame, raw: Mapping[str, pd.DataFrame], fnames: M
         file = fnames[name]
         df = _apply_mapping(raw[name], mapping or {}, file, problems)
         row = by_name.loc[name]
-        consts = {c: row[c] for c in constant_cols if pd.notna(row[c])}
+        consts = {c: _constant(c, row[c]) for c in constant_cols if pd.notna(row[c])}
         if not _check_record(df, file, consts, problems):
             continue
         df = df.drop(columns=_gappy_channels(df, file, problems))
@@ -354,6 +354,14 @@ def _assemble(counters: pd.DataFrame, raw: Mapping[str, pd.DataFrame], fnames: M
     table = by_name.copy()
     table.index.name = "counter"
     return Campaign(table, records, aircraft, source, provenance)
+
+
+def _constant(column: str, value):
+    """A counters-table value as a record's constant: a channel's value as a number (NaN
+    where it is not one: `counters.csv`'s own check has reported it), anything else as is."""
+    if column in REQUIRED_CHANNELS or column in RANGES:
+        return pd.to_numeric(pd.Series([value]), errors="coerce").iloc[0]
+    return value
 
 
 def campaign_from_frames(counters: pd.DataFrame, records: Mapping[str, pd.DataFrame], *,

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import csv
 import io
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -65,6 +66,19 @@ def _numeric(series: pd.Series) -> np.ndarray:
     return pd.to_numeric(series, errors="coerce").to_numpy(dtype=float)
 
 
+def _number_hint(text) -> str:
+    """What a number written as text most likely needs: a decimal point, or its unit moved
+    into the column mapping."""
+    t = str(text).strip()
+    if re.fullmatch(r"[-+]?\d+,\d+", t):
+        return f"; a decimal comma? write {t.replace(',', '.')}"
+    m = re.fullmatch(r"([-+]?[\d.]+(?:[eE][-+]?\d+)?)\s*([^\d\s].*)", t)
+    if m:
+        return (f"; a unit in the value? write the number ({m[1]}) and map the column's unit in the config "
+                f"([campaign.columns.NAME] unit = \"{m[2]}\") if it is not the canonical one")
+    return ""
+
+
 def _check_values(df: pd.DataFrame, columns, file: str, problems: list) -> None:
     """Non-numeric / NaN / infinite values and physical ranges, first bad row each."""
     for col in columns:
@@ -75,7 +89,8 @@ def _check_values(df: pd.DataFrame, columns, file: str, problems: list) -> None:
         nonnum = np.isnan(vals) & raw.notna().to_numpy()
         row = _first_bad(nonnum)
         if row is not None:
-            problems.append(Problem(file, col, row, f"non-numeric value {raw.iloc[row - 1]!r}"))
+            problems.append(Problem(file, col, row, f"non-numeric value {raw.iloc[row - 1]!r}"
+                                    f"{_number_hint(raw.iloc[row - 1])}"))
             continue
         row = _first_bad(~np.isfinite(vals))
         if row is not None:

@@ -285,6 +285,29 @@ def run_sweep(cfg: ExperimentConfig, dbs: dict, out: Path, *, progress=None, log
     return results[results.net_id.isin(nets.net_id)].reset_index(drop=True) if len(results) else results
 
 
+def finished_sweep(folder: str | Path) -> pd.DataFrame:
+    """The results table of a finished sweep folder; otherwise an error that says what the
+    folder is: missing, not a sweep's, or a sweep interrupted before it gathered its results
+    (with the command that finishes it).
+
+    Raises:
+        FileNotFoundError: as above, naming the folder.
+    """
+    folder = Path(folder)
+    if (folder / "results.parquet").is_file():
+        return pd.read_parquet(folder / "results.parquet")
+    if not folder.is_dir():
+        raise FileNotFoundError(f"{folder}: no such folder; give a sweep folder (`pvvjax sweep` and the main job "
+                                "write OUT_DIR/NAME/sweep)")
+    if (folder / "config.toml").is_file() and (folder / "parts").is_dir():
+        n = len(collect(folder))
+        raise FileNotFoundError(f"{folder}: an unfinished sweep ({n} nets finished, its results not yet gathered): it "
+                                f"was interrupted; run `pvvjax sweep {folder / 'config.toml'} --out {folder}` to "
+                                "finish it")
+    raise FileNotFoundError(f"{folder}: not a sweep folder (no results.parquet); give the folder `pvvjax sweep` or "
+                            "the main job wrote (OUT_DIR/NAME/sweep)")
+
+
 def collect(out: Path) -> pd.DataFrame:
     """All finished result rows of a sweep folder."""
     parts = sorted((Path(out) / "parts").glob("*.parquet"))
