@@ -17,6 +17,7 @@ from pathlib import Path
 from .paper.comparison import PAPER_TABLE1  # the paper's numbers (no JAX, no plotting)
 
 __all__ = [
+    "absolute_paths",
     "campaign_plots",
     "database_summary",
     "enable_compilation_cache",
@@ -28,6 +29,21 @@ __all__ = [
     "use_deterministic_gpu",
     "write_databases",
 ]
+
+
+def absolute_paths(cfg):
+    """`cfg` with its paths (the campaign folder, the synthetic campaign's config, the
+    replay's sweep) made absolute against the working directory, once, where the config is
+    read: the config a results folder records then names the same files from anywhere, so
+    that `pvvjax export` run elsewhere cannot load another campaign of the same name."""
+    import dataclasses
+
+    def absolute(p: str) -> str:
+        return str(Path(p).resolve()) if p else p
+
+    campaign = dataclasses.replace(cfg.campaign, path=absolute(cfg.campaign.path),
+                                   synthetic=absolute(cfg.campaign.synthetic))
+    return cfg.with_(campaign=campaign, replay=dataclasses.replace(cfg.replay, sweep=absolute(cfg.replay.sweep)))
 
 
 def resolve_campaign(cfg, campaign_dir=None, log=print):
@@ -197,7 +213,7 @@ def prepare_sweep(config, out=None):
     """
     from .config import load_config
 
-    cfg = load_config(config) if isinstance(config, (str, Path)) else config
+    cfg = absolute_paths(load_config(config) if isinstance(config, (str, Path)) else config)
     use_cpu_cores(cfg.sweep.cpu_devices)  # before anything imports JAX
     use_deterministic_gpu()
     from tqdm.auto import tqdm
@@ -227,6 +243,7 @@ def run_main_job(cfg, source: str | Path = "") -> Path:
     Returns:
         The report's path (`report.md`, or `report.html` with `cfg.run.html`).
     """
+    cfg = absolute_paths(cfg)
     if cfg.run.networks:
         use_cpu_cores(cfg.sweep.cpu_devices)  # before anything imports JAX (else a no-op)
     use_deterministic_gpu()

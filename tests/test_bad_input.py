@@ -13,6 +13,7 @@ import pytest
 from conftest import tiny_records, write_tiny
 
 from pvvjax.cli import main
+from pvvjax.data.campaign import write_campaign
 
 DOCS = Path(__file__).parents[1] / "docs" / "data-contract.md"
 
@@ -256,7 +257,22 @@ def _cli_unfinished_sweep(tmp_path):
 def _cli_replay_unknown_counter(tmp_path):
     (tmp_path / "cfg.toml").write_text("")
     return ["replay", str(tmp_path / "cfg.toml"), "--campaign", str(write_tiny(tmp_path / "c")), "--counters", "C1",
-            "NOPE"], "--counters: NOPE not in the campaign"
+            "NOPE", "--out", str(tmp_path / "r")], "--counters: NOPE not in the campaign"
+
+
+def _cli_element_of_another_rotor(tmp_path):
+    import json
+
+    from pvvjax.data.constants import Aircraft
+
+    (tmp_path / "el").mkdir()
+    (tmp_path / "el" / "element.json").write_text(json.dumps(dict(
+        nets=[], inputs=["advance_ratio"], window_revs=8.0, hop_revs=1.0,
+        aircraft=dict(rotor_radius_ft=Aircraft().rotor_radius_ft, g_ft_s2=32.174, blades=4))))
+    c, r = tiny_records()
+    camp = write_campaign(tmp_path / "c", c, r, aircraft=Aircraft(blades=2, rotor_radius_ft=22.0, nominal_rpm=324.0))
+    return ["realtime", "--model", str(tmp_path / "el"), "--record", "C1", "--campaign", str(camp)], (
+        "a 4-bladed rotor of radius 26.83 ft, but the campaign")
 
 
 def _cli_realtime_over_a_file(tmp_path):
@@ -302,6 +318,7 @@ CLI_KINDS = {
     "replay figures negative": _flag("replay", "--plots", "-1", "argument --plots: -1"),
     "realtime --out over a file": _cli_realtime_over_a_file,
     "export from an unfinished sweep": _cli_unfinished_sweep,
+    "realtime element of another rotor": _cli_element_of_another_rotor,
     "replay of a counter not in the campaign": _cli_replay_unknown_counter,
     "--out inside a campaign folder": _cli_out_in_a_campaign,
 }

@@ -122,3 +122,18 @@ def test_campaign_given_on_the_command_line_replaces_the_configs(tmp_path, campa
     code, text = _run(["sweep", str(cfg), "--out", str(tmp_path / "s")], capsys)
     assert code == 2 and "/nowhere" in text
     assert _run(["sweep", str(cfg), "--campaign", str(campaign_copy), "--out", str(tmp_path / "s")], capsys)[0] == 0
+
+
+def test_a_relative_campaign_path_is_recorded_absolute(tmp_path, monkeypatch, capsys):
+    # The config names the campaign relative to where the command runs; the results record
+    # it absolute, so that reading them from another folder finds the same campaign.
+    from conftest import write_tiny
+
+    from pvvjax.config import load_config
+
+    monkeypatch.chdir(tmp_path)
+    write_tiny(tmp_path / "camp")
+    (tmp_path / "cfg.toml").write_text('[campaign]\npath = "camp"\n')
+    assert main(["build-db", "--config", "cfg.toml", "--out", "dbs"]) == 0
+    capsys.readouterr()
+    assert load_config(tmp_path / "dbs" / "config.toml").campaign.path == str(tmp_path / "camp")

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from .._strict import to_dict
 from ..experiment import (
+    absolute_paths,
     campaign_plots,
     database_summary,
     enable_compilation_cache,
@@ -26,7 +27,7 @@ def _experiment(args):
     cfg = load_config(args.config) if getattr(args, "config", None) else ExperimentConfig()
     if getattr(args, "campaign", None):  # --campaign replaces the config's [campaign] path
         cfg = cfg.with_(campaign=dataclasses.replace(cfg.campaign, path=str(args.campaign)))
-    return cfg
+    return absolute_paths(cfg)
 
 
 def cmd_validate(args) -> int:
@@ -359,6 +360,11 @@ def cmd_realtime(args) -> int:
     campaign, _ = resolve_campaign(cfg, args.campaign)
     if args.record not in campaign.records:
         raise KeyError(f"record {args.record!r} is not in the campaign")
+    ac = campaign.aircraft
+    if el.blades != ac.blades or abs(el.radius - ac.rotor_radius_ft) > 1e-6 * ac.rotor_radius_ft:
+        raise ValueError(f"--model {args.model}: an element of a {el.blades}-bladed rotor of radius {el.radius:g} ft, "
+                         f"but the campaign {campaign.source} declares {ac.blades} blades of "
+                         f"{ac.rotor_radius_ft:g} ft; play a record of the element's own aircraft")
     rec = campaign.records[args.record]
     t0 = rec.time_s.to_numpy(float)
     rev = np.unwrap(rec.azimuth_deg.to_numpy(float), period=360.0)
@@ -396,7 +402,7 @@ def cmd_discover(args) -> int:
     from ..discovery import discover
     from ..discovery.report import write_discovery
 
-    cfg = load_config(args.config) if args.config else ExperimentConfig(name="discovery")
+    cfg = absolute_paths(load_config(args.config) if args.config else ExperimentConfig(name="discovery"))
     enable_compilation_cache()
     if args.campaign:
         campaign, folder = resolve_campaign(cfg, args.campaign)
