@@ -89,6 +89,14 @@ def _fractions(df):
     return df
 
 
+def _azimuth(fn):
+    """A record given the azimuth its rotor speed integrates to, as `fn(degrees)` writes it."""
+    def edit(df):
+        deg = (df.rotor_rpm * 6.0 * df.time_s) % 360.0
+        return df.assign(azimuth_deg=fn(deg))
+    return edit
+
+
 def _slow(df):
     return df.iloc[::25].reset_index(drop=True)  # 11 samples per revolution: < 3 per 4/rev cycle
 
@@ -110,6 +118,17 @@ def _text_value(column, value, row=0):
 
 
 CAMPAIGN = {
+    "azimuth in radians": (_records(_azimuth(np.deg2rad)), 1, "C1.csv", "azimuth_deg", "in radians?"),
+    "azimuth running backwards": (_records(_azimuth(lambda d: (360.0 - d) % 360.0)), 1, "C1.csv", "azimuth_deg",
+                                  "runs backwards"),
+    "a vibration channel without vibration": (_records(_set("az_g", 1.0)), 1, "C1.csv", "az_g", "no vibration"),
+    "time stamps of the day (a warning)": (_records(lambda d: d.assign(time_s=d.time_s + 52312.5)), 0, "C1.csv",
+                                           "time_s", "rebased to start at 0 s"),
+    "one condition, two maneuver kinds": (_counters(lambda c: c.assign(condition="K1", segment=[1, 2],
+                                                                        maneuver=["level", "climb"])), 1,
+                                          "counters.csv", "maneuver", "one condition, one maneuver kind"),
+    "a condition's segment twice": (_counters(lambda c: c.assign(condition="K1", maneuver="level")), 1,
+                                    "counters.csv", "segment", "segment 1 twice"),
     "a unit in a counters.csv value": (_text_value("gross_weight_lb", "16000 lb"), 1, "counters.csv", "gross_weight_lb",
                                        "a unit in the value"),
     "a decimal comma in counters.csv": (_text_value("density_ratio", "0,95", row=1), 1, "counters.csv",
@@ -384,6 +403,14 @@ def test_bad_column_mapping_is_refused_naming_it(kind, tmp_path, capsys):
     code, text = _run(["validate", "--campaign", str(folder), "--config", str(tmp_path / "cfg.toml")], capsys)
     assert code in (1, 2), text
     assert any(file in ln and column in ln and detail in ln for ln in text.splitlines()), text
+
+
+@pytest.mark.parametrize("kind", [k for k, case in CAMPAIGN.items() if case[1] == 1])
+def test_what_validate_refuses_build_db_refuses_with_the_same_message(kind, tmp_path, capsys):
+    make, _, file, column, detail = CAMPAIGN[kind]
+    code, text = _run(["build-db", "--campaign", str(make(tmp_path / "c")), "--out", str(tmp_path / "o")], capsys)
+    assert code == 2 and detail in text and file in text, text
+    assert not (tmp_path / "o").exists()
 
 
 @pytest.mark.parametrize("kind", list(CONFIG))

@@ -37,7 +37,7 @@ from .checks import (
 )
 from .constants import UH60A, Aircraft
 from .fingerprint import campaign_fingerprint, frames_fingerprint
-from .plausibility import plausibility
+from .plausibility import condition_consistency, plausibility, rebase_time
 from .units import ColumnMap
 
 if sys.version_info >= (3, 11):
@@ -246,6 +246,8 @@ def _check_counters(df: pd.DataFrame, mapping, problems: list) -> pd.DataFrame |
         df["segment"] = 1
     if "description" not in df.columns:
         df["description"] = ""
+    if "maneuver" in df.columns and not dup.any():
+        problems.extend(condition_consistency(df))
     constants = [c for c in df.columns if c not in COUNTER_COLUMNS]
     _check_values(df, [c for c in constants if c in RANGES or c in REQUIRED_CHANNELS], "counters.csv", problems)
     return df
@@ -334,6 +336,10 @@ def _assemble(counters: pd.DataFrame, raw: Mapping[str, pd.DataFrame], fnames: M
         if not _check_record(df, file, consts, problems):
             continue
         df = df.drop(columns=_gappy_channels(df, file, problems))
+        df, found = rebase_time(df, file)
+        problems.extend(found)
+        if any(not p.warning for p in found):
+            continue
         for c, v in consts.items():
             df[c] = float(v) if isinstance(v, (int, float, np.number)) else v
         if counters_ok:  # plausibility of values that passed their checks (counters' constants too)

@@ -16,7 +16,8 @@ import pandas as pd
 from .checks import Problem, _first_bad, _numeric
 from .constants import KT_TO_FT_S, Aircraft
 
-__all__ = ["LIMITS", "MIN_SAMPLES_PER_CYCLE", "STICKS", "plausibility"]
+__all__ = ["LIMITS", "MIN_SAMPLES_PER_CYCLE", "STICKS", "TIME_PRECISION_SHARE", "condition_consistency",
+           "plausibility", "rebase_time"]
 
 STICKS = ("collective_pct", "lateral_pct", "longitudinal_pct")
 
@@ -34,7 +35,16 @@ LIMITS: dict[str, tuple[tuple, tuple, str]] = {
     "climb_rate_fpm": ((-10000.0, 10000.0), (None, None), "each sample, ft/min"),
     "pitch_rate_dps": ((-200.0, 200.0), (None, None), "each sample, deg/s"),
     "blade loading": ((0.01, 0.3), (0.04, 0.16), "C_T/σ = W / (ρ₀ σ_ρ A (ΩR)² solidity), first sample"),
+    "azimuth advance / rotor speed": ((0.8, 1.25), (0.95, 1.05),
+                                      "median over samples of azimuth_deg's advance (wrapped to ±180°) over "
+                                      "rotor_rpm × 6 × the step: degrees, forwards, at the rotor's rate"),
+    "az_g vibration": ((1e-3, None), (None, None), "standard deviation of az_g about its one-revolution moving "
+                                                   "mean, g: a vibration channel carries vibration"),
 }
+# Time stamps are analysed in single precision: a record whose times float32 would round by
+# more than this share of its sample step is rebased to start at 0 s (refused where even that
+# is not enough).
+TIME_PRECISION_SHARE = 0.1
 
 
 def _outside(vals, bounds):
@@ -102,9 +112,12 @@ def plausibility(df: pd.DataFrame, file: str, aircraft: Aircraft, harmonic: int,
             problems.append(Problem(file, "az_g", None, f"median {med:.4g} g in level flight, outside "
                                     f"{_span(warn)} g", warning=True))
 
+    _vibration_rule(t, az, rpm, file, problems)
     n = len(problems)
     _sample_rule("rotor_rpm / nominal", rpm / aircraft.nominal_rpm, file, "rotor_rpm", problems,
                  f" (nominal {aircraft.nominal_rpm:g} rpm); rad/s or rev/s?")
+    if all(p.warning for p in problems[n:]) and "azimuth_deg" in df:  # against a rotor speed in rpm
+        _azimuth_rule(t, _numeric(df["azimuth_deg"]), rpm, file, problems)
     if all(p.warning for p in problems[n:]):  # the advance ratio needs a rotor speed in rpm
         tip_ft_s = rpm * np.pi / 30.0 * aircraft.rotor_radius_ft
         _sample_rule("advance ratio", _numeric(df["airspeed_kt"]) * KT_TO_FT_S / tip_ft_s, file, "airspeed_kt",
@@ -128,4 +141,88 @@ def plausibility(df: pd.DataFrame, file: str, aircraft: Aircraft, harmonic: int,
                                     f"blade loading C_T/σ {ct_sigma:.3g} at {w:g} lb outside {_span(bounds)}: "
                                     "weight in kg or N?", warning=warning))
             break
+    return problems
+
+
+def _vibration_rule(t, az, rpm, file, problems):
+    """`az_g` must vary within a revolution: a constant, or a smooth channel (the load
+    factor in the vibration's place), carries no N/rev vibration to analyse."""
+    spr = max(1, int(round(60.0 / float(np.median(rpm)) / float(np.median(np.diff(t))))))
+    if spr < 3 or len(az) <= spr:  # sampled too slowly for a revolution's mean: the sampling rule says so
+        return
+    c = np.concatenate([[0.0], np.cumsum(az - az.mean())])
+    moving = (c[spr:] - c[:-spr]) / spr
+    centred = (az - az.mean())[spr // 2: spr // 2 + len(moving)]
+    spread = float(np.std(centred - moving))
+    lo = LIMITS["az_g vibration"][0][0]
+    if spread < lo:
+        problems.append(Problem(file, "az_g", None, f"carries no vibration: {spread:.2g} g about its one-revolution "
+                                f"mean, below {lo:g} g (a constant, or the load factor in its place?)"))
+
+
+def _azimuth_rule(t, azimuth, rpm, file, problems):
+    """`azimuth_deg` must advance at the rate `rotor_rpm` gives, in degrees, forwards: the
+    harmonic analysis counts revolutions on it."""
+    step = (np.diff(azimuth) + 180.0) % 360.0 - 180.0
+    expected = rpm[:-1] * 6.0 * np.diff(t)  # degrees per step
+    ok = expected > 0
+    if not ok.any():
+        return
+    ratio = float(np.median(step[ok] / expected[ok]))
+    err, warn, _ = LIMITS["azimuth advance / rotor speed"]
+    for bounds, warning in ((err, False), (warn, True)):
+        if _outside(ratio, bounds):
+            if -1.25 < ratio < -0.8:
+                hint = "it runs backwards: the rotor's other sense of rotation? (azimuth = 360 − azimuth)"
+            elif 0.8 * np.pi / 180 < ratio < 1.25 * np.pi / 180:
+                hint = "azimuth in radians? (unit = \"rad\")"
+            else:
+                hint = "another rotor's or a wrong channel?"
+            problems.append(Problem(file, "azimuth_deg", None,
+                                    f"advances {ratio:.3g} × the rate rotor_rpm gives (in degrees, forwards), "
+                                    f"outside {_span(bounds)}: {hint}", warning=warning))
+            return
+
+
+def rebase_time(df: pd.DataFrame, file: str) -> tuple[pd.DataFrame, list[Problem]]:
+    """A record whose time stamps single precision would round by more than
+    `TIME_PRECISION_SHARE` of its sample step (large absolute times: seconds of the day, GPS
+    time) is rebased to start at 0 s, with a warning naming the file; one that stays too
+    coarse even so (an extremely long record) is an error. Never rounded silently.
+
+    Returns:
+        (the record, rebased or as it was; its problems).
+    """
+    t = _numeric(df["time_s"])
+    step = float(np.median(np.diff(t)))
+    coarse = lambda v: float(np.spacing(np.float32(np.max(np.abs(v))))) > TIME_PRECISION_SHARE * step  # noqa: E731
+    if not coarse(t):
+        return df, []
+    if coarse(t - t[0]):
+        return df, [Problem(file, "time_s", None, f"{t[-1] - t[0]:.6g} s long at {step:.3g} s steps: too long for "
+                            "single-precision times; split the record")]
+    rounding = float(np.spacing(np.float32(np.max(np.abs(t)))))
+    return df.assign(time_s=t - t[0]), [Problem(
+        file, "time_s", None, f"starts at {t[0]:.10g} s: rebased to start at 0 s (single precision would round its "
+        f"times by {rounding:.3g} s, {rounding / step:.2g} of a step); its results give times from the record's start",
+        warning=True)]
+
+
+def condition_consistency(counters: pd.DataFrame) -> list[Problem]:
+    """Problems between the rows of `counters.csv` (canonical columns): the counters of one
+    condition share its maneuver kind, and each segment of a condition is one counter."""
+    problems = []
+    first = counters.groupby("condition", sort=False).maneuver.transform("first")
+    row = next((i + 1 for i, bad in enumerate((counters.maneuver != first).to_numpy()) if bad), None)
+    if row is not None:
+        r = counters.iloc[row - 1]
+        problems.append(Problem("counters.csv", "maneuver", row, f"condition {r.condition!r} is a "
+                                f"{first.iloc[row - 1]} in an earlier row and a {r.maneuver} here: one condition, one "
+                                "maneuver kind"))
+    dup = counters.duplicated(["condition", "segment"]).to_numpy()
+    row = next((i + 1 for i, bad in enumerate(dup) if bad), None)
+    if row is not None:
+        r = counters.iloc[row - 1]
+        problems.append(Problem("counters.csv", "segment", row, f"condition {r.condition!r} has segment {r.segment} "
+                                "twice: number a condition's segments 1, 2, ... in flight order"))
     return problems
