@@ -14,6 +14,7 @@ import sys
 import time
 from pathlib import Path
 
+from .interrupts import check_interrupt
 from .paper.comparison import PAPER_TABLE1  # the paper's numbers (no JAX, no plotting)
 
 __all__ = [
@@ -261,7 +262,10 @@ def run_main_job(cfg, source: str | Path = "") -> Path:
     stages = ["campaign", "databases", "figures"] + (["networks"] if cfg.run.networks else []) + (
         ["replay"] if replay else []) + (["studies"] if studies else []) + (
         ["discovery"] if cfg.run.discovery_scenario else [])
-    step = lambda name, text: print(f"[{stages.index(name) + 1}/{len(stages)}] {text}")  # noqa: E731
+    def step(name, text):
+        check_interrupt()  # between stages: a Ctrl-C lost inside one stops the job here
+        print(f"[{stages.index(name) + 1}/{len(stages)}] {text}")
+
     step("campaign", f"campaign ({'embedded synthetic' if not cfg.campaign.path else cfg.campaign.path})")
     campaign, _ = resolve_campaign(cfg)
     claim_folder(out, to_dict(cfg), campaign.fingerprint)

@@ -11,6 +11,7 @@ import sys
 
 from .._apidoc import api_reference
 from ..experiment import use_deterministic_gpu
+from ..interrupts import check_interrupt, interruptible
 from ._parser import build_parser, cli_reference
 
 __all__ = ["api_reference", "build_parser", "cli_reference", "main"]
@@ -35,7 +36,8 @@ def main(argv=None) -> int:
 
     A user's mistake (campaign problems, config mistakes, missing or unwritable paths, a
     results folder of other settings) is one clear message and status 2, never a traceback
-    (`PVVJAX_DEBUG=1` shows it); Ctrl-C is status 130 with how to resume; a closed pipe
+    (`PVVJAX_DEBUG=1` shows it); Ctrl-C is status 130 with how to resume, wherever it lands
+    (`interrupts`); a closed pipe
     (`pvvjax validate … | head`) ends quietly."""
     from .._strict import ConfigError
     from ..data.campaign import CampaignError
@@ -46,7 +48,9 @@ def main(argv=None) -> int:
         return e.code if isinstance(e.code, int) else 2
     use_deterministic_gpu()  # before any command starts JAX
     try:
-        code = args.fn(args)
+        with interruptible():
+            code = args.fn(args)
+            check_interrupt()  # a Ctrl-C swallowed where it landed still stops the command
         sys.stdout.flush()  # inside the try: a reader that left shows here, not at exit
         return code
     except KeyboardInterrupt:

@@ -38,6 +38,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..interrupts import check_interrupt
 from . import train as _train
 from .networks import mlp_apply
 
@@ -215,6 +216,7 @@ def train_nets(params, data: _train.Data, group, cfg, *, hyper: _train.Hyper | N
         t0 = time.perf_counter()
         state, stop = program(state, c, data, jnp.int32(evals))
         ledger.stopped(table, real, _to_host(stop), time.perf_counter() - t0)
+        check_interrupt()  # between segments: a Ctrl-C lost inside a finalizer stops here
         done = ledger.finished.all()
         due = done or (checkpoint_s is not None and time.perf_counter() - last >= checkpoint_s)
         keep = real & ~ledger.finished[table]

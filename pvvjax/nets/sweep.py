@@ -33,6 +33,7 @@ from .._strict import to_dict
 from ..analysis.databases import DB_INPUTS, OUTPUT
 from ..config import ExperimentConfig, config_hash
 from ..data.fingerprint import tables_fingerprint
+from ..interrupts import check_interrupt
 from ..io import claim_folder, write_config
 from ..realtime.npnet import read_npz, write_npz
 from . import train as _train
@@ -266,6 +267,7 @@ def run_sweep(cfg: ExperimentConfig, dbs: dict, out: Path, *, progress=None, log
         gid = np.array([keys.index((r.database, r.test_fold)) for r in group.itertuples()])
 
         def on_done(idx, fits, seconds, group=group):
+            check_interrupt()  # before a checkpoint: an interrupted sweep writes nothing more
             if writer:
                 _finish(group.iloc[idx], fits, seconds, data, dbs, cfg, out, chash)
             if bar is not None:
@@ -279,6 +281,7 @@ def run_sweep(cfg: ExperimentConfig, dbs: dict, out: Path, *, progress=None, log
     if bar is not None:
         bar.close()
     _barrier("pvvjax sweep trained")  # process 0 has written every part file
+    check_interrupt()
     results = collect(out)
     if writer:
         _atomic_parquet(results, out / "results.parquet")
