@@ -48,6 +48,7 @@ MODULES = [
     "io",
     "plots",
     "experiment",
+    "interrupts",
     "cli",
 ]
 
