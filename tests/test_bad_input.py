@@ -351,6 +351,7 @@ CONFIG = {
     "config value infinite": ("[train]\nweight_decay = inf\n", "train.weight_decay: inf is not a finite number"),
     "config saved as UTF-16": ("[analysis]\nwindow_revs = 8.0\n".encode("utf-16"), "cfg.toml: saved as UTF-16"),
     "config not UTF-8": ('name = "Müller"\n'.encode("latin-1"), "cfg.toml: not UTF-8 text (byte 0xfc on line 1)"),
+    "analysis hop below one sample": ("[analysis]\nhop_revs = 1e-6\n", "analysis.hop_revs"),
     "config list with a value twice": ('[sweep]\ndatabases = ["db1", "db1"]\n', "sweep.databases: 'db1' given twice"),
 }
 

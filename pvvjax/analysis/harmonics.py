@@ -380,12 +380,18 @@ def plan_windows(batch: RecordBatch, max_window_revs: float, min_hop_revs: float
     """Static sizes that cover every window of every record for window lengths up to
     `max_window_revs` and hops down to `min_hop_revs` (needs a concrete batch). Each size
     is rounded up to a `bucket_size`, so that campaigns of similar records share programs
-    (the extra windows lie past the record and are invalid)."""
+    (the extra windows lie past the record and are invalid). A hop below one sample is
+    refused (`ValueError`): its windows would repeat samples without bound."""
     rev = np.asarray(batch.rev, np.float64)
     mask = np.asarray(batch.mask)
     d = np.diff(rev, axis=-1)
     dmask = mask[:, 1:] & mask[:, :-1]
     dmin, dmax = float(d[dmask].min()), float(d[dmask].max())
+    sample = float(np.median(d[dmask]))
+    if not min_hop_revs >= sample:  # more windows than samples: each start repeated, memory without bound
+        raise ValueError(f"a window hop of {min_hop_revs:g} revolutions is below one sample ({sample:.3g} revolutions "
+                         "at this campaign's sampling); give a hop of at least that (analysis.hop_revs, "
+                         "replay.hop_revs or calibration.hop_revs)")
     span = float(max((rev[i, mask[i]][-1] - rev[i, 0]) for i in range(len(rev)))) + dmax
     n_windows = max(1, int(math.floor((span - start_revs - taper_revs - min(max_window_revs, span)) / min_hop_revs
                                       + _EPS_REVS)) + 1)

@@ -70,10 +70,11 @@ class CampaignWarning(UserWarning):
 class CampaignError(ValueError):
     """A campaign folder with problems; `.problems` lists them all (its errors)."""
 
-    def __init__(self, problems: list[Problem]):
+    def __init__(self, problems: list[Problem], source: str = ""):
         self.problems = [p for p in problems if not p.warning]
         lines = "\n".join(f"  - {p}" for p in self.problems)
-        super().__init__(f"{len(self.problems)} problem(s) in campaign:\n{lines}")
+        where = f"campaign {source}" if source else "campaign"
+        super().__init__(f"{len(self.problems)} problem(s) in {where}:\n{lines}")
 
 
 @dataclass(frozen=True)
@@ -387,13 +388,14 @@ def campaign_from_frames(counters: pd.DataFrame, records: Mapping[str, pd.DataFr
         fnames = {name: f"timeseries/{name}" for name in records}
         campaign = _assemble(counters, records, fnames, mapping, (window_revs, harmonic), problems, aircraft, {},
                              source)
-    return _checked(campaign, problems)
+    return _checked(campaign, problems, source)
 
 
-def _checked(campaign, problems):
-    """The campaign, its warnings issued as `CampaignWarning`s; a `CampaignError` on errors."""
+def _checked(campaign, problems, source: str = ""):
+    """The campaign, its warnings issued as `CampaignWarning`s; a `CampaignError` (naming
+    the folder or source) on errors."""
     if any(not p.warning for p in problems):
-        raise CampaignError(problems)
+        raise CampaignError(problems, source)
     for p in problems:
         warnings.warn(str(dataclasses.replace(p, warning=False)), CampaignWarning, stacklevel=3)
     return campaign
@@ -425,7 +427,7 @@ def load_campaign(folder, mapping: Mapping[str, ColumnMap] | None = None, window
     Raises:
         CampaignError: listing every error. Warnings are issued as `CampaignWarning`s.
     """
-    campaign = _checked(*_read(folder, mapping, window_revs, harmonic, progress))
+    campaign = _checked(*_read(folder, mapping, window_revs, harmonic, progress), str(folder))
     return dataclasses.replace(campaign, folder_fingerprint=campaign_fingerprint(folder))  # not for validation
 
 

@@ -97,7 +97,8 @@ def plausibility(df: pd.DataFrame, file: str, aircraft: Aircraft, harmonic: int,
             file, "time_s", None,
             f"sampled at {fs:.4g} Hz: {per_cycle:.3g} samples per cycle of the {harmonic}/rev harmonic at "
             f"{rpm.max():.4g} rpm; at least {MIN_SAMPLES_PER_CYCLE:g} are needed (Nyquist's 2 with a 50 % "
-            "margin); time in milliseconds?"))
+            "margin); time in milliseconds?" + ("" if harmonic == aircraft.blades else
+                                                f" Or analysis.harmonic = {harmonic} beyond this sampling?")))
 
     med = float(np.median(az))
     err, warn, _ = LIMITS["az_g median"]
