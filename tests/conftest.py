@@ -14,6 +14,9 @@ from pathlib import Path
 from pvvjax._cache import compile_cache_dir  # noqa: E402  (imports no JAX)
 
 os.environ.setdefault("JAX_COMPILATION_CACHE_DIR", str(compile_cache_dir()))
+# hypothesis keeps its caches (the examples database is off: tests/test_fuzz.py) beside the
+# campaign cache, not in the working directory.
+os.environ.setdefault("HYPOTHESIS_STORAGE_DIRECTORY", str(compile_cache_dir().parent / "hypothesis"))
 os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0")
 
 import numpy as np  # noqa: E402
