@@ -245,6 +245,8 @@ def run_main_job(cfg, source: str | Path = "") -> Path:
         The report's path (`report.md`, or `report.html` with `cfg.run.html`).
     """
     cfg = absolute_paths(cfg)
+    if cfg.run.networks and cfg.run.replay:
+        cfg.check_replay()
     if cfg.run.networks:
         use_cpu_cores(cfg.sweep.cpu_devices)  # before anything imports JAX (else a no-op)
     use_deterministic_gpu()

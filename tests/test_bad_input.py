@@ -294,6 +294,11 @@ def _cli_element_of_another_rotor(tmp_path):
         "a 4-bladed rotor of radius 26.83 ft, but the campaign")
 
 
+def _cli_replay_of_an_untrained_database(tmp_path):
+    (tmp_path / "cfg.toml").write_text('[sweep]\ndatabases = ["db1"]\n[replay]\ndatabases = ["db1", "db3"]\n')
+    return ["replay", str(tmp_path / "cfg.toml"), "--out", str(tmp_path / "r")], "names db3, which sweep.databases"
+
+
 def _cli_realtime_over_a_file(tmp_path):
     (tmp_path / "s.csv").write_text("mine")
     return ["realtime", "--model", str(tmp_path), "--record", "C1", "--out", str(tmp_path / "s.csv")], "s.csv: exists"
@@ -337,6 +342,7 @@ CLI_KINDS = {
     "replay figures negative": _flag("replay", "--plots", "-1", "argument --plots: -1"),
     "realtime --out over a file": _cli_realtime_over_a_file,
     "export from an unfinished sweep": _cli_unfinished_sweep,
+    "replay of a database the sweep does not train": _cli_replay_of_an_untrained_database,
     "realtime element of another rotor": _cli_element_of_another_rotor,
     "replay of a counter not in the campaign": _cli_replay_unknown_counter,
     "--out inside a campaign folder": _cli_out_in_a_campaign,
@@ -352,6 +358,10 @@ CONFIG = {
     "config saved as UTF-16": ("[analysis]\nwindow_revs = 8.0\n".encode("utf-16"), "cfg.toml: saved as UTF-16"),
     "config not UTF-8": ('name = "Müller"\n'.encode("latin-1"), "cfg.toml: not UTF-8 text (byte 0xfc on line 1)"),
     "analysis hop below one sample": ("[analysis]\nhop_revs = 1e-6\n", "analysis.hop_revs"),
+    "a campaign folder and a synthetic campaign at once": ('[campaign]\npath = "a"\nsynthetic = "b.toml"\n',
+                                                           "campaign.path = 'a' and campaign.synthetic"),
+    "a discovery lag test without effect rounds": ("[discovery]\nmax_effects = 0\n[discovery.lag_test]\n"
+                                                   "enabled = true\n", "discovery.lag_test.enabled = true contradicts"),
     "config list with a value twice": ('[sweep]\ndatabases = ["db1", "db1"]\n', "sweep.databases: 'db1' given twice"),
 }
 

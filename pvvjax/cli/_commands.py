@@ -244,6 +244,7 @@ def _replay_inputs(args, cfg):
     from ..replay.tables import load_replay_set, select_counters
 
     enable_compilation_cache()
+    cfg.check_replay()
     campaign, _ = resolve_campaign(cfg)
     counters = list(args.counters) if getattr(args, "counters", None) else select_counters(campaign, cfg.replay)
     unknown = [c for c in counters if c not in campaign.records]

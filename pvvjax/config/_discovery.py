@@ -159,3 +159,9 @@ class DiscoveryConfig:
                              f"got {self.max_effects}")
         if not 0 <= self.min_shrink < 1:
             raise ValueError(f"discovery.min_shrink must lie in [0, 1), got {self.min_shrink}")
+        if self.max_effects == 0:  # no rounds: what runs in a round would be skipped without a word
+            asked = [k for k, on in (("lag_test.enabled", self.lag_test.enabled),
+                                     ("resonance.probe", self.resonance.probe)) if on]
+            if asked:
+                raise ValueError(f"discovery.{asked[0]} = true contradicts discovery.max_effects = 0 (no effect "
+                                 "rounds, where it runs); set max_effects >= 1 or turn it off")

@@ -43,6 +43,22 @@ class ExperimentConfig:
     discovery: DiscoveryConfig = field(default_factory=DiscoveryConfig)
     run: RunConfig = field(default_factory=RunConfig)
 
+    def __post_init__(self):
+        if self.campaign.path and self.campaign.synthetic:
+            raise ValueError(f"campaign.path = {self.campaign.path!r} and campaign.synthetic = "
+                             f"{self.campaign.synthetic!r} contradict each other: give one")
+
+    def check_replay(self) -> None:
+        """Refuse, by name, a replay of databases the config's own sweep does not train (with
+        `replay.sweep` empty the replay uses that sweep); checked where a replay runs, since
+        a config that only trains need not set `[replay]`."""
+        if not self.replay.sweep:
+            missing = [db for db in self.replay.databases if db not in self.sweep.databases]
+            if missing:
+                raise ConfigError(f"replay.databases {list(self.replay.databases)} names {', '.join(missing)}, which "
+                                  f"sweep.databases {list(self.sweep.databases)} does not train (replay.sweep is "
+                                  "empty: the replay uses the config's own sweep)")
+
     def with_(self, **changes) -> "ExperimentConfig":
         return dataclasses.replace(self, **changes)
 
