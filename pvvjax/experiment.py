@@ -34,7 +34,7 @@ __all__ = [
 
 def absolute_paths(cfg):
     """`cfg` with its paths (the campaign folder, the synthetic campaign's config, the
-    replay's sweep) made absolute against the working directory, once, where the config is
+    replay's sweep, the discovery scenario) made absolute against the working directory, once, where the config is
     read: the config a results folder records then names the same files from anywhere, so
     that `pvvjax export` run elsewhere cannot load another campaign of the same name."""
     import dataclasses
@@ -44,7 +44,8 @@ def absolute_paths(cfg):
 
     campaign = dataclasses.replace(cfg.campaign, path=absolute(cfg.campaign.path),
                                    synthetic=absolute(cfg.campaign.synthetic))
-    return cfg.with_(campaign=campaign, replay=dataclasses.replace(cfg.replay, sweep=absolute(cfg.replay.sweep)))
+    return cfg.with_(campaign=campaign, replay=dataclasses.replace(cfg.replay, sweep=absolute(cfg.replay.sweep)),
+                     run=dataclasses.replace(cfg.run, discovery_scenario=absolute(cfg.run.discovery_scenario)))
 
 
 def resolve_campaign(cfg, campaign_dir=None, log=print):
@@ -247,6 +248,14 @@ def run_main_job(cfg, source: str | Path = "") -> Path:
     cfg = absolute_paths(cfg)
     if cfg.run.networks and cfg.run.replay:
         cfg.check_replay()
+    if cfg.run.discovery_scenario:  # read now: a mistake there is said before hours of work, not after
+        from ._strict import ConfigError
+        from .synth import load_synth_config
+
+        try:
+            load_synth_config(cfg.run.discovery_scenario)
+        except ConfigError as e:
+            raise ConfigError(f"run.discovery_scenario: {e}") from None
     if cfg.run.networks:
         use_cpu_cores(cfg.sweep.cpu_devices)  # before anything imports JAX (else a no-op)
     use_deterministic_gpu()

@@ -299,6 +299,12 @@ def _cli_replay_of_an_untrained_database(tmp_path):
     return ["replay", str(tmp_path / "cfg.toml"), "--out", str(tmp_path / "r")], "names db3, which sweep.databases"
 
 
+def _cli_run_without_its_scenario(tmp_path):
+    (tmp_path / "cfg.toml").write_text(f'out_dir = "{tmp_path.as_posix()}"\n[run]\ndiscovery_scenario = "nope.toml"\n')
+    return ["run", str(tmp_path / "cfg.toml"), "--campaign", str(write_tiny(tmp_path / "c"))], (
+        "run.discovery_scenario: ")
+
+
 def _cli_realtime_over_a_file(tmp_path):
     (tmp_path / "s.csv").write_text("mine")
     return ["realtime", "--model", str(tmp_path), "--record", "C1", "--out", str(tmp_path / "s.csv")], "s.csv: exists"
@@ -342,6 +348,7 @@ CLI_KINDS = {
     "replay figures negative": _flag("replay", "--plots", "-1", "argument --plots: -1"),
     "realtime --out over a file": _cli_realtime_over_a_file,
     "export from an unfinished sweep": _cli_unfinished_sweep,
+    "run with a discovery scenario that is not there": _cli_run_without_its_scenario,
     "replay of a database the sweep does not train": _cli_replay_of_an_untrained_database,
     "realtime element of another rotor": _cli_element_of_another_rotor,
     "replay of a counter not in the campaign": _cli_replay_unknown_counter,
@@ -508,6 +515,12 @@ def test_a_closed_pipe_ends_quietly(tmp_path):
                        env={**__import__("os").environ, "CODE": code}, cwd=tmp_path)
     assert r.stdout.splitlines() == ["  - problem 0", "  - problem 1"]
     assert r.stderr == "", r.stderr  # quiet: no traceback, no error line
+
+
+def test_plot_of_a_campaign_without_the_papers_counters_says_so(tmp_path, capsys):
+    code, text = _run(["plot", "--campaign", str(write_tiny(tmp_path / "c")), "--out", str(tmp_path / "p"), "--paper"],
+                      capsys)
+    assert code == 0 and "neither the pull-up 11022 nor the autorotation AR60" in text
 
 
 def test_synth_replaces_its_own_campaign_only_and_never_a_users(tmp_path, capsys):

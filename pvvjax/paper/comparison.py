@@ -370,6 +370,9 @@ def comparison_markdown(rows: pd.DataFrame) -> str:
     """The comparison rows as Markdown, one table per section, with a count of agreements."""
     from ..io import markdown_table
 
+    if rows is None or rows.empty:  # a campaign without the paper's counters
+        return ("No number to set beside the paper's: the campaign has neither the pull-up 11022 nor the "
+                "autorotation AR60.")
     checked = rows[rows.agrees != "—"]
     lines = [f"{(checked.agrees == 'yes').sum()} of {len(checked)} checked numbers agree with the paper within the "
              "stated criterion; rows without a criterion are shown for the record.", ""]
