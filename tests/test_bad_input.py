@@ -118,6 +118,8 @@ def _text_value(column, value, row=0):
 
 
 CAMPAIGN = {
+    "a channel of true/false values": (_records(lambda d: d.assign(collective_pct=d.collective_pct > 40)), 1,
+                                       "C1.csv", "collective_pct", "true/false value True"),
     "azimuth in radians": (_records(_azimuth(np.deg2rad)), 1, "C1.csv", "azimuth_deg", "in radians?"),
     "azimuth running backwards": (_records(_azimuth(lambda d: (360.0 - d) % 360.0)), 1, "C1.csv", "azimuth_deg",
                                   "runs backwards"),
@@ -305,6 +307,11 @@ def _cli_run_without_its_scenario(tmp_path):
         "run.discovery_scenario: ")
 
 
+def _cli_element_not_json(tmp_path):
+    (tmp_path / "element.json").write_text("{not json")
+    return ["realtime", "--model", str(tmp_path), "--record", "C1"], "element.json: not valid JSON"
+
+
 def _cli_realtime_over_a_file(tmp_path):
     (tmp_path / "s.csv").write_text("mine")
     return ["realtime", "--model", str(tmp_path), "--record", "C1", "--out", str(tmp_path / "s.csv")], "s.csv: exists"
@@ -348,6 +355,7 @@ CLI_KINDS = {
     "replay figures negative": _flag("replay", "--plots", "-1", "argument --plots: -1"),
     "realtime --out over a file": _cli_realtime_over_a_file,
     "export from an unfinished sweep": _cli_unfinished_sweep,
+    "realtime element.json not JSON": _cli_element_not_json,
     "run with a discovery scenario that is not there": _cli_run_without_its_scenario,
     "replay of a database the sweep does not train": _cli_replay_of_an_untrained_database,
     "realtime element of another rotor": _cli_element_of_another_rotor,

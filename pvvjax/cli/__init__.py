@@ -26,6 +26,8 @@ def _error(text: str) -> None:
 def _message(e: BaseException) -> str:
     if isinstance(e, KeyError) and e.args:
         return str(e.args[0])
+    if isinstance(e, (FileExistsError, NotADirectoryError)) and e.filename is not None:
+        return f"{e.filename}: a file stands where a folder is needed; give a path under a folder"
     if isinstance(e, OSError) and e.filename is not None and e.strerror:
         return f"{e.filename}: {e.strerror}"
     return str(e)

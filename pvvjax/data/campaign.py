@@ -269,7 +269,8 @@ def _check_mapping(mapping: Mapping[str, ColumnMap], counter_columns, records: M
 def _timeseries_files(folder: Path, problems: list) -> dict[str, Path]:
     ts = folder / "timeseries"
     if not ts.is_dir():
-        problems.append(Problem("timeseries/", None, None, "folder missing"))
+        problems.append(Problem("timeseries/", None, None, "a file, not the folder of the records" if ts.exists()
+                                else "folder missing"))
         return {}
     files: dict[str, Path] = {}
     for p in sorted(ts.iterdir()):

@@ -85,6 +85,10 @@ def _check_values(df: pd.DataFrame, columns, file: str, problems: list) -> None:
         if col not in df.columns:
             continue
         raw = df[col]
+        if pd.api.types.is_bool_dtype(raw) or raw.map(lambda v: isinstance(v, (bool, np.bool_))).any():
+            row = _first_bad(raw.map(lambda v: isinstance(v, (bool, np.bool_))).to_numpy())
+            problems.append(Problem(file, col, row, f"true/false value {raw.iloc[row - 1]}, not a number"))
+            continue
         vals = _numeric(raw)
         nonnum = np.isnan(vals) & raw.notna().to_numpy()
         row = _first_bad(nonnum)

@@ -120,7 +120,11 @@ class VibrationElement:
             from npnet import NumpyNet
 
         folder = Path(folder)
-        spec = json.loads((folder / "element.json").read_text())
+        try:
+            spec = json.loads((folder / "element.json").read_text())
+        except ValueError as e:
+            raise ValueError(f"{folder / 'element.json'}: not valid JSON ({e}); export the element again "
+                             "(pvvjax export --element)") from None
         nets = [NumpyNet.load(folder / name) for name in spec.pop("nets")]
         env = spec.pop("envelope", None)
         spec = {**spec, **overrides}
