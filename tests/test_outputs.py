@@ -24,6 +24,8 @@ def _argv(command, out, camp, tmp_path, small_sweep):
         "build-db": ["build-db", "--campaign", camp, "--out", out],
         "plot": ["plot", "--campaign", camp, "--out", out],
         "synth": ["synth", "--out", out],
+        "synth --plots": ["synth", "--out", tmp_path / "new", "--plots", out],
+        "synth --truth": ["synth", "--out", tmp_path / "new", "--truth", out],
         "sweep": ["sweep", cfg, "--campaign", camp, "--out", out],
         "export": ["export", small_sweep, "--out", out],
         "export --element": ["export", small_sweep, "--element", "--out", out],
@@ -35,7 +37,7 @@ def _argv(command, out, camp, tmp_path, small_sweep):
     }[command]
 
 
-WRITERS = ["build-db", "plot", "synth", "sweep", "export", "export --element", "realtime", "replay", "calibrate",
+WRITERS = ["build-db", "plot", "synth", "synth --plots", "synth --truth", "sweep", "export", "export --element", "realtime", "replay", "calibrate",
            "discover"]
 
 
@@ -49,7 +51,8 @@ def test_a_commands_output_over_a_users_files_or_a_campaign_is_refused(command, 
     (mine / "sub" / "data.csv").write_text("a,b\n1,2\n")
     (tmp_path / "cfg.toml").write_text(f'name = "x"\nout_dir = "{(tmp_path / "runs").as_posix()}"\n')
     before = _snapshot(tmp_path)
-    outs = [mine / "notes.txt", camp, camp / "results"] + ([] if command == "realtime" else [mine])
+    single_file = command in ("realtime", "synth --truth")
+    outs = [mine / "notes.txt", camp, camp / "results"] + ([] if single_file else [mine])
     for out in outs:
         argv = [str(a) for a in _argv(command, out, camp, tmp_path, small_sweep)]
         assert main(argv) == 2, (command, out)

@@ -295,6 +295,7 @@ def write_synthetic(out, cfg: SynthConfig = SynthConfig(), truth_path=None, forc
     truth_path = Path(truth_path) if truth_path else out.with_name(out.name + ".truth.json")
     if truth_path.resolve().is_relative_to(out.resolve()):
         raise ValueError(f"ground truth {truth_path} must not be inside the campaign folder {out}")
+    refuse_in_campaign(truth_path)
     if truth_path.exists() and not _is_truth(truth_path):
         raise ValueError(f"{truth_path}: exists and is not a ground truth of pvvjax.synth; give a new file (--truth)")
     counters, records, truth = generate(cfg)
