@@ -350,6 +350,7 @@ CLI_KINDS = {
     "sweep no processes": _flag("sweep", "--num-processes", "0", "argument --num-processes: 0: must be at least 1"),
     "sweep coordinator without a port": _flag("sweep", "--coordinator", "localhost", "give HOST:PORT"),
     "realtime frame rate negative": _flag("realtime", "--rate", "-5", "argument --rate: -5: must be a finite number"),
+    "realtime frame rate of a gigahertz": _flag("realtime", "--rate", "1e9", "argument --rate: 1e9"),
     "realtime jitter of a whole frame": _flag("realtime", "--jitter", "1", "argument --jitter: 1"),
     "replay window of zero revolutions": _flag("replay", "--window", "0", "argument --window: 0"),
     "replay figures negative": _flag("replay", "--plots", "-1", "argument --plots: -1"),

@@ -37,8 +37,8 @@ def _argv(command, out, camp, tmp_path, small_sweep):
     }[command]
 
 
-WRITERS = ["build-db", "plot", "synth", "synth --plots", "synth --truth", "sweep", "export", "export --element", "realtime", "replay", "calibrate",
-           "discover"]
+WRITERS = ["build-db", "plot", "synth", "synth --plots", "synth --truth", "sweep", "export", "export --element",
+           "realtime", "replay", "calibrate", "discover"]
 
 
 @pytest.mark.parametrize("command", WRITERS)

@@ -161,8 +161,9 @@ def _net_commands(sub):
                    help="element: numpy (element.json, the nets and the NumPy modules), c (pvv_element.h and "
                         "pvv_element.c, C99, <math.h> only) or fmu (pvv_element.fmu, FMI 2.0 co-simulation, built "
                         "with the machine's C compiler) (default: numpy)")
-    s.add_argument("--max-rate", type=_number(0.0, above=True), default=1000.0,
-                   help="element, c and fmu: highest frame rate the fixed buffers are sized for, Hz (default: 1000)")
+    s.add_argument("--max-rate", type=_number(0.0, 1e5, above=True), default=1000.0,
+                   help="element, c and fmu: highest frame rate the fixed buffers are sized for, Hz, above 0 and at "
+                        "most 100000 (default: 1000)")
     s.set_defaults(fn=C.cmd_export)
 
     s = sub.add_parser("realtime", help="feed a recorded counter to a real-time element frame by frame",
@@ -171,8 +172,8 @@ def _net_commands(sub):
     s.add_argument("--model", required=True, help="element folder (pvvjax export --element)")
     s.add_argument("--record", required=True, help="counter to play, e.g. 11022")
     s.add_argument("--campaign", default=None, help=_CAMPAIGN)
-    s.add_argument("--rate", type=_number(0.0, above=True), default=None,
-                   help="frame rate, Hz, above 0 (default: the record's)")
+    s.add_argument("--rate", type=_number(0.0, 1e5, above=True), default=None,
+                   help="frame rate, Hz, above 0 and at most 100000 (default: the record's)")
     s.add_argument("--jitter", type=_number(0.0, 1.0, below=True), default=0.0,
                    help="random frame-time jitter, fraction of a frame, from 0 to below 1 (default: 0)")
     s.add_argument("--out", default=None, help="CSV file of the output signal (default: none)")

@@ -33,6 +33,7 @@ from ._scaling import scale_states, similarity
 from ._vibration import EFFECTS, amplitude_4p, vibration_state
 
 GENERATOR_VERSION = "1"
+MAX_RATE_HZ = 20000.0  # the highest sample or dynamics rate a generator config may ask for
 
 
 @dataclass(frozen=True)
@@ -118,6 +119,12 @@ class SynthConfig:
         if self.sample_rate_hz < 64 * 1.15 * rpm / 60:
             raise ValueError(f"sample_rate_hz {self.sample_rate_hz} gives fewer than 64 samples per revolution at "
                              f"115 % of {rpm:g} rpm (at least {64 * 1.15 * rpm / 60:.0f} Hz)")
+        # Flight-test acquisition runs at 100 Hz to a few kHz; beyond, only the data grows (GBs).
+        for name, hi in (("sample_rate_hz", MAX_RATE_HZ), ("dynamics_rate_hz", MAX_RATE_HZ)):
+            if not getattr(self, name) <= hi:
+                raise ValueError(f"{name} {getattr(self, name):g}: at most {hi:g} Hz")
+        if not self.dynamics_rate_hz > 0:
+            raise ValueError(f"dynamics_rate_hz must be > 0 Hz, got {self.dynamics_rate_hz:g}")
 
     def effect_settings(self) -> dict[str, tuple[bool, float, dict]]:
         """name -> (enabled, scale, params) with defaults filled in."""
