@@ -378,6 +378,8 @@ CONFIG = {
                                                            "campaign.path = 'a' and campaign.synthetic"),
     "a discovery lag test without effect rounds": ("[discovery]\nmax_effects = 0\n[discovery.lag_test]\n"
                                                    "enabled = true\n", "discovery.lag_test.enabled = true contradicts"),
+    "a column map of scale 0": ('[campaign.columns.airspeed_kt]\nto = "airspeed_kt"\nscale = 0.0\n',
+                                "campaign.columns.airspeed_kt: scale 0"),
     "config list with a value twice": ('[sweep]\ndatabases = ["db1", "db1"]\n', "sweep.databases: 'db1' given twice"),
 }
 

@@ -194,3 +194,12 @@ def test_no_module_defines_a_name_twice():
         names = Counter(n.name for n in body if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)))
         twice.update({f"{path.relative_to(package)}:{k}": v for k, v in names.items() if v > 1})
     assert not twice, twice
+
+
+def test_a_replay_whose_offset_leaves_no_window_is_a_clear_error(tmp_path, small_campaign_dir, small_sweep, capsys):
+    cfg = tmp_path / "r.toml"
+    cfg.write_text(f'[replay]\nsweep = "{small_sweep.as_posix()}"\ndatabases = ["db1"]\n')
+    assert main(["replay", str(cfg), "--campaign", str(small_campaign_dir), "--offset", "-100", "--counters", "11022",
+                 "--out", str(tmp_path / "r")]) == 2
+    assert "offset -100 s, window 8 revs: no window of any counter lies within its record" in capsys.readouterr().err
+    assert not (tmp_path / "r" / "windows.parquet").exists()

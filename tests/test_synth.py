@@ -151,6 +151,7 @@ def test_hidden_effect_scenario_writes_truth_outside_the_campaign(tmp_path):
     ("[counts]\nhover = 3", "counts.hover: unknown maneuver"),
     ("sample_rate_hz = 100.0", "fewer than 64 samples per revolution"),
     ("sample_rate_hz = 1e7", "sample_rate_hz 1e+07: at most 20000 Hz"),
+    ("scatter = -1.0", "scatter is a standard deviation: must be >= 0"),
     ("vibration_weight_lb = 0.0", "vibration_weight_lb: must be > 0 lb, got 0.0"),
 ])
 def test_generator_config_errors(tmp_path, text, needle):

@@ -281,6 +281,10 @@ def cmd_replay(args) -> int:
     info, batch, recs, models = _replay_inputs(args, cfg)
     theta = (tau, L, rc.stick_offset_s)
     windows = replay_windows(info, recs, models, theta, settings_at(batch, theta, rc.hop_revs))
+    if windows.empty:
+        raise ValueError(f"offset {tau:g} s, window {L:g} revs: no window of any counter lies within its record (the "
+                         "offset shifts the inputs beyond it); give an offset of a few seconds (--offset, "
+                         "replay.offset_s)")
     summary = peak_summary(windows)
     write_table(windows, out / "windows", cfg)
     write_table(summary, out / "summary", cfg)

@@ -85,6 +85,8 @@ class ColumnMap:
     def __post_init__(self):
         if self.unit is not None:
             conversion_factor(self.unit, self.to)  # raises on an unknown unit or wrong dimension
+        if self.scale == 0:
+            raise ValueError(f"scale 0 would make {self.to} a constant {self.offset:g}; give the channel's factor")
 
     def factor(self) -> float:
         return (conversion_factor(self.unit, self.to) if self.unit else 1.0) * self.scale

@@ -375,6 +375,9 @@ def _run_rbf(group, data, dbs, cfg, out, chash, bar):
             w_tr, _, _ = _train.split_masks(folds, r.test_fold, cfg.sweep.folds)
             t0 = time.perf_counter()
             sel = w_tr > 0
+            if int(r.hidden) > int(sel.sum()):
+                raise ValueError(f"sweep.centers {int(r.hidden)}: more RBF centres than the {int(sel.sum())} training "
+                                 f"rows of {r.database} fold {r.test_fold}; give at most {int(sel.sum())}")
             p = jax.tree.map(np.asarray, rbf_fit(jax.random.key(r.seed), x[sel], y[sel], int(r.hidden),
                                                  in_mask=in_mask))
             preds.append(np.asarray(rbf_apply(p, x)))

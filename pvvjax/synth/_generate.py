@@ -123,6 +123,9 @@ class SynthConfig:
         for name, hi in (("sample_rate_hz", MAX_RATE_HZ), ("dynamics_rate_hz", MAX_RATE_HZ)):
             if not getattr(self, name) <= hi:
                 raise ValueError(f"{name} {getattr(self, name):g}: at most {hi:g} Hz")
+        for name in ("noise_g", "scatter"):  # standard deviations
+            if getattr(self, name) < 0:
+                raise ValueError(f"{name} is a standard deviation: must be >= 0, got {getattr(self, name):g}")
         if not self.dynamics_rate_hz > 0:
             raise ValueError(f"dynamics_rate_hz must be > 0 Hz, got {self.dynamics_rate_hz:g}")
 
