@@ -35,6 +35,7 @@ MODULES = [
     "discovery.effects",
     "discovery.selection",
     "discovery.report",
+    "dynamics.response",
     "realtime.element",
     "realtime.npnet",
     "realtime.jax_element",

@@ -2,11 +2,12 @@
 
 The quasi-static 4P amplitude is a sum of additive effects, each a function of the flight
 state (see `EFFECTS` for every formula), multiplied by the airframe's response at 4Ω
-(`rotor_resonance`), and then passed through a first-order lag (`dynamic_lag`): the
-vibratory response follows a change of flight state with a delay.
+(`rotor_resonance`), and then passed through a first-order lag (`dynamic_lag`) and, where
+switched on, a second-order response (`second_order`): the vibratory response follows a
+change of flight state with a delay, and may overshoot.
 
     A4_static = Σ_additive scale_e · f_e(state)
-    A4        = lag_τ( H(4Ω) · A4_static · (1 + scatter) )
+    A4        = mode_ωn,ζ( lag_τ( H(4Ω) · A4_static · (1 + scatter) ) )
 
 Each effect has an on/off switch, a scale and named parameters, all set from the
 generator config. Symbols: μ advance ratio, L = C_W/σ·n_z blade loading, ḣ climb rate
@@ -134,6 +135,10 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in [
     Effect("dynamic_lag", "lag", "τ·dA/dt = A_static − A",
            "rotor inflow and wake settle after a change of flight state: the vibration lags the state",
            dict(tau_s=0.6), (), fn=None),
+    Effect("second_order", "lag", "d²A/dt² + 2ζω_n·dA/dt + ω_n²·A = ω_n²·A_in, ω_n = 2π·f_n_hz",
+           "the vibratory response to a change of flight state as a damped mode: it overshoots and rings "
+           "before it settles (unit steady-state gain)",
+           dict(f_n_hz=0.5, zeta=0.4), (), default_on=False, fn=None),
 ]}
 
 
@@ -168,6 +173,35 @@ def first_order_lag(x: np.ndarray, tau: float, dt: float) -> np.ndarray:
     return y
 
 
+def second_order_response(u: np.ndarray, dt, omega_n: float, zeta: float) -> np.ndarray:
+    """y'' + 2ζω_n y' + ω_n² y = ω_n² u along the last axis, from rest at u's first value
+    (y = u[0], y' = 0), integrated by the trapezoidal rule (Tustin), which keeps the steady
+    gain exactly 1.
+
+    Args:
+        u: (..., N) input.
+        dt: step(s) between samples, s: a scalar, or (..., N − 1); a step of 0 holds the state.
+        omega_n: natural frequency, rad/s. zeta: damping ratio.
+
+    Returns:
+        (..., N) response.
+    """
+    u = np.asarray(u, float)
+    dt = np.broadcast_to(np.asarray(dt, float), u.shape[:-1] + (u.shape[-1] - 1,))
+    w2, c = omega_n**2, 2.0 * zeta * omega_n
+    y, v = u[..., 0].copy(), np.zeros(u.shape[:-1])
+    out = np.empty_like(u)
+    out[..., 0] = y
+    for i in range(1, u.shape[-1]):
+        a = 0.5 * dt[..., i - 1]
+        r0 = y + a * v
+        r1 = v - a * w2 * y - a * c * v + a * w2 * (u[..., i - 1] + u[..., i])
+        det = 1.0 + a * c + a * a * w2
+        y, v = ((1.0 + a * c) * r0 + a * r1) / det, (-a * w2 * r0 + r1) / det
+        out[..., i] = y
+    return out
+
+
 def amplitude_4p(state: dict, settings: dict, dt: float) -> tuple[np.ndarray, dict]:
     """4P amplitude (g) from the vibration state.
 
@@ -192,4 +226,7 @@ def amplitude_4p(state: dict, settings: dict, dt: float) -> tuple[np.ndarray, di
     lag_on, lag_scale, lag_params = settings["dynamic_lag"]
     if lag_on:
         total = first_order_lag(total, lag_scale * lag_params["tau_s"], dt)
+    mode_on, _, mode = settings["second_order"]
+    if mode_on:
+        total = second_order_response(total, dt, 2.0 * np.pi * mode["f_n_hz"], mode["zeta"])
     return total, parts

@@ -1,0 +1,81 @@
+"""The dynamic response (pvvjax.dynamics): the JAX recurrence against the generator's plain
+NumPy filter, its steady gain and step response against the continuous theory, gradients
+against finite differences, and padding that holds the state."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from pvvjax.dynamics import delayed, second_order
+from pvvjax.synth import SynthConfig, generate
+from pvvjax.synth._vibration import second_order_response
+
+
+def _times(rng, shape, mean=0.23):
+    steps = rng.uniform(0.5, 1.5, shape) * mean  # windows of whole revolutions at a varying rotor speed
+    return np.concatenate([np.zeros(shape[:-1] + (1,)), np.cumsum(steps, axis=-1)], axis=-1)
+
+
+def test_the_recurrence_equals_a_plain_numpy_filter():
+    rng = np.random.default_rng(0)
+    t = _times(rng, (3, 59))
+    t[1, 40:] = t[1, 40]  # a padded record: steps of 0 s hold the state
+    u = 0.1 + 0.05 * rng.standard_normal((3, 60))
+    got = np.asarray(jax.jit(second_order)(u, t, 2 * np.pi * 0.5, 0.4))
+    want = second_order_response(u, np.diff(t, axis=-1), 2 * np.pi * 0.5, 0.4)
+    np.testing.assert_allclose(got, want, atol=2e-6)
+    assert np.all(got[1, 40:] == got[1, 40])
+
+
+def test_steady_gain_one_and_the_step_response_of_the_continuous_mode():
+    t = np.arange(0.0, 20.0, 0.005)
+    u = np.where(t > 1.0, 0.2, 0.1)
+    with jax.enable_x64(True):
+        y = np.asarray(second_order(jnp.asarray(u), jnp.asarray(t), 2 * np.pi * 0.5, 0.3))
+        flat = np.asarray(second_order(jnp.full(50, 0.1), jnp.arange(50.0) * 0.23, 5.0, 0.7))
+    np.testing.assert_allclose(flat, 0.1, rtol=1e-12)  # trimmed flight: the static map's value
+    assert y[-1] == pytest.approx(0.2, rel=1e-6)
+    overshoot = (y.max() - 0.2) / 0.1
+    assert overshoot == pytest.approx(np.exp(-np.pi * 0.3 / np.sqrt(1 - 0.3**2)), rel=0.01)
+    t_peak = t[np.argmax(y)] - 1.0
+    assert t_peak == pytest.approx(np.pi / (2 * np.pi * 0.5 * np.sqrt(1 - 0.3**2)), abs=0.01)
+
+
+def test_gradients_of_frequency_damping_and_delay_match_finite_differences():
+    rng = np.random.default_rng(1)
+    t = _times(rng, (2, 79))
+    u = 0.1 + 0.05 * np.sin(t) + 0.01 * rng.standard_normal(t.shape)
+    target = 0.1 + 0.05 * np.sin(t - 0.5)
+
+    def loss(p):
+        w, z, d = p
+        return jnp.mean((second_order(delayed(u, t, d), t, w, z) - target) ** 2)
+
+    with jax.enable_x64(True):
+        p = jnp.array([3.0, 0.45, 0.37])
+        g = np.asarray(jax.grad(loss)(p))
+        eps = 1e-6
+        fd = np.array([(loss(p.at[i].add(eps)) - loss(p.at[i].add(-eps))) / (2 * eps) for i in range(3)])
+    np.testing.assert_allclose(g, fd, rtol=1e-5, atol=1e-12)
+
+
+def test_a_delay_is_the_sequence_interpolated_earlier_its_first_value_held():
+    rng = np.random.default_rng(2)
+    t = _times(rng, (2, 29))
+    u = rng.standard_normal(t.shape)
+    got = np.asarray(delayed(u, t, 0.4))
+    for i in range(2):
+        np.testing.assert_allclose(got[i], np.interp(t[i] - 0.4, t[i], u[i]), atol=1e-5)  # float32 times
+    assert np.allclose(got[:, 0], u[:, 0])
+
+
+def test_the_generators_second_order_response_is_off_by_default_and_shapes_the_vibration_when_on():
+    assert SynthConfig().effect_settings()["second_order"][0] is False
+    from pvvjax.config import from_dict
+
+    on = from_dict(SynthConfig, {"conditions": ["11022"], "effects": {"second_order": {"enabled": True}}})
+    plain = generate(SynthConfig(conditions=("11022",)))[1]["11022"]
+    shaped = generate(on)[1]["11022"]
+    assert not np.allclose(plain.az_g, shaped.az_g)
+    np.testing.assert_array_equal(plain.drop(columns="az_g"), shaped.drop(columns="az_g"))
