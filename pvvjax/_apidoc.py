@@ -36,6 +36,7 @@ MODULES = [
     "discovery.selection",
     "discovery.report",
     "dynamics.response",
+    "dynamics.sequences",
     "realtime.element",
     "realtime.npnet",
     "realtime.jax_element",

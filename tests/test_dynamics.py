@@ -79,3 +79,34 @@ def test_the_generators_second_order_response_is_off_by_default_and_shapes_the_v
     shaped = generate(on)[1]["11022"]
     assert not np.allclose(plain.az_g, shaped.az_g)
     np.testing.assert_array_equal(plain.drop(columns="az_g"), shaped.drop(columns="az_g"))
+
+
+def test_window_sequences_against_a_brute_force_analysis_of_each_window():
+    from conftest import tiny_records
+
+    from pvvjax.data.campaign import campaign_from_frames
+    from pvvjax.dynamics import window_sequences
+
+    counters, records = tiny_records(seconds=20.0)
+    for name, df in records.items():
+        records[name] = df.assign(airspeed_kt=100.0 + 2.0 * df.time_s)  # a steady acceleration: 2 kt/s
+    camp = campaign_from_frames(counters, records)
+    seq = window_sequences(camp, ["airspeed_kt", "rotor_rpm"], window_revs=2.0, hop_revs=0.5, rates=True)
+    assert seq.names == ("airspeed_kt", "rotor_rpm", "d_airspeed_kt_dt", "d_rotor_rpm_dt")
+    for r, name in enumerate(seq.counters):
+        df = records[name]
+        rev = (df.rotor_rpm * df.time_s / 60.0).to_numpy()
+        psi = 2 * np.pi * rev
+        n = int(seq.mask[r].sum())
+        assert n == int(np.floor((rev[-1] - 2.0) / 0.5)) + 1  # every window inside the record
+        for k in (0, n // 2, n - 1):
+            inside = (rev >= 0.5 * k) & (rev < 0.5 * k + 2.0)
+            amp = 2 * abs(np.mean(df.az_g.to_numpy()[inside] * np.exp(-4j * psi[inside])))
+            assert seq.amplitude[r, k] == pytest.approx(amp, rel=0.02)
+            assert seq.inputs[r, k, 0] == pytest.approx(df.airspeed_kt.to_numpy()[inside].mean(), abs=0.05)
+            assert seq.t_start[r, k] == pytest.approx(df.time_s.to_numpy()[inside][0], abs=2e-3)
+        np.testing.assert_allclose(seq.inputs[r, :n, 2], 2.0, rtol=1e-3)  # the rate, kt/s
+        np.testing.assert_allclose(seq.inputs[r, :n, 3], 0.0, atol=1e-6)
+        assert np.all(seq.time[r, n:] == seq.time[r, n - 1])  # past the last window: a step of 0 s
+    with pytest.raises(ValueError, match="hop_revs 2: must lie in"):
+        window_sequences(camp, ["airspeed_kt"], hop_revs=2.0)
