@@ -37,6 +37,7 @@ MODULES = [
     "discovery.report",
     "dynamics.response",
     "dynamics.sequences",
+    "dynamics.models",
     "realtime.element",
     "realtime.npnet",
     "realtime.jax_element",

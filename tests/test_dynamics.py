@@ -110,3 +110,49 @@ def test_window_sequences_against_a_brute_force_analysis_of_each_window():
         assert np.all(seq.time[r, n:] == seq.time[r, n - 1])  # past the last window: a step of 0 s
     with pytest.raises(ValueError, match="hop_revs 2: must lie in"):
         window_sequences(camp, ["airspeed_kt"], hop_revs=2.0)
+
+
+def _sequences(rng, R=24, W=100):
+    """Maneuver-like input steps at window times of a varying rotor speed; their static map."""
+    t = np.concatenate([np.zeros((R, 1)), np.cumsum(rng.uniform(0.2, 0.26, (R, W - 1)), 1)], 1)
+    x = np.zeros((R, W, 2))
+    for r in range(R):
+        for c in range(2):
+            k, levels = np.sort(rng.choice(W, 5, replace=False)), rng.uniform(-1.5, 1.5, 6)
+            x[r, :, c] = levels[np.searchsorted(k, np.arange(W), side="right")]
+    return t, x, 0.1 + 0.05 * np.tanh(x[..., 0]) + 0.02 * x[..., 1]
+
+
+def test_the_dynamic_model_recovers_the_delay_frequency_and_damping_it_was_given():
+    from pvvjax.config import TrainConfig
+    from pvvjax.dynamics import dynamic_apply, dynamic_init, identified
+    from pvvjax.nets import train
+    from pvvjax.nets.networks import mlp_init, scaling
+
+    rng = np.random.default_rng(0)
+    t, x, static = _sequences(rng)
+    with jax.enable_x64(True):
+        y = np.asarray(second_order(delayed(static, t, 0.3), t, 2 * np.pi * 0.5, 0.4))
+    y = y + 0.002 * rng.standard_normal(y.shape)
+    X = np.concatenate([x, t[..., None]], -1).astype(np.float32)
+    val = np.arange(len(t)) % 4 == 0
+    sc = scaling(x[~val].reshape(-1, 2), y[~val].reshape(-1))
+    p0 = dynamic_init(mlp_init(jax.random.key(1), 2, (8,), scale=sc))  # starts at 1 Hz, ζ 0.7, 0.1 s
+    ones = lambda m: np.ones((int(m.sum()), t.shape[1]), np.float32)  # noqa: E731
+    data = train.Data(X[~val], y[~val].astype(np.float32), ones(~val), X[val], y[val].astype(np.float32), ones(val))
+    cfg = TrainConfig(max_steps=2000, learning_rate=1e-2, patience=20)
+    fit = jax.jit(lambda p, d: train.fit(p, d, cfg, apply=dynamic_apply))(p0, data)
+    got = identified(fit.params)
+    assert got["f_n_hz"] == pytest.approx(0.5, rel=0.15) and got["zeta"] == pytest.approx(0.4, rel=0.15)
+    assert got["delay_s"] == pytest.approx(0.3, rel=0.15) and float(fit.best_val_rms) < 0.004
+
+
+def test_in_trimmed_flight_the_dynamic_model_is_its_static_map():
+    from pvvjax.dynamics import dynamic_apply, dynamic_init
+    from pvvjax.nets.networks import mlp_apply, mlp_init
+
+    static = mlp_init(jax.random.key(3), 2, (5,))
+    x = np.broadcast_to(np.array([0.3, -0.7], np.float32), (3, 40, 2))
+    t = np.broadcast_to(np.arange(40, dtype=np.float32) * 0.23, (3, 40))
+    got = dynamic_apply(dynamic_init(static, omega_n=4.0, zeta=0.3, delay_s=0.5), np.concatenate([x, t[..., None]], -1))
+    np.testing.assert_allclose(got, np.asarray(mlp_apply(static, x)), rtol=1e-6)

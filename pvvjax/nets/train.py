@@ -72,7 +72,7 @@ def split_masks(folds: np.ndarray, test_fold: int, k: int) -> tuple[np.ndarray, 
     return (~test & ~val).astype(np.float32), val.astype(np.float32), test.astype(np.float32)
 
 
-TRAINABLE = ("layers", "centers", "log_width", "w", "b", "gain")  # masks and scalings never train
+TRAINABLE = ("layers", "centers", "log_width", "w", "b", "gain", "response")  # masks and scalings never train
 
 
 def _split(params: dict) -> tuple[dict, dict]:
@@ -80,12 +80,12 @@ def _split(params: dict) -> tuple[dict, dict]:
             {k: v for k, v in params.items() if k not in TRAINABLE})
 
 
-def _wmse(pred, y, w, y_scale):
-    return pairwise_sum(w * ((pred - y) / y_scale) ** 2) / jnp.maximum(pairwise_sum(w), 1.0)
+def _wmse(pred, y, w, y_scale):  # over every row (and every window of a sequence model's rows)
+    return pairwise_sum((w * ((pred - y) / y_scale) ** 2).reshape(-1)) / jnp.maximum(pairwise_sum(w.reshape(-1)), 1.0)
 
 
 def _wrms(pred, y, w):
-    return jnp.sqrt(pairwise_sum(w * (pred - y) ** 2) / jnp.maximum(pairwise_sum(w), 1.0))
+    return jnp.sqrt(pairwise_sum((w * (pred - y) ** 2).reshape(-1)) / jnp.maximum(pairwise_sum(w.reshape(-1)), 1.0))
 
 
 class Hyper(NamedTuple):

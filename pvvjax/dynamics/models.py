@@ -1,0 +1,71 @@
+"""Dynamic PVV models: a static map (the paper's MLP, on a database's inputs averaged over
+each window) followed by a learned delay and a learned unit-gain second-order response, so
+that in trimmed flight the model equals its static map and through a maneuver it lags,
+overshoots and rings as the identified natural frequency and damping say.
+
+Parameters are a flat dict as the static nets' (`nets.mlp_init`) plus `response`, the
+`Response` module's variables; `dynamic_apply(params, x)` takes the sequence's times as the
+inputs' last channel, so that `nets.train.fit` trains it as it trains a static net (records
+as rows, windows along them, the mask as weights)."""
+
+from __future__ import annotations
+
+import flax.linen as nn
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..nets.networks import mlp_apply
+from .response import delayed, second_order
+
+__all__ = ["Response", "dynamic_apply", "dynamic_init", "identified"]
+
+
+class Response(nn.Module):
+    """A delay and a unit-gain second-order response of a sequence `u` at times `t`.
+
+    Params: `log_omega_n` (ω_n = exp, rad/s), `log_zeta` (ζ = exp, > 0) and `delay_raw`
+    (delay = softplus, s, >= 0): unconstrained, so that gradient steps keep them physical.
+    """
+
+    omega_n: float = 2 * np.pi * 1.0
+    zeta: float = 0.7
+    delay_s: float = 0.1
+
+    @nn.compact
+    def __call__(self, u, t):
+        log_w = self.param("log_omega_n", lambda key: jnp.log(jnp.float32(self.omega_n)))
+        log_z = self.param("log_zeta", lambda key: jnp.log(jnp.float32(self.zeta)))
+        raw = self.param("delay_raw", lambda key: jnp.log(jnp.expm1(jnp.float32(max(self.delay_s, 1e-6)))))
+        return second_order(delayed(u, t, jax.nn.softplus(raw)), t, jnp.exp(log_w), jnp.exp(log_z))
+
+
+def dynamic_init(static: dict, *, omega_n: float = 2 * np.pi * 1.0, zeta: float = 0.7, delay_s: float = 0.1) -> dict:
+    """A dynamic model from a static net's parameters (`nets.mlp_init`, its scaling set) and
+    the response's starting values (ω_n rad/s, ζ, delay s)."""
+    response = Response(omega_n, zeta, delay_s).init(jax.random.key(0), jnp.zeros(2), jnp.arange(2.0))["params"]
+    return {**static, "response": response}
+
+
+def dynamic_apply(params: dict, x):
+    """PVV through time.
+
+    Args:
+        params: `dynamic_init`'s dict.
+        x: (..., W, n_in + 1) the inputs averaged over each window, in physical units, then
+            the window times, s (non-decreasing along W).
+
+    Returns:
+        (..., W) PVV, g.
+    """
+    static = {k: v for k, v in params.items() if k != "response"}
+    return Response().apply({"params": params["response"]}, mlp_apply(static, x[..., :-1]), x[..., -1])
+
+
+def identified(params: dict) -> dict:
+    """The response's physical parameters: omega_n_rad_s, f_n_hz, zeta, delay_s and the
+    equivalent time constant 2ζ/ω_n, s (the first-order lag a slow response resembles)."""
+    r = jax.tree.map(np.asarray, params["response"])
+    w, z = np.exp(r["log_omega_n"]), np.exp(r["log_zeta"])
+    return dict(omega_n_rad_s=w, f_n_hz=w / (2 * np.pi), zeta=z, delay_s=np.logaddexp(0.0, r["delay_raw"]),
+                tau_equivalent_s=2 * z / w)
