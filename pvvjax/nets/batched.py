@@ -169,8 +169,7 @@ def train_nets(params, data: _train.Data, group, cfg, *, hyper: _train.Hyper | N
             for every net); traced, so nets of other learning rates, weight decays, budgets
             or patiences share the batch and the compiled program.
         chunk_evals: with compaction, evaluations between looks at the stop flags.
-        checkpoint_s: hand finished nets to `on_done` at least this often, s (None: once,
-            at the end).
+        checkpoint_s: hand finished nets to `on_done` at least this often, s (None: at the end).
         compact: gather the nets still training into a narrower batch when they fit in
             half of it (None: on CPU only).
         on_done: callback(indices, fits, seconds) for nets that finished since the last
