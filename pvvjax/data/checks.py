@@ -85,8 +85,9 @@ def _check_values(df: pd.DataFrame, columns, file: str, problems: list) -> None:
         if col not in df.columns:
             continue
         raw = df[col]
-        if pd.api.types.is_bool_dtype(raw) or raw.map(lambda v: isinstance(v, (bool, np.bool_))).any():
-            row = _first_bad(raw.map(lambda v: isinstance(v, (bool, np.bool_))).to_numpy())
+        flags = raw.map(lambda v: isinstance(v, (bool, np.bool_))) if raw.dtype == object else None  # mixed column
+        if pd.api.types.is_bool_dtype(raw) or (flags is not None and flags.any()):
+            row = 1 if flags is None else _first_bad(flags.to_numpy())
             problems.append(Problem(file, col, row, f"true/false value {raw.iloc[row - 1]}, not a number"))
             continue
         vals = _numeric(raw)
