@@ -75,20 +75,27 @@ def own_folder(out: str | Path, command: str) -> Path:
         raise ResultsFolderError(f"{out}: is a file, not a folder; give a folder for the output")
     refuse_in_campaign(out)
     record = {"written_by": command}
-    owner = out / OWNER_FILE
-    if owner.exists():
-        try:
-            old = json.loads(owner.read_text())
-        except ValueError:
-            old = {}
+    old = _owner_record(out)
+    if old is not None:
         if old != record:
             what = f"the output of {old['written_by']}" if "written_by" in old else "results of pvvjax's other commands"
             raise ResultsFolderError(f"{out}: holds {what}, not of {command}; give another output folder")
     elif out.exists() and any(out.iterdir()):
         raise ResultsFolderError(f"{out}: is not empty and was not written by {command}; give a new or empty folder")
     out.mkdir(parents=True, exist_ok=True)
-    owner.write_text(json.dumps(record))
+    (out / OWNER_FILE).write_text(json.dumps(record))
     return out
+
+
+def _owner_record(out: Path) -> dict | None:
+    """The folder's owner record (`owner.json`; {} if unreadable), or None if it has none."""
+    owner = out / OWNER_FILE
+    if not owner.exists():
+        return None
+    try:
+        return json.loads(owner.read_text())
+    except ValueError:
+        return {}
 
 
 def new_file(path: str | Path, flag: str = "--out") -> Path:
@@ -133,11 +140,8 @@ def claim_folder(out: str | Path, settings: dict, campaign: str, log=print) -> P
     refuse_in_campaign(out)
     record = json.loads(json.dumps({"settings": settings, "campaign": campaign}, sort_keys=True, default=str))
     owner = out / OWNER_FILE
-    if owner.exists():
-        try:
-            old = json.loads(owner.read_text())
-        except ValueError:
-            old = {}
+    old = _owner_record(out)
+    if old is not None:
         if old == record:
             return out
         if "written_by" in old:
