@@ -246,12 +246,7 @@ def _replay_inputs(args, cfg):
     enable_compilation_cache()
     cfg.check_replay()
     campaign, _ = resolve_campaign(cfg)
-    counters = list(args.counters) if getattr(args, "counters", None) else select_counters(campaign, cfg.replay)
-    unknown = [c for c in counters if c not in campaign.records]
-    if unknown:
-        known = list(campaign.records)
-        raise KeyError(f"--counters: {', '.join(unknown)} not in the campaign {campaign.source} (its {len(known)} "
-                       f"counters: {', '.join(known[:8])}{', ...' if len(known) > 8 else ''})")
+    counters = select_counters(campaign, cfg.replay, getattr(args, "counters", None), "--counters")
     if cfg.replay.sweep:
         sweep = Path(cfg.replay.sweep)
         try:

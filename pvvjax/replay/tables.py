@@ -38,14 +38,22 @@ __all__ = [
 ]
 
 
-def select_counters(campaign: Campaign, cfg: ReplayConfig) -> list[str]:
-    """The counters a replay config names (or every counter of its maneuver kinds)."""
+def select_counters(campaign: Campaign, cfg: ReplayConfig, named=None, what: str = "replay.counters") -> list[str]:
+    """The counters a replay config names (or every counter of its maneuver kinds).
+
+    Args:
+        named: counters given elsewhere (a command's `--counters`), in place of the config's.
+        what: where they were given, for the error that names one not in the campaign.
+    """
     known = campaign.counters
-    if cfg.counters:
-        missing = [c for c in cfg.counters if c not in known.index]
+    counters = list(named or cfg.counters)
+    if counters:
+        missing = [c for c in counters if c not in known.index]
         if missing:
-            raise ValueError(f"replay.counters: {missing} not in the campaign")
-        return list(cfg.counters)
+            names = list(known.index)
+            raise ValueError(f"{what}: {', '.join(missing)} not in the campaign {campaign.source} (its {len(names)} "
+                           f"counters: {', '.join(names[:8])}{', ...' if len(names) > 8 else ''})")
+        return counters
     sel = known[known.maneuver.isin(cfg.maneuvers)]
     if sel.empty:
         raise ValueError(f"replay.maneuvers {list(cfg.maneuvers)}: no counters of these kinds in the campaign "
