@@ -14,7 +14,7 @@ import pandas as pd  # noqa: E402
 from .data.campaign import Campaign  # noqa: E402
 
 __all__ = ["correlation", "cost_map", "offset_bars", "partial_dependence", "pvv_vs_airspeed", "replay", "residual_map",
-           "save", "size_search", "time_histories", "window_profile"]
+           "save", "size_search", "through_time", "time_histories", "window_profile"]
 
 
 def save(fig, path) -> Path:
@@ -270,3 +270,20 @@ def window_profile(profiles: dict):
         ax.grid(alpha=0.3)
         ax.legend(fontsize=6)
     return fig
+
+
+def through_time(time, measured, predicted: dict, title: str, ax=None):
+    """PVV through a maneuver, window by window: the measured amplitude and one line per
+    model (`predicted`: label -> values at the same window times, s)."""
+    fig = None
+    if ax is None:
+        fig, ax = plt.subplots(figsize=(7.0, 3.4))
+    ax.plot(time, measured, "k-", lw=1.6, label="measured")
+    for k, (label, values) in enumerate(predicted.items()):
+        ax.plot(time, values, "--" if k % 2 else "-", lw=1.1, color=f"C{k}", label=label)
+    ax.set_xlabel("time, s")
+    ax.set_ylabel("PVV (N/rev), g")
+    ax.set_title(title, fontsize=9)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    return fig if fig is not None else ax

@@ -105,11 +105,36 @@ def test_window_sequences_against_a_brute_force_analysis_of_each_window():
             assert seq.amplitude[r, k] == pytest.approx(amp, rel=0.02)
             assert seq.inputs[r, k, 0] == pytest.approx(df.airspeed_kt.to_numpy()[inside].mean(), abs=0.05)
             assert seq.t_start[r, k] == pytest.approx(df.time_s.to_numpy()[inside][0], abs=2e-3)
-        np.testing.assert_allclose(seq.inputs[r, :n, 2], 2.0, rtol=1e-3)  # the rate, kt/s
+        np.testing.assert_allclose(seq.inputs[r, 1:n, 2], 2.0, rtol=1e-3)  # the rate, kt/s (causal)
+        assert seq.inputs[r, 0, 2] == 0.0  # nothing before the first window
+        assert set(seq.record[r]) == {name}
         np.testing.assert_allclose(seq.inputs[r, :n, 3], 0.0, atol=1e-6)
         assert np.all(seq.time[r, n:] == seq.time[r, n - 1])  # past the last window: a step of 0 s
     with pytest.raises(ValueError, match="hop_revs 2: must lie in"):
         window_sequences(camp, ["airspeed_kt"], hop_revs=2.0)
+
+
+def test_chained_segments_form_one_flight():
+    from conftest import tiny_records
+
+    from pvvjax.data.campaign import campaign_from_frames
+    from pvvjax.dynamics import window_sequences
+
+    counters, records = tiny_records(seconds=12.0)
+    counters = counters.iloc[:2].assign(condition="one", segment=[1, 2])
+    records = {c: records[c] for c in counters.counter}
+    camp = campaign_from_frames(counters, records)
+    single = window_sequences(camp, ["airspeed_kt"], rates=True)
+    joined = window_sequences(camp, ["airspeed_kt"], rates=True, chain=True)
+    n = single.mask.sum(axis=1)
+    assert joined.counters == ("+".join(single.counters),) and joined.mask.sum() == n.sum()
+    np.testing.assert_array_equal(joined.amplitude[0, :n.sum()], np.concatenate([single.amplitude[i, :n[i]]
+                                                                                 for i in range(2)]))
+    np.testing.assert_array_equal(joined.record[0, :n.sum()], np.repeat(single.counters, n))
+    t1 = records["C1"].time_s.to_numpy()
+    shift = t1[-1] + (t1[1] - t1[0])  # the second segment's clock continues the first's
+    np.testing.assert_allclose(joined.time[0, n[0]:n.sum()], single.time[1, :n[1]] + shift)
+    assert np.all(np.diff(joined.time[0]) >= 0)
 
 
 def _sequences(rng, R=24, W=100):

@@ -396,6 +396,27 @@ def cmd_realtime(args) -> int:
     return 0
 
 
+def cmd_dynamic(args) -> int:
+    """Train and compare the models of PVV through time (`dynamics.study.run_comparison`)."""
+    from ..dynamics.study import run_comparison
+
+    t0 = time.perf_counter()
+    cfg = _experiment(args)
+    if args.seeds is not None:
+        cfg = cfg.with_(dynamic=dataclasses.replace(cfg.dynamic, seeds=args.seeds))
+    enable_compilation_cache()
+    campaign, _ = resolve_campaign(cfg, args.campaign)
+    out = claim_folder(args.out, dict(command="dynamic", dynamic=to_dict(cfg.dynamic), train=to_dict(cfg.train),
+                                      analysis=to_dict(cfg.analysis), seed=cfg.seed,
+                                      columns=to_dict(cfg.campaign)["columns"]), campaign.fingerprint)
+    table = run_comparison(campaign, cfg, out)
+    cols = ["database", "model", "rms_g", "peak_err_rms_g", "time_of_peak_err_median_s", "faa_pass_share",
+            "kendall_tau", "best"]
+    print(table[cols].round(4).to_string(index=False))
+    print(f"wrote comparison.csv, predictions.parquet and report.md to {out} ({time.perf_counter() - t0:.1f} s)")
+    return 0
+
+
 def cmd_discover(args) -> int:
     """Find, name, add and confirm the effects a static map misses (data-contract §3)."""
     from ..config import ExperimentConfig, load_config

@@ -220,6 +220,20 @@ def _replay_commands(sub):
                                                   "default: none, the defaults)")
     s.set_defaults(fn=C.cmd_discover)
 
+    s = sub.add_parser("dynamic", help="train and compare PVV models through time against the quasi-static map",
+                       description="Window sequences of every record; the quasi-static peak map, the same map on "
+                                   "every window (with and without state rates), the physics-shaped dynamic model "
+                                   "(map, delay, second-order response) and a GRU, held out by condition and by "
+                                   "maneuver kind ([dynamic] of the config). Resumable. Writes OUT/comparison.csv, "
+                                   "OUT/identified.csv, OUT/predictions.parquet and OUT/report.md.")
+    s.add_argument("--campaign", default=None, help=_CAMPAIGN_OF_CONFIG)
+    s.add_argument("--out", required=True, help="output folder (claimed; rerun with the same config to resume)")
+    s.add_argument("--config", default=None, help="experiment config ([dynamic], [train], [analysis] sections; "
+                                                  "default: none, the defaults)")
+    s.add_argument("--seeds", type=_count(1), default=None, help="initialisation seeds per fold (default: the "
+                                                                  "config's)")
+    s.set_defaults(fn=C.cmd_dynamic)
+
     s = sub.add_parser("run", help="run an experiment config end to end (the main job)",
                        description="Campaign, databases and figures for one experiment config; with [run] "
                                    "networks the paper's networks (Figs 10-12, Table 1), with [run] "

@@ -15,6 +15,8 @@ from ._discovery import (
     ResonanceConfig,
     SelectionConfig,
 )
+from ._dynamic import MODELS as DYNAMIC_MODELS
+from ._dynamic import DynamicConfig
 from ._experiment import ExperimentConfig, config_hash, load_config, load_toml
 from ._sections import (
     TRANSIENT_MANEUVERS,
@@ -33,7 +35,9 @@ __all__ = [
     "CampaignConfig",
     "ColumnMap",
     "ConfigError",
+    "DYNAMIC_MODELS",
     "DiscoveryConfig",
+    "DynamicConfig",
     "EnsembleConfig",
     "ExperimentConfig",
     "LagTestConfig",

@@ -11,6 +11,7 @@ from pathlib import Path
 
 from .._strict import ConfigError, from_dict, to_dict
 from ._discovery import DiscoveryConfig
+from ._dynamic import DynamicConfig
 from ._sections import (
     AnalysisConfig,
     CalibrationConfig,
@@ -41,6 +42,7 @@ class ExperimentConfig:
     replay: ReplayConfig = field(default_factory=ReplayConfig)
     calibration: CalibrationConfig = field(default_factory=CalibrationConfig)
     discovery: DiscoveryConfig = field(default_factory=DiscoveryConfig)
+    dynamic: DynamicConfig = field(default_factory=DynamicConfig)
     run: RunConfig = field(default_factory=RunConfig)
 
     def __post_init__(self):

@@ -18,7 +18,8 @@ import numpy as np
 from ..nets.networks import mlp_apply
 from .response import delayed, second_order
 
-__all__ = ["Response", "dynamic_apply", "dynamic_init", "identified"]
+__all__ = ["Recurrent", "Response", "dynamic_apply", "dynamic_init", "identified", "rnn_apply", "rnn_init"]
+
 
 
 class Response(nn.Module):
@@ -69,3 +70,42 @@ def identified(params: dict) -> dict:
     w, z = np.exp(r["log_omega_n"]), np.exp(r["log_zeta"])
     return dict(omega_n_rad_s=w, f_n_hz=w / (2 * np.pi), zeta=z, delay_s=np.logaddexp(0.0, r["delay_raw"]),
                 tau_equivalent_s=2 * z / w)
+
+
+class Recurrent(nn.Module):
+    """A black-box sequence model: a GRU over the standardised window inputs (flax's
+    `GRUCell`, scanned along the windows by `nn.RNN`), read out linearly to PVV."""
+
+    hidden: int = 16
+
+    @nn.compact
+    def __call__(self, x):
+        h = nn.RNN(nn.GRUCell(self.hidden))(x)
+        return nn.Dense(1)(h)[..., 0]
+
+
+def rnn_init(key, n_in: int, hidden: int = 16, *, scale: dict | None = None) -> dict:
+    """A recurrent model's parameters: `rnn` (the `Recurrent` module's variables, `hidden`
+    GRU units) and the standardisation `scale` (`nets.scaling`; default identity)."""
+    scale = scale or dict(x_shift=jnp.zeros(n_in), x_scale=jnp.ones(n_in), y_shift=jnp.zeros(()),
+                          y_scale=jnp.ones(()))
+    return {"rnn": Recurrent(hidden).init(key, jnp.zeros((1, 2, n_in)))["params"], **scale}
+
+
+def rnn_apply(params: dict, x):
+    """PVV through time from a recurrent model.
+
+    Args:
+        params: `rnn_init`'s dict.
+        x: (..., W, n_in) the inputs averaged over each window (and their rates), physical
+            units; the recurrence runs along W from a zero state.
+
+    Returns:
+        (..., W) PVV, g.
+    """
+    hidden = params["rnn"]["GRUCell_0"]["hn"]["kernel"].shape[0]  # the allocation: apply checks the shapes
+    z = (x - params["x_shift"]) / params["x_scale"]
+    lead = z.shape[:-2]
+    flat = z.reshape((-1,) + z.shape[-2:])
+    out = Recurrent(hidden).apply({"params": params["rnn"]}, flat).reshape(lead + z.shape[-2:-1])
+    return out * params["y_scale"] + params["y_shift"]

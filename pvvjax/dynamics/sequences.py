@@ -23,13 +23,19 @@ __all__ = ["Sequences", "window_sequences"]
 class Sequences:
     """Window sequences of a campaign's records, padded to W windows (host arrays).
 
-    Past a record's last window, times repeat its last time (a step of 0 s, which holds a
-    dynamic model's state) and inputs repeat its last values; `mask` marks the real windows.
+    A row is one record, or with `chain` one condition's records in segment order, joined
+    into one flight (the later segment's clock continues from the earlier one's end, so that
+    a dynamic model's state carries across the join). Past a row's last window, times repeat
+    its last time (a step of 0 s, which holds a dynamic model's state) and inputs repeat its
+    last values; `mask` marks the real windows.
 
     Attributes:
-        counters, conditions, maneuvers: (R,) per record.
+        counters: (R,) the row's record, or its records joined by "+".
+        conditions, maneuvers: (R,) per row.
         names: (C,) input names: the requested inputs, then `d_<name>_dt` rates if asked.
-        time: (R, W) window-centre times, s. t_start, t_end: (R, W) window edges, s.
+        time: (R, W) window-centre times along the row, s. t_start, t_end: (R, W) window
+            edges, s, on each window's own record's clock.
+        record: (R, W) the record (counter) each window belongs to.
         amplitude: (R, W) the N/rev amplitude (PVV), g.
         inputs: (R, W, C) flight state averaged over each window (rates per second).
         mask: (R, W) True for the real windows.
@@ -37,6 +43,7 @@ class Sequences:
     """
 
     counters: tuple[str, ...]
+    record: np.ndarray
     conditions: tuple[str, ...]
     maneuvers: tuple[str, ...]
     names: tuple[str, ...]
@@ -51,8 +58,8 @@ class Sequences:
 
 
 def window_sequences(campaign: Campaign, inputs: Sequence[str], *, window_revs: float = 2.0, hop_revs: float = 1.0,
-                     rates: bool = False, harmonic: int | None = None, counters: Sequence[str] | None = None
-                     ) -> Sequences:
+                     rates: bool = False, harmonic: int | None = None, counters: Sequence[str] | None = None,
+                     chain: bool = False) -> Sequences:
     """The window sequences of a campaign's records.
 
     Args:
@@ -61,10 +68,12 @@ def window_sequences(campaign: Campaign, inputs: Sequence[str], *, window_revs: 
             each window, e.g. a database's inputs (`analysis.DB_INPUTS["db1"]`).
         window_revs: window length, revolutions: short windows resolve the time history.
         hop_revs: window spacing, revolutions, above 0 and at most 1.
-        rates: also each input's rate of change per second (central differences over the
-            window times; one-sided at a record's ends).
+        rates: also each input's rate of change per second: the backward difference to the
+            window before (causal, as a simulator can compute it; 0 at the first window).
         harmonic: the harmonic analysed (default: the aircraft's blade count, N/rev).
         counters: which records (default: every one, condition by condition).
+        chain: join each condition's records (its segments, e.g. one autorotation recorded
+            as two counters) into one row.
 
     Returns:
         `Sequences`.
@@ -87,29 +96,67 @@ def window_sequences(campaign: Campaign, inputs: Sequence[str], *, window_revs: 
         raise ValueError(f"inputs {unknown}: neither state channels nor derived features ({sorted(features)})")
     x = np.stack([features[n] for n in inputs], axis=-1)
     time = np.asarray(win.time, np.float64)
-    last = mask.shape[1] - 1 - np.argmax(mask[:, ::-1], axis=1)  # each record's last real window
-    hold = np.minimum(np.arange(mask.shape[1])[None, :], last[:, None])  # past it: the last window again
-    take = lambda a: np.take_along_axis(a, hold.reshape(hold.shape + (1,) * (a.ndim - 2)), axis=1)  # noqa: E731
-    time, x, amp = take(time), take(x), take(np.asarray(win.amplitude, np.float64))
+    t_start, t_end = _edges(batch, time.shape[1], window_revs, hop_revs)
+    info = campaign.counters.loc[counters]
+    rows = _rows(counters, list(info.condition), chain)
+    cols = [x, np.asarray(win.amplitude, np.float64), t_start, t_end]
+    record = np.asarray(counters, dtype=object)[:, None].repeat(mask.shape[1], 1)
+    time, x, amp, t_start, t_end, record, mask = _join(rows, time, batch, mask, [*cols, record])
     names = tuple(inputs)
     if rates:
         x = np.concatenate([x, _rates(x, time, mask)], axis=-1)
         names += tuple(f"d_{n}_dt" for n in inputs)
-    t_start, t_end = _edges(batch, time.shape[1], window_revs, hop_revs)
-    info = campaign.counters.loc[counters]
-    return Sequences(tuple(counters), tuple(info.condition), tuple(info.maneuver), names, time, take(t_start),
-                     take(t_end), amp, x, mask, float(window_revs), float(hop_revs))
+    first = [r[0] for r in rows]
+    return Sequences(tuple("+".join(counters[i] for i in r) for r in rows), record,
+                     tuple(info.condition.iloc[first]), tuple(info.maneuver.iloc[first]), names, time, t_start,
+                     t_end, amp, x, mask, float(window_revs), float(hop_revs))
+
+
+def _rows(counters, conditions, chain: bool) -> list[list[int]]:
+    """The records of each row: one each, or (chain) a condition's records in the order
+    given (`Campaign.conditions` gives segment order)."""
+    if not chain:
+        return [[i] for i in range(len(counters))]
+    groups: dict = {}
+    for i, c in enumerate(conditions):
+        groups.setdefault(c, []).append(i)
+    return list(groups.values())
+
+
+def _join(rows, time, batch, mask, arrays):
+    """Each row's real windows, its records' one after another (a later record's times
+    shifted to start one sample step after the earlier's last sample), padded to the longest
+    row by repeating its last window."""
+    t_rec, m_rec = np.asarray(batch.time, np.float64), np.asarray(batch.mask)
+    n = mask.sum(axis=1)
+    width = max(int(sum(n[i] for i in r)) for r in rows)
+    out_t, out = np.empty((len(rows), width)), [np.empty((len(rows), width) + a.shape[2:], a.dtype) for a in arrays]
+    out_m = np.zeros((len(rows), width), bool)
+    for j, r in enumerate(rows):
+        shift, parts_t, parts = 0.0, [], [[] for _ in arrays]
+        for i in r:
+            real = mask[i]
+            parts_t.append(time[i, real] + shift)
+            for p, a in zip(parts, arrays):
+                p.append(a[i, real])
+            tv = t_rec[i, m_rec[i]]
+            shift += tv[-1] + (tv[-1] - tv[-2] if len(tv) > 1 else 0.0)
+        k = int(sum(len(p) for p in parts_t))
+        hold = np.minimum(np.arange(width), k - 1)
+        out_t[j] = np.concatenate(parts_t)[hold]
+        for o, p in zip(out, parts):
+            o[j] = np.concatenate(p)[hold]
+        out_m[j, :k] = True
+    return (out_t, *out, out_m)
 
 
 def _rates(x: np.ndarray, time: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """d x / d t per record over its real windows (np.gradient: central inside, one-sided at
-    the ends); 0 past the last window."""
-    out = np.zeros_like(x)
-    for r in range(x.shape[0]):
-        n = int(mask[r].sum())
-        if n > 1:
-            out[r, :n] = np.gradient(x[r, :n], time[r, :n], axis=0)
-    return out
+    """d x / d t per row as the backward difference to the window before (causal); 0 at the
+    first window and past the last."""
+    dt = np.diff(time, axis=1)[..., None]
+    d = np.where(dt > 0, np.diff(x, axis=1) / np.where(dt > 0, dt, 1.0), 0.0)
+    out = np.concatenate([np.zeros_like(x[:, :1]), d], axis=1)
+    return np.where(mask[..., None], out, 0.0)
 
 
 def _edges(batch, n_windows: int, window_revs: float, hop_revs: float) -> tuple[np.ndarray, np.ndarray]:

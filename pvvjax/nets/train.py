@@ -72,7 +72,7 @@ def split_masks(folds: np.ndarray, test_fold: int, k: int) -> tuple[np.ndarray, 
     return (~test & ~val).astype(np.float32), val.astype(np.float32), test.astype(np.float32)
 
 
-TRAINABLE = ("layers", "centers", "log_width", "w", "b", "gain", "response")  # masks and scalings never train
+TRAINABLE = ("layers", "centers", "log_width", "w", "b", "gain", "response", "rnn")  # masks and scalings never train
 
 
 def _split(params: dict) -> tuple[dict, dict]:

@@ -1,0 +1,79 @@
+"""The `[dynamic]` section: the dynamic PVV models and their comparison with the
+quasi-static map (`pvvjax dynamic`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from ._sections import TRANSIENT_MANEUVERS, _bounds, _check_databases
+
+MODELS = ("quasi_static", "window_static", "window_static_rates", "dynamic", "rnn")
+
+
+@dataclass(frozen=True)
+class DynamicConfig:
+    """Models of PVV through time, trained on window sequences and judged on held-out
+    conditions beside the paper's quasi-static map (`pvvjax.dynamics.compare`).
+
+    Attributes:
+        databases: input sets compared (db1, db2, db3); each model takes the database's
+            inputs, and the `_rates` variants and `rnn` their rates too.
+        models: which models: quasi_static (the peak map, replayed), window_static (the
+            same map trained on every window), window_static_rates (with the inputs'
+            rates), dynamic (the map, a delay and a second-order response), rnn (a GRU).
+        window_revs: sequence window length, revolutions (short windows resolve the time
+            history; the quasi-static map keeps `[analysis] window_revs`).
+        hop_revs: window spacing, revolutions (at most 1).
+        hidden: the static map's hidden-layer widths.
+        rnn_hidden: the recurrent model's GRU units.
+        seeds: initialisation seeds per fold (predictions are their mean).
+        folds: k of the k-fold split by condition (every condition held out once).
+        kind_holdout: also hold out one maneuver kind at a time (a second split).
+        f_n_hz, zeta, delay_s: the response's starting natural frequency (Hz), damping
+            ratio and delay (s).
+        offset_bounds, offset_step_s: the grid the quasi-static map's input-to-vibration
+            offset is calibrated on, per fold on its training records (s).
+        cruise_advance_ratio: [lo, hi] advance ratio of the level flights whose median
+            measured peak is the nominal cruise level of the FAA tolerance.
+        transients: maneuver kinds whose time of peak is scored.
+    """
+
+    databases: tuple[str, ...] = ("db1",)
+    models: tuple[str, ...] = MODELS
+    window_revs: float = 2.0
+    hop_revs: float = 1.0
+    hidden: tuple[int, ...] = field(default=(10, 5), metadata={"repeats": True})  # layer widths
+    rnn_hidden: int = 16
+    seeds: int = 4
+    folds: int = 5
+    kind_holdout: bool = True
+    f_n_hz: float = 0.5
+    zeta: float = 0.7
+    delay_s: float = 0.1
+    offset_bounds: tuple[float, float] = field(default=(-1.0, 3.0), metadata={"repeats": True})
+    offset_step_s: float = 0.1
+    cruise_advance_ratio: tuple[float, float] = field(default=(0.25, 0.35), metadata={"repeats": True})
+    transients: tuple[str, ...] = TRANSIENT_MANEUVERS
+
+    def __post_init__(self):
+        _check_databases("dynamic", self.databases)
+        bad = [m for m in self.models if m not in MODELS]
+        if bad or not self.models:
+            raise ValueError(f"dynamic.models: unknown {bad}; use {list(MODELS)}")
+        if "dynamic" in self.models and "window_static" not in self.models:
+            raise ValueError("dynamic.models: dynamic starts from window_static's map; list both")
+        if not 0 < self.hop_revs <= 1:
+            raise ValueError(f"dynamic.hop_revs must lie in (0, 1] revolution, got {self.hop_revs}")
+        if not self.window_revs >= 1:
+            raise ValueError(f"dynamic.window_revs must be >= 1 revolution, got {self.window_revs}")
+        if not self.hidden or min(self.hidden) < 1 or self.rnn_hidden < 1:
+            raise ValueError("dynamic.hidden and dynamic.rnn_hidden need widths >= 1")
+        if self.seeds < 1 or self.folds < 3:
+            raise ValueError("dynamic.seeds must be >= 1 and dynamic.folds >= 3")
+        for name in ("f_n_hz", "zeta", "offset_step_s"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"dynamic.{name} must be > 0, got {getattr(self, name)}")
+        if self.delay_s < 0:
+            raise ValueError(f"dynamic.delay_s must be >= 0, got {self.delay_s}")
+        _bounds("dynamic.offset_bounds", self.offset_bounds)
+        _bounds("dynamic.cruise_advance_ratio", self.cruise_advance_ratio)

@@ -1,0 +1,223 @@
+"""Training the PVV models of vibration through time side by side, on the same window
+sequences and the same held-out splits, so that their comparison isolates what each adds:
+more data (the static map on every window), state rates, dynamics (a delay and a
+second-order response) or a black-box recurrence.
+
+A split is a list of folds, each a (test, validation) pair of row masks; every model trains
+one net per (fold, seed), all of them in one vmapped, jitted `nets.train.fit` (rows of other
+folds carry weight 0, so every net has the same shapes), and a row's held-out prediction is
+the mean over seeds of the nets that held it out.
+"""
+
+from __future__ import annotations
+
+from typing import Callable, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..nets import train
+from ..nets.networks import mlp_apply, mlp_init, scaling
+from .models import dynamic_apply, dynamic_init, identified, rnn_apply, rnn_init
+from .sequences import Sequences
+
+__all__ = ["APPLY", "Split", "Trained", "condition_split", "dynamic_from", "fit_peak_map", "fit_sequence_model",
+           "heldout", "identified_table", "kind_split", "model_inputs", "offset_replay", "recurrent_init",
+           "static_init"]
+
+
+class Split(NamedTuple):
+    """Folds of a held-out split over a sequence's rows.
+
+    Attributes:
+        name: "condition" (k-fold by condition) or "maneuver" (one kind held out at a time).
+        labels: (F,) what each fold holds out.
+        test, val: (F, R) bool: each fold's held-out and early-stopping rows.
+    """
+
+    name: str
+    labels: tuple[str, ...]
+    test: np.ndarray
+    val: np.ndarray
+
+
+def condition_split(conditions, k: int, seed: int) -> Split:
+    """k folds by condition (`nets.condition_folds`): fold f holds out its conditions and
+    stops early on fold f+1's."""
+    folds = train.condition_folds(conditions, k, seed, name="dynamic.folds")
+    test = np.stack([folds == f for f in range(k)])
+    return Split("condition", tuple(str(f) for f in range(k)), test, np.roll(test, -1, axis=0))
+
+
+def kind_split(conditions, maneuvers, k: int, seed: int) -> Split:
+    """One fold per maneuver kind, holding out all of it; early stopping on one condition
+    fold (of k) of the other kinds: how a model does on a kind it never saw."""
+    folds = train.condition_folds(conditions, k, seed, name="dynamic.folds")
+    maneuvers = np.asarray(maneuvers)
+    kinds = tuple(sorted(set(maneuvers)))
+    test = np.stack([maneuvers == m for m in kinds])
+    return Split("maneuver", kinds, test, ~test & (folds == 0)[None, :])
+
+
+class Trained(NamedTuple):
+    """A model's nets of one split.
+
+    Attributes:
+        params: parameters stacked (F, S, ...) over folds and seeds.
+        pred: (F, S, R, W) every net's prediction of every row, g.
+        best_step, failed_step: (F, S) as `nets.Fit`.
+    """
+
+    params: dict
+    pred: np.ndarray
+    best_step: np.ndarray
+    failed_step: np.ndarray
+
+
+def model_inputs(seq: Sequences, model: str) -> np.ndarray:
+    """A model's inputs (R, W, C) from a sequence: the database inputs (window_static), with
+    their rates (window_static_rates, rnn), or followed by the window times (dynamic)."""
+    plain = [i for i, n in enumerate(seq.names) if not n.startswith("d_")]
+    if model == "window_static":
+        return seq.inputs[..., plain]
+    if model == "dynamic":
+        return np.concatenate([seq.inputs[..., plain], seq.time[..., None]], axis=-1)
+    if model in ("window_static_rates", "rnn"):
+        return seq.inputs
+    raise ValueError(f"{model!r} is not a sequence model")
+
+
+def _stack(trees):
+    return jax.tree.map(lambda *a: jnp.stack(a), *trees)
+
+
+def fit_sequence_model(init: Callable, apply: Callable, x, y, mask, split: Split, seeds: int, cfg) -> Trained:
+    """Train one net per (fold, seed) on window sequences, all in one vmapped program.
+
+    Args:
+        init: (key, scale, fold) -> parameters (`scale`: `nets.scaling` of the fold's
+            training windows; a dynamic model may start from another model's fold nets).
+        apply: (params, x (R, W, C)) -> (R, W) PVV, g.
+        x: (R, W, C) inputs. y: (R, W) measured PVV, g. mask: (R, W) real windows.
+        split: the folds. seeds: initialisation seeds per fold.
+        cfg: `TrainConfig`.
+    """
+    x, y, mask = np.asarray(x, np.float32), np.asarray(y, np.float32), np.asarray(mask, bool)
+    trains = [~split.test[f] & ~split.val[f] for f in range(len(split.labels))]
+    n_train, n_val = max(int(r.sum()) for r in trains), max(int(v.sum()) for v in split.val)
+    params, data = [], []
+    for f, rows in enumerate(trains):
+        sc = scaling(x[rows][mask[rows]], y[rows][mask[rows]])
+        d = _rows(x, y, mask, rows, n_train) + _rows(x, y, mask, split.val[f], n_val)
+        for s in range(seeds):
+            params.append(init(jax.random.key(s), sc, (f, s)))
+            data.append(train.Data(*d))
+    fit = jax.jit(jax.vmap(lambda p, d: train.fit(p, d, cfg, apply=apply)))
+    res = fit(_stack(params), _stack(data))
+    pred = jax.jit(jax.vmap(apply, in_axes=(0, None)))(res.params, x)
+    shape = (len(split.labels), seeds)
+    reshape = lambda a: np.asarray(a).reshape(shape + np.shape(a)[1:])  # noqa: E731
+    return Trained(jax.tree.map(reshape, res.params), reshape(pred), reshape(res.best_step),
+                   reshape(res.failed_step))
+
+
+def _rows(x, y, mask, rows, n: int) -> tuple:
+    """The chosen rows' (x, y, weights), padded to n rows of weight 0: only they are
+    computed in training (a fold's other rows never enter its program)."""
+    idx = np.flatnonzero(rows)
+    sel = np.concatenate([idx, np.full(n - len(idx), idx[0])])
+    w = mask[sel] & (np.arange(n) < len(idx))[:, None]
+    return x[sel], y[sel], w.astype(np.float32)
+
+
+def heldout(pred: np.ndarray, split: Split) -> np.ndarray:
+    """(R, W) each row's prediction by the nets that held it out, the mean over seeds; NaN
+    for a row no fold holds out."""
+    mean = np.asarray(pred).mean(axis=1)  # (F, R, W)
+    out = np.full(mean.shape[1:], np.nan)
+    for f in range(mean.shape[0]):
+        out[split.test[f]] = mean[f][split.test[f]]
+    return out
+
+
+def fit_peak_map(x, y, split: Split, seeds: int, hidden, cfg) -> Trained:
+    """The paper's static map: an MLP per (fold, seed) trained on one peak per condition.
+
+    Args:
+        x: (R, C) the database inputs at each row's (condition's) peak window.
+        y: (R,) the peak PVV, g. split, seeds, cfg: as `fit_sequence_model`.
+        hidden: hidden-layer widths.
+
+    Returns:
+        `Trained` whose `pred` is (F, S, R, 1): the map at the peak inputs.
+    """
+    n_in = np.shape(x)[-1]
+    init = lambda key, sc, fs: mlp_init(key, n_in, tuple(hidden), scale=sc)  # noqa: E731
+    return fit_sequence_model(init, mlp_apply, np.asarray(x)[:, None, :], np.asarray(y)[:, None],
+                              np.ones((len(y), 1), bool), split, seeds, cfg)
+
+
+def offset_replay(params, x_long, t_long, time, y, mask, split: Split, offsets) -> tuple[np.ndarray, np.ndarray]:
+    """The quasi-static replay at the sequence's windows: each fold's peak map (mean over
+    seeds) on the inputs averaged over its long windows (`[analysis] window_revs`), moved
+    by an input-to-vibration offset, and interpolated to the short windows' centre times.
+    The offset is calibrated per fold on a grid, by the window RMS on the fold's training
+    and validation rows (never its held-out ones).
+
+    Args:
+        params: a `fit_peak_map` result's params (F, S, ...).
+        x_long: (R, V, C) inputs over the long windows. t_long: (R, V) their centre times, s.
+        time: (R, W) the sequence's window times, s. y: (R, W) measured PVV, g.
+        mask: (R, W) the sequence's real windows.
+        split: the folds. offsets: (G,) candidate offsets, s (> 0: the inputs lead).
+
+    Returns:
+        ((F, R, W) every fold's replay of every row at its offset, (F,) the offsets, s).
+    """
+    apply = jax.jit(jax.vmap(jax.vmap(mlp_apply, in_axes=(0, None)), in_axes=(0, None)))
+    long = np.asarray(apply(params, np.asarray(x_long, np.float32)), np.float64).mean(axis=1)  # (F, R, V)
+    offsets = np.asarray(offsets, float)
+    out, chosen = np.empty((len(long),) + np.shape(time)), np.empty(len(long))
+    for f in range(len(long)):
+        rows = ~split.test[f]
+        cand = np.stack([[np.interp(time[r] - o, t_long[r], long[f, r]) for r in range(len(time))]
+                         for o in offsets])  # (G, R, W)
+        err = ((cand - y)[:, rows] ** 2 * mask[rows]).sum(axis=(1, 2))
+        g = int(np.argmin(err))
+        out[f], chosen[f] = cand[g], offsets[g]
+    return out, chosen
+
+
+def identified_table(params: dict) -> dict:
+    """The dynamic model's identified response per (fold, seed) (`identified`), with the
+    slow pole's time constant: 1/(ω_n(ζ − √(ζ² − 1))) when overdamped, else 1/(ζω_n) (the
+    envelope's)."""
+    out = identified(params)
+    w, z = out["omega_n_rad_s"], out["zeta"]
+    over = z > 1
+    slow = np.where(over, 1.0 / (w * (z - np.sqrt(np.where(over, z * z - 1, 0.0)))), 1.0 / (z * w))
+    return {**out, "tau_slow_pole_s": slow}
+
+
+def dynamic_from(static: Trained, cfg) -> Callable:
+    """`init` for `fit_sequence_model` that starts the dynamic model from a window-static
+    model's fold nets and the config's response (`DynamicConfig` f_n_hz, zeta, delay_s)."""
+    def init(key, sc, fs):
+        f, s = fs
+        p = jax.tree.map(lambda a: a[f, s], static.params)
+        return dynamic_init(p, omega_n=2 * np.pi * cfg.f_n_hz, zeta=cfg.zeta, delay_s=cfg.delay_s)
+    return init
+
+
+def static_init(n_in: int, hidden) -> Callable:
+    """`init` for `fit_sequence_model`: an MLP on the fold's scaling."""
+    return lambda key, sc, fs: mlp_init(key, n_in, tuple(hidden), scale=sc)
+
+
+def recurrent_init(n_in: int, hidden: int) -> Callable:
+    """`init` for `fit_sequence_model`: a GRU model on the fold's scaling."""
+    return lambda key, sc, fs: rnn_init(key, n_in, hidden, scale=sc)
+
+
+APPLY = {"window_static": mlp_apply, "window_static_rates": mlp_apply, "dynamic": dynamic_apply, "rnn": rnn_apply}

@@ -1,0 +1,77 @@
+"""Held-out PVV through time judged as a flight simulator is qualified: FAA 14 CFR Part 60,
+Appendix C, table C2A, test 3.f.1 (vibrations, 1/rev and N/rev), beside the time-history
+and peak errors a researcher reads.
+
+Per condition the test passes when the simulated amplitude lies within +3 dB / −6 dB of the
+measured one (a ratio of 0.501 to 1.413), or within 10 % of the nominal vibration level in
+cruise; "correct trend" is rank agreement over conditions (Kendall's τ)."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.stats import kendalltau
+
+__all__ = ["FAA_RATIO", "faa_pass", "nominal_cruise", "row_peaks", "scores"]
+
+FAA_RATIO = (10 ** (-6 / 20), 10 ** (3 / 20))  # −6 dB, +3 dB: 0.501, 1.413
+
+
+def faa_pass(pred, measured, nominal_g: float) -> np.ndarray:
+    """Test 3.f.1 per condition: 0.501 <= pred/measured <= 1.413, or |pred − measured| <=
+    0.1 × the nominal cruise level, g."""
+    pred, measured = np.asarray(pred, float), np.asarray(measured, float)
+    ratio = pred / np.where(measured > 0, measured, np.nan)
+    return ((ratio >= FAA_RATIO[0]) & (ratio <= FAA_RATIO[1])) | (np.abs(pred - measured) <= 0.1 * nominal_g)
+
+
+def nominal_cruise(peaks, maneuvers, advance_ratio, band) -> float:
+    """The nominal vibration level in cruise, g: the median measured peak of the level
+    flights whose advance ratio lies in `band` ([lo, hi])."""
+    peaks, mu = np.asarray(peaks, float), np.asarray(advance_ratio, float)
+    pick = (np.asarray(maneuvers) == "level") & (mu >= band[0]) & (mu <= band[1])
+    if not pick.any():
+        raise ValueError(f"no level flight with an advance ratio in {list(band)}: the nominal cruise level of the FAA "
+                         "tolerance is taken from them (set dynamic.cruise_advance_ratio)")
+    return float(np.median(peaks[pick]))
+
+
+def row_peaks(values, mask, time) -> tuple[np.ndarray, np.ndarray]:
+    """Each row's largest value over its real windows and the time of that window, s."""
+    v = np.where(mask, values, -np.inf)
+    k = np.argmax(v, axis=1)
+    rows = np.arange(len(v))
+    return v[rows, k], np.asarray(time)[rows, k]
+
+
+def scores(pred, measured, mask, time, maneuvers, transients, nominal_g: float) -> dict:
+    """A model's held-out metrics over rows (conditions).
+
+    Args:
+        pred, measured: (R, W) predicted and measured PVV, g (rows of NaN prediction are
+            left out). mask: (R, W) real windows. time: (R, W) window times, s.
+        maneuvers: (R,) kinds. transients: the kinds whose time of peak is scored.
+        nominal_g: the nominal cruise level (`nominal_cruise`).
+
+    Returns:
+        rms_g and rms_transient_g (per-window time-history RMS), peak_err_rms_g,
+        peak_err_median_pct, within_10pct_share (peaks), time_of_peak_err_median_s
+        (transients), faa_pass_share and faa_pass_share_transient (per condition),
+        kendall_tau (peaks over conditions) and n_conditions.
+    """
+    pred, measured, mask = np.asarray(pred, float), np.asarray(measured, float), np.asarray(mask, bool)
+    keep = ~np.isnan(pred).any(axis=1)
+    pred, measured, mask, time = pred[keep], measured[keep], mask[keep], np.asarray(time)[keep]
+    trans = np.isin(np.asarray(maneuvers)[keep], list(transients))
+    err2 = np.where(mask, (pred - measured) ** 2, 0.0)
+    rms = lambda rows: float(np.sqrt(err2[rows].sum() / max(mask[rows].sum(), 1)))  # noqa: E731
+    pp, tp = row_peaks(pred, mask, time)
+    pm, tm = row_peaks(measured, mask, time)
+    rel = np.abs(pp - pm) / pm
+    ok = faa_pass(pp, pm, nominal_g)
+    nan_if_empty = lambda a, f: float(f(a)) if len(a) else float("nan")  # noqa: E731
+    return dict(rms_g=rms(np.ones(len(pred), bool)), rms_transient_g=rms(trans),
+                peak_err_rms_g=float(np.sqrt(np.mean((pp - pm) ** 2))),
+                peak_err_median_pct=float(100 * np.median(rel)), within_10pct_share=float(np.mean(rel <= 0.1)),
+                time_of_peak_err_median_s=nan_if_empty(np.abs(tp - tm)[trans], np.median),
+                faa_pass_share=float(ok.mean()), faa_pass_share_transient=nan_if_empty(ok[trans], np.mean),
+                kendall_tau=float(kendalltau(pp, pm).statistic), n_conditions=int(len(pred)))
