@@ -23,8 +23,8 @@ from . import compare
 from .scores import nominal_cruise, row_peaks, scores
 from .sequences import Sequences, window_sequences
 
-__all__ = ["EXPORTABLE", "PAPER_PULLUP", "Database", "comparison_table", "figures", "identified_rows", "predictions_table",
-           "prepare_database", "report", "run_comparison", "run_parts", "shown_conditions"]
+__all__ = ["EXPORTABLE", "PAPER_PULLUP", "Database", "comparison_table", "figures", "identified_rows",
+           "predictions_table", "prepare_database", "report", "run_comparison", "run_parts", "shown_conditions"]
 
 # Models the real-time element runs (`pvvjax export --element`): `best` is chosen among them.
 EXPORTABLE = ("quasi_static", "window_static", "dynamic")
