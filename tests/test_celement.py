@@ -161,3 +161,54 @@ def test_fmpy_simulation_equals_the_numpy_element(element, fmu, kind):
     assert n >= len(T) - 1 and res["ready"][-1]
     np.testing.assert_allclose(got[:, :2], want[:n, :2], rtol=0, atol=TOL)
     assert (got[:, 2] == want[:n, 2]).all()
+
+
+RESPONSE = dict(omega_n_rad_s=2 * np.pi * 0.5, zeta=0.4, delay_s=0.3)
+DYNAMIC = dict(window_revs=2.0, hop_revs=1.0, offset_s=0.0, stick_offset_s=0.0)
+
+
+@pytest.fixture(scope="module")
+def dynamic_element(element, tmp_path_factory):
+    """The same nets as a dynamic model's element: 2-rev windows and a delayed second-order
+    response, compiled as C (window limits widened to its window) and built as an FMU."""
+    spec = {**element["spec"], **DYNAMIC, "response": RESPONSE}
+    limits = CSourceLimits(window_revs=(2.0, 16.0))
+    folder = write_c_element(tmp_path_factory.mktemp("cdyn"), spec, element["nets"], limits, source="test nets")
+    lib = compile_shared([folder / "pvv_element.c"], folder / "libpvv.so",
+                         flags=("-O2", "-Wall", "-Wextra", "-pedantic", "-Werror"))
+    env = spec["envelope"]
+    reference = lambda: VibrationElement(element["nets"], DB_INPUTS["db1"], envelope=(env["lo"], env["hi"]),  # noqa
+                                         phase_rad=0.3, harmonics={1: (0.2, 0.5), 8: (0.1, -1.0)},
+                                         response=RESPONSE, **DYNAMIC)
+    return dict(spec=spec, lib=lib, reference=reference, limits=limits)
+
+
+@pytest.mark.parametrize("kind", ["pullup", "autorotation", "roll"])
+def test_dynamic_c_element_equals_the_numpy_element(element, dynamic_element, kind):
+    T, AZ, X = _frames(element["camp"], kind)
+    worst, _ = _compare(dynamic_element["reference"](), CElement(dynamic_element["lib"]), list(zip(T, AZ, X)))
+    assert worst < TOL
+    quasi = VibrationElement(element["nets"], DB_INPUTS["db1"], **DYNAMIC)
+    dyn = dynamic_element["reference"]()
+    assert max(abs(quasi.step(t, az, x).pvv_g - dyn.step(t, az, x).pvv_g) for t, az, x in zip(T, AZ, X)) > 1e-3
+
+
+def test_dynamic_fmu_simulation_equals_the_numpy_element(element, dynamic_element, tmp_path):
+    fmpy = pytest.importorskip("fmpy", reason="FMPy is in the sim extra (make test installs it)")
+    from pvvjax.realtime.fmu import build_fmu
+
+    fmu = build_fmu(tmp_path / "pvv_element.fmu", dynamic_element["spec"], element["nets"], dynamic_element["limits"])
+    T, AZ, X = _frames(element["camp"], "pullup")
+    dt = float(np.median(np.diff(T)))
+    md = fmpy.read_model_description(str(fmu))
+    names = [v.name for v in md.modelVariables if v.causality == "input"]
+    signal = np.zeros(len(T), [("time", float)] + [(k, float) for k in names])
+    signal["time"] = T
+    for k in names:
+        signal[k] = AZ if k == "azimuth_deg" else X[:, CHANNELS.index(k)]
+    res = fmpy.simulate_fmu(str(fmu), start_time=T[0], stop_time=T[-1], step_size=dt, output_interval=dt,
+                            input=signal, output=["pvv_g"])
+    ref = dynamic_element["reference"]()
+    want = np.array([ref.step(t, az, x).pvv_g for t, az, x in zip(T, AZ, X)])
+    got = res["pvv_g"][1:]
+    np.testing.assert_allclose(got, want[:len(got)], atol=TOL)

@@ -150,3 +150,34 @@ def test_element_imports_no_jax():
             "print('jax' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
+
+
+@pytest.mark.parametrize("kind", ["pullup", "autorotation"])
+def test_a_dynamic_element_equals_the_offline_response_of_the_replay(setup, kind):
+    """With the dynamic model's response, each window is the replay's static prediction
+    delayed and passed through the second-order response (`pvvjax.dynamics`), offline in
+    float64 against the element stepped frame by frame."""
+    from pvvjax.dynamics import delayed, second_order
+
+    camp, params, _ = setup
+    counter = camp.counters.index[camp.counters.maneuver == kind][0]
+    L, hop, resp = 2.0, 1.0, dict(omega_n_rad_s=2 * np.pi * 0.5, zeta=0.4, delay_s=0.3)
+    with jax.enable_x64(True):
+        batch = to_batch(camp, STATE_CHANNELS, [counter], dtype=np.float64)
+        rec = jax.tree.map(lambda a: a[0], R.prepare(batch))
+        settings = R.make_settings(batch, min_window_revs=L, max_window_revs=L, hop_revs=hop)
+        stacked = jax.tree.map(lambda *a: jnp.stack([jnp.asarray(v, jnp.float64) for v in a]), *params)
+        model = dict(params=stacked, idx=jnp.asarray(R.input_index("db1")))
+        rep = jax.jit(R.replay, static_argnames="settings")(model, rec, 0.0, L, settings=settings)
+        n = int(np.sum(np.asarray(rep.weight) > 0))
+        t, u = rep.time[:n], rep.predicted[:n]
+        offline = np.asarray(second_order(delayed(u, t, resp["delay_s"]), t, resp["omega_n_rad_s"], resp["zeta"]))
+    el = VibrationElement([NumpyNet(p) for p in params], DB_INPUTS["db1"], window_revs=L, hop_revs=hop,
+                          response=resp)
+    streamed = _stream(el, *_frames(camp, counter))
+    j = np.array([k for k in sorted(streamed) if k < n])
+    assert len(j) > 50
+    np.testing.assert_allclose([streamed[k] for k in j], offline[j], rtol=0, atol=1e-6)
+    static = _stream(VibrationElement([NumpyNet(p) for p in params], DB_INPUTS["db1"], window_revs=L,
+                                      hop_revs=hop), *_frames(camp, counter))
+    assert max(abs(streamed[k] - static[k]) for k in j) > 1e-3  # the response acts

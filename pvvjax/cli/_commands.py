@@ -174,6 +174,67 @@ def _export_element(args, res, sweep: Path) -> int:
     return 0
 
 
+def _export_dynamic_element(args, folder: Path) -> int:
+    """A model of a `pvvjax dynamic` comparison as a real-time element: its fold and seed nets
+    (their median) of the condition split, with the windows it was trained on, and for the
+    dynamic model the median identified response."""
+    import numpy as np
+    import pandas as pd
+
+    from ..analysis.databases import DB_INPUTS
+    from ..config import load_config
+    from ..dynamics import EXPORTABLE, identified, window_sequences
+    from ..realtime.export import element_spec
+    from ..realtime.npnet import read_npz
+
+    table = pd.read_parquet(folder / "comparison.parquet")
+    best = table[table.best].iloc[0]
+    model = args.model or best.model
+    database = best.database if args.model is None else args.database
+    if model not in EXPORTABLE:
+        raise ValueError(f"--model {model}: the element runs {', '.join(EXPORTABLE)}")
+    rows = table[(table.model == model) & (table.database == database)]
+    if rows.empty:
+        raise KeyError(f"{folder / 'comparison.parquet'}: no {model} model of {database}")
+    cfg = load_config(folder / "config.toml")
+    campaign, _ = resolve_campaign(cfg)
+    stacked, _ = read_npz(folder / "parts" / f"{database}-condition-{model}.params.npz")
+    folds, seeds = np.shape(stacked["y_scale"])
+    inputs = list(DB_INPUTS[database])
+    nets = [(_take_net(stacked, f, s), {"inputs": inputs, "model": model}) for f in range(folds)
+            for s in range(seeds)]
+    window, offset = cfg.dynamic.window_revs, 0.0
+    if model == "quasi_static":
+        window, offset = cfg.analysis.window_revs, float(rows.offset_s.iloc[0])
+    pred = pd.read_parquet(folder / "predictions.parquet", columns=["counter"])  # the records it was judged on
+    seq = window_sequences(campaign, inputs, window_revs=window, hop_revs=cfg.dynamic.hop_revs,
+                           counters=sorted(set(pred.counter)))
+    x = seq.inputs[seq.mask]
+    spec = element_spec([f"net_{i}.npz" for i in range(len(nets))], inputs, (x.min(axis=0), x.max(axis=0)), campaign,
+                        cfg.analysis.window_revs, window_revs=window, hop_revs=cfg.dynamic.hop_revs, offset_s=offset,
+                        stick_offset_s=0.0)
+    if model == "dynamic":
+        ident = identified({"response": {k: np.asarray(v) for k, v in stacked["response"].items()}})
+        spec["response"] = {k: float(np.median(ident[n])) for k, n in (("omega_n_rad_s", "omega_n_rad_s"),
+                                                                        ("zeta", "zeta"), ("delay_s", "delay_s"))}
+        nets = [({k: v for k, v in p.items() if k != "response"}, m) for p, m in nets]
+    source = f"{len(nets)} {model} nets ({database}) of {folder}"
+    out = _write_element_format(args, spec, nets, source)
+    print(f"exported a real-time element ({args.format}): {source}, window {window:g} revs, hop "
+          f"{cfg.dynamic.hop_revs:g} revs" + (f", response {spec['response']}" if "response" in spec else "")
+          + f", to {out}")
+    return 0
+
+
+def _take_net(tree, f: int, s: int):
+    """Net (f, s) of parameters stacked over folds and seeds (NumPy arrays)."""
+    if isinstance(tree, dict):
+        return {k: _take_net(v, f, s) for k, v in tree.items()}
+    if isinstance(tree, tuple):
+        return tuple(_take_net(v, f, s) for v in tree)
+    return tree[f, s]
+
+
 def _write_element_format(args, spec: dict, nets: list, source: str) -> Path:
     """The element in the format asked for: the NumPy folder, the C source, or the FMU."""
     import json
@@ -186,7 +247,8 @@ def _write_element_format(args, spec: dict, nets: list, source: str) -> Path:
     if args.format == "numpy":
         return write_element(args.out, nets, spec)
     nets = [NumpyNet(params, meta) for params, meta in nets]
-    limits = CSourceLimits(max_rate_hz=args.max_rate)
+    lo, hi = CSourceLimits().window_revs
+    limits = CSourceLimits(max_rate_hz=args.max_rate, window_revs=(min(lo, spec["window_revs"]), hi))
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "settings.json").write_text(json.dumps({**spec, "nets": source}, indent=2))  # what was built in
@@ -202,11 +264,18 @@ def cmd_export(args) -> int:
     from ..nets.sweep import finished_sweep, load_nets
     from ..realtime import npnet
 
+    sweep = Path(args.sweep)
+    if (sweep / "comparison.parquet").is_file():  # the folder of `pvvjax dynamic`
+        if not args.element:
+            raise ValueError(f"{sweep}: a comparison of `pvvjax dynamic`; export its models with --element")
+        own_folder(args.out, "pvvjax export")
+        return _export_dynamic_element(args, sweep)
+    if args.model is not None:
+        raise ValueError(f"--model {args.model}: names a model of a `pvvjax dynamic` folder; {sweep} is a sweep")
     if args.element:
         _check_element_settings(args)
     elif args.format != "numpy":
         raise ValueError(f"--format {args.format}: a format of the real-time element; add --element")
-    sweep = Path(args.sweep)
     res = finished_sweep(sweep)
     own_folder(args.out, "pvvjax export")
     if args.element:
@@ -405,10 +474,14 @@ def cmd_dynamic(args) -> int:
     if args.seeds is not None:
         cfg = cfg.with_(dynamic=dataclasses.replace(cfg.dynamic, seeds=args.seeds))
     enable_compilation_cache()
-    campaign, _ = resolve_campaign(cfg, args.campaign)
+    campaign, folder = resolve_campaign(cfg, args.campaign)
     out = claim_folder(args.out, dict(command="dynamic", dynamic=to_dict(cfg.dynamic), train=to_dict(cfg.train),
                                       analysis=to_dict(cfg.analysis), seed=cfg.seed,
                                       columns=to_dict(cfg.campaign)["columns"]), campaign.fingerprint)
+    from ..io import write_config
+
+    write_config(cfg.with_(campaign=dataclasses.replace(cfg.campaign, path=str(folder), synthetic="")),
+                 out / "config.toml")  # what `export --element` reads the campaign and windows from
     table = run_comparison(campaign, cfg, out)
     cols = ["database", "model", "rms_g", "peak_err_rms_g", "time_of_peak_err_median_s", "faa_pass_share",
             "kendall_tau", "best"]

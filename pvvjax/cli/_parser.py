@@ -138,7 +138,11 @@ def _net_commands(sub):
                        description="Copy a net's parameters and the NumPy evaluator (no JAX) into a folder; with "
                                    "--element, the real-time vibration element as a NumPy folder, C99 source or an "
                                    "FMI 2.0 co-simulation FMU.")
-    s.add_argument("sweep", help="sweep folder (with results.parquet and params/)")
+    s.add_argument("sweep", help="sweep folder (with results.parquet and params/), or with --element the folder of "
+                                 "`pvvjax dynamic` (its best model, or --model)")
+    s.add_argument("--model", default=None, choices=["quasi_static", "window_static", "dynamic"],
+                   help="element from a `pvvjax dynamic` folder: the model, of --database (default: the comparison's "
+                        "best; its window, hop and offset are the comparison's)")
     s.add_argument("--out", required=True, help="output folder")
     s.add_argument("--net", default=None, help="net id (default: the best held-out net of --database); with "
                                                "--element, the nets of its architecture")

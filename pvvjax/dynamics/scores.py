@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.stats import kendalltau
 
-__all__ = ["FAA_RATIO", "faa_pass", "nominal_cruise", "row_peaks", "scores"]
+__all__ = ["FAA_RATIO", "faa_pass", "nominal_cruise", "heldout_scores", "row_peaks"]
 
 FAA_RATIO = (10 ** (-6 / 20), 10 ** (3 / 20))  # −6 dB, +3 dB: 0.501, 1.413
 
@@ -43,7 +43,7 @@ def row_peaks(values, mask, time) -> tuple[np.ndarray, np.ndarray]:
     return v[rows, k], np.asarray(time)[rows, k]
 
 
-def scores(pred, measured, mask, time, maneuvers, transients, nominal_g: float) -> dict:
+def heldout_scores(pred, measured, mask, time, maneuvers, transients, nominal_g: float) -> dict:
     """A model's held-out metrics over rows (conditions).
 
     Args:

@@ -20,7 +20,7 @@ from ..interrupts import check_interrupt
 from ..io import markdown_table
 from ..realtime.npnet import read_npz, write_npz
 from . import compare
-from .scores import nominal_cruise, row_peaks, scores
+from .scores import heldout_scores, nominal_cruise, row_peaks
 from .sequences import Sequences, window_sequences
 
 __all__ = ["EXPORTABLE", "PAPER_PULLUP", "Database", "comparison_table", "figures", "identified_rows",
@@ -140,7 +140,7 @@ def run_parts(campaign, cfg, folder: Path, log=print) -> dict:
 
 
 def comparison_table(parts: dict, cfg) -> pd.DataFrame:
-    """One row per (database, model): the held-out scores by condition (`scores.scores`),
+    """One row per (database, model): the held-out scores by condition (`scores.heldout_scores`),
     the window RMS with each maneuver kind held out, the identified response (median over
     folds and seeds, with its range), and `best`: the exportable model (`EXPORTABLE`) of the
     lowest window RMS."""
@@ -148,11 +148,11 @@ def comparison_table(parts: dict, cfg) -> pd.DataFrame:
     for db, (d, by_split) in parts.items():
         seq = d.seq
         for model, (t, arrays) in by_split["condition"].items():
-            row = dict(database=db, model=model, **scores(arrays["heldout"], seq.amplitude, seq.mask, seq.time,
+            row = dict(database=db, model=model, **heldout_scores(arrays["heldout"], seq.amplitude, seq.mask, seq.time,
                                                           seq.maneuvers, cfg.dynamic.transients, d.nominal_g))
             if "maneuver" in by_split:
                 held = by_split["maneuver"][model][1]["heldout"]
-                row["rms_kind_holdout_g"] = scores(held, seq.amplitude, seq.mask, seq.time, seq.maneuvers,
+                row["rms_kind_holdout_g"] = heldout_scores(held, seq.amplitude, seq.mask, seq.time, seq.maneuvers,
                                                    cfg.dynamic.transients, d.nominal_g)["rms_g"]
             row["nominal_cruise_g"] = d.nominal_g
             row["median_best_step"] = float(np.median(arrays["best_step"]))

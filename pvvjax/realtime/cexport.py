@@ -64,6 +64,23 @@ def buffer_capacity(limits: CSourceLimits, nominal_rpm: float) -> int:
     return int(math.ceil((limits.window_revs[1] + 4.0) * per_rev + offsets * limits.max_rate_hz)) + 16
 
 
+def history_capacity(spec: dict, limits: CSourceLimits, nominal_rpm: float) -> int:
+    """Windows a dynamic element keeps for its delay: those within the delay at a quarter of
+    the exported hop and twice the nominal rotor speed, and 4 to spare (1 without a response)."""
+    if not spec.get("response"):
+        return 1
+    per_s = 2.0 * nominal_rpm / 60.0 / (0.25 * spec["hop_revs"])
+    return int(math.ceil(float(spec["response"]["delay_s"]) * per_s)) + 4
+
+
+def _response_defines(spec: dict) -> dict:
+    """The dynamic response's constants (`PVV_RESPONSE` 0: a quasi-static element)."""
+    r = spec.get("response")
+    if not r:
+        return dict(RESPONSE=0, OMEGA_N="0.0", ZETA="0.0", DELAY_S="0.0")
+    return dict(RESPONSE=1, OMEGA_N=_num(r["omega_n_rad_s"]), ZETA=_num(r["zeta"]), DELAY_S=_num(r["delay_s"]))
+
+
 def _num(v) -> str:
     v = float(v)
     if math.isnan(v):
@@ -142,7 +159,7 @@ def c_sources(spec: dict, nets: list, limits: CSourceLimits = CSourceLimits(), s
                    ROTOR_RADIUS_FT=_num(ac["rotor_radius_ft"]), G_FT_S2=_num(ac["g_ft_s2"]),
                    DEFAULT_OFFSET_S=_num(spec["offset_s"]), DEFAULT_STICK_OFFSET_S=_num(spec["stick_offset_s"]),
                    DEFAULT_WINDOW_REVS=_num(spec["window_revs"]), DEFAULT_HOP_REVS=_num(spec["hop_revs"]),
-                   N_INPUTS=d, N_HARMONICS=len(harm), N_NETS=len(nets))
+                   N_INPUTS=d, N_HARMONICS=len(harm), N_NETS=len(nets), **_response_defines(spec))
     constants = "".join(f"#define PVV_{k} {v}\n" for k, v in defines.items()) + "\n"
     constants += f"/* inputs: {', '.join(inputs)} */\n"
     constants += _array("PVV_INPUT_FEATURE", [FEATURES.index(k) for k in inputs], "int")
@@ -159,7 +176,8 @@ def c_sources(spec: dict, nets: list, limits: CSourceLimits = CSourceLimits(), s
                   MIN_RPM=_num(limits.min_rpm_ratio * ac["nominal_rpm"]), MIN_WINDOW_REVS=_num(lo),
                   MAX_WINDOW_REVS=_num(hi), MAX_OFFSET_S=_num(limits.max_offset_s),
                   MAX_STICK_OFFSET_S=_num(limits.max_stick_offset_s),
-                  CAPACITY=str(buffer_capacity(limits, ac["nominal_rpm"])))
+                  CAPACITY=str(buffer_capacity(limits, ac["nominal_rpm"])),
+                  HIST=str(history_capacity(spec, limits, ac["nominal_rpm"])))
     h = _fill((_CSRC / "pvv_element.h").read_text(), header)
     c = _fill((_CSRC / "pvv_element.c").read_text(), dict(SOURCE=header["SOURCE"], CONSTANTS=constants, NETS=nets_src))
     return {"pvv_element.h": h, "pvv_element.c": c}

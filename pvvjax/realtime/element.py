@@ -13,6 +13,12 @@ first frame past the window's end (its time t(b_j) is then known); `pvv_g` holds
 ready window, and the seat-shake amplitude ramps from the previous value to it over one
 hop, so that the shaker never steps.
 
+With a `response` (the dynamic model of `pvvjax dynamic`), each window's prediction is the
+static map's value passed through a delay and a unit-gain second-order response along the
+window times, stepped exactly as `pvvjax.dynamics.second_order` integrates it (Tustin, from
+rest at the first window): in trimmed flight it equals the static map, through a maneuver it
+lags and rings as identified.
+
 Frames are stored as they come (time need not be uniform: jitter, frame-rate changes and
 missed frames only change the samples the windows integrate), old frames are dropped once
 no future window needs them, and a rotor-speed change is followed through the azimuth.
@@ -93,10 +99,12 @@ class VibrationElement:
         aircraft: dict of rotor_radius_ft, g_ft_s2 and blades N (UH-60A defaults; other keys
             are ignored).
         clip: clip inputs to the envelope (always flagged).
+        response: None (quasi-static), or dict of omega_n_rad_s, zeta and delay_s: the
+            dynamic model's response after the nets' median.
     """
 
     def __init__(self, nets, inputs, *, window_revs=8.0, hop_revs=1.0, offset_s=0.0, stick_offset_s=0.0,
-                 phase_rad=0.0, envelope=None, harmonics=None, aircraft=None, clip=True):
+                 phase_rad=0.0, envelope=None, harmonics=None, aircraft=None, clip=True, response=None):
         self.nets = list(nets)
         self.inputs = tuple(inputs)
         self.L, self.hop = float(window_revs), float(hop_revs)
@@ -107,6 +115,8 @@ class VibrationElement:
         self.radius, self.g, self.blades = float(ac["rotor_radius_ft"]), float(ac["g_ft_s2"]), int(ac["blades"])
         self.envelope = None if envelope is None else (np.asarray(envelope[0], float), np.asarray(envelope[1], float))
         self.clip = clip
+        self.response = None if response is None else {k: float(response[k])
+                                                         for k in ("omega_n_rad_s", "zeta", "delay_s")}
         self._stick_cols = [CHANNELS.index(s) for s in _STICKS]
         self.reset()
 
@@ -150,6 +160,35 @@ class VibrationElement:
         self._ready = False
         self._dropped = False  # the first stored frame is no longer the record's first
         self._rpm_last = 0.0
+        self._hist_t, self._hist_u = [], []  # the static values of recent windows (the delay's past)
+        self._dyn = None  # (time, delayed input, y, y') of the latest window
+
+    def _respond(self, u: float, t: float) -> float:
+        """The response's output at window time t, from the static value u (one Tustin step
+        of `dynamics.second_order` on the delayed input, as `dynamics.delayed` interpolates)."""
+        if self.response is None:
+            return u
+        d = self.response["delay_s"]
+        if not self._hist_t:
+            self._first = (t, u)
+        self._hist_t.append(t)
+        self._hist_u.append(u)
+        while len(self._hist_t) > 2 and self._hist_t[1] <= t - d:  # older windows lie before every future delay
+            self._hist_t.pop(0)
+            self._hist_u.pop(0)
+        td = t - d
+        ud = self._first[1] if td <= self._first[0] else float(np.interp(td, self._hist_t, self._hist_u))
+        if self._dyn is None:
+            self._dyn = (t, ud, ud, 0.0)
+            return ud
+        t0, ud0, y, v = self._dyn
+        w2, c = self.response["omega_n_rad_s"] ** 2, 2.0 * self.response["zeta"] * self.response["omega_n_rad_s"]
+        a = 0.5 * (t - t0)
+        r0, r1 = y + a * v, v - a * w2 * y - a * c * v + a * w2 * (ud0 + ud)
+        det = 1.0 + a * c + a * a * w2
+        y, v = ((1.0 + a * c) * r0 + a * r1) / det, (-a * w2 * r0 + r1) / det
+        self._dyn = (t, ud, y, v)
+        return y
 
     def _push(self, t, r, x):
         if self._n == len(self._t):  # grow (rarely: old frames are dropped as windows complete)
@@ -253,6 +292,11 @@ class VibrationElement:
             x[self._stick_cols] = means[1][self._stick_cols]
         z, flag = self._net_inputs(x)
         pred = float(np.median([float(np.ravel(net(z[None]))[0]) for net in self.nets]))
+        if self.response is not None:  # at the window's weighted centre time, as the offline analysis
+            h = width
+            w = h * edge_weight((r - a) / h) * edge_weight((b - r) / h)
+            w = np.where(np.isfinite(w), w, 0.0)
+            pred = self._respond(pred, float(w @ t / w.sum()))
         self._prev = self._output(False).amplitude_g if self._ready else pred
         self._pvv, self._flag, self._ready = pred, flag, True
         self._ramp_rev = r[-1]

@@ -128,6 +128,71 @@ static double median_prediction(const double *z)
     return PVV_N_NETS % 2 ? p[PVV_N_NETS / 2] : 0.5 * (p[PVV_N_NETS / 2 - 1] + p[PVV_N_NETS / 2]);
 }
 
+#if PVV_RESPONSE
+/* The response's output at window time tc from the static value u: the delayed input
+ * interpolated among recent windows (the first value held before it), then one trapezoidal
+ * (Tustin) step of y'' + 2 zeta wn y' + wn^2 y = wn^2 u, from rest at the first window. */
+static double respond(pvv_element *e, double u, double tc)
+{
+    const double w2 = PVV_OMEGA_N * PVV_OMEGA_N, c = 2.0 * PVV_ZETA * PVV_OMEGA_N;
+    double td = tc - PVV_DELAY_S, ud, a, r0, r1, det, y, v;
+    int i;
+    if (e->nh == 0) {
+        e->first_t = tc;
+        e->first_u = u;
+    }
+    if (e->nh == PVV_HIST) {  /* windows faster than sized for: lose the oldest, say so */
+        for (i = 1; i < e->nh; i++) { e->hist_t[i - 1] = e->hist_t[i]; e->hist_u[i - 1] = e->hist_u[i]; }
+        e->nh -= 1;
+        e->overflow = 1;
+    }
+    e->hist_t[e->nh] = tc;
+    e->hist_u[e->nh] = u;
+    e->nh += 1;
+    while (e->nh > 2 && e->hist_t[1] <= td) {  /* older windows lie before every future delay */
+        for (i = 1; i < e->nh; i++) { e->hist_t[i - 1] = e->hist_t[i]; e->hist_u[i - 1] = e->hist_u[i]; }
+        e->nh -= 1;
+    }
+    ud = td <= e->first_t ? e->first_u : interp(td, e->hist_t, e->hist_u, e->nh);
+    if (!e->has_dyn) {
+        e->has_dyn = 1;
+        e->dyn_t = tc;
+        e->dyn_ud = e->dyn_y = ud;
+        e->dyn_v = 0.0;
+        return ud;
+    }
+    a = 0.5 * (tc - e->dyn_t);
+    r0 = e->dyn_y + a * e->dyn_v;
+    r1 = e->dyn_v - a * w2 * e->dyn_y - a * c * e->dyn_v + a * w2 * (e->dyn_ud + ud);
+    det = 1.0 + a * c + a * a * w2;
+    y = ((1.0 + a * c) * r0 + a * r1) / det;
+    v = (-a * w2 * r0 + r1) / det;
+    e->dyn_t = tc;
+    e->dyn_ud = ud;
+    e->dyn_y = y;
+    e->dyn_v = v;
+    return y;
+}
+
+/* The window [a, b)'s time weighted as its channel means (the offline analysis's centre time). */
+static double centre_time(const pvv_element *e, double a, double b)
+{
+    const int n = e->n;
+    const double *r = e->r;
+    double wsum = 0.0, tw = 0.0;
+    int i;
+    for (i = 0; i < n; i++) {
+        double h = i == 0 ? (e->dropped ? NAN : r[1] - r[0])
+                 : (i == n - 1 ? r[n - 1] - r[n - 2] : 0.5 * ((r[i] - r[i - 1]) + (r[i + 1] - r[i])));
+        double w = h * edge_weight((r[i] - a) / h) * edge_weight((b - r[i]) / h);
+        if (!finite(w) || w == 0.0) continue;
+        wsum += w;
+        tw += w * e->t[i];
+    }
+    return tw / wsum;
+}
+#endif
+
 /* Predict the next window if the stored frames cover it; returns 1 if one was predicted. */
 static int try_window(pvv_element *e)
 {
@@ -176,6 +241,9 @@ static int try_window(pvv_element *e)
     flag = net_inputs(e, mean[0], z);
     {
         double pred = median_prediction(z);
+#if PVV_RESPONSE
+        pred = respond(e, pred, centre_time(e, a, b));
+#endif
         e->prev = e->ready ? output(e, 0).amplitude_g : pred;
         e->pvv = pred;
     }
@@ -214,6 +282,7 @@ void pvv_reset(pvv_element *e)
     e->wtime = NAN;
     e->j = 0;
     e->has_az = e->has_start = e->flag = e->ready = e->dropped = e->overflow = 0;
+    e->nh = e->has_dyn = 0;
 }
 
 int pvv_init(pvv_element *e, const pvv_settings *s)

@@ -5,7 +5,9 @@
  * computes: windows of `window_revs` rotor revolutions every `hop_revs`, the inputs averaged over
  * the same window moved `offset_s` earlier (the sticks `stick_offset_s` more), the median of the
  * trained nets, inputs clipped to the training envelope and flagged, and a seat shake at the rotor
- * azimuth whose amplitude ramps over one hop.
+ * azimuth whose amplitude ramps over one hop. An element of a dynamic model (PVV_RESPONSE 1) passes
+ * each window's median through a delay and a unit-gain second-order response along the window
+ * times, as the NumPy element does.
  *
  * Needs <math.h> only. The element is one struct of fixed size: declare it static or allocate it
  * once (pvv_element_size() bytes); no call allocates memory.
@@ -54,6 +56,8 @@ enum pvv_channel {
 #define PVV_MAX_OFFSET_S @MAX_OFFSET_S@
 #define PVV_MAX_STICK_OFFSET_S @MAX_STICK_OFFSET_S@
 #define PVV_CAPACITY @CAPACITY@
+/* Windows the dynamic response keeps for its delay (1 where the element has no response). */
+#define PVV_HIST @HIST@
 
 #define PVV_OK 0
 #define PVV_EBADSETTINGS (-1)
@@ -87,6 +91,9 @@ typedef struct pvv_element {
     double az, rpm_last, start, pvv, prev, ramp_rev, wtime;
     long j;
     int has_az, has_start, flag, ready, dropped, overflow;
+    /* the dynamic response: recent windows' static values, the first, and the state */
+    double hist_t[PVV_HIST], hist_u[PVV_HIST], first_t, first_u, dyn_t, dyn_ud, dyn_y, dyn_v;
+    int nh, has_dyn;
 } pvv_element;
 
 /* The settings the element was exported with. */
