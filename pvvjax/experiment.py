@@ -232,6 +232,25 @@ def prepare_sweep(config, out=None):
     return cfg, dbs, res, out
 
 
+def run_dynamic(cfg, campaign, campaign_dir, out, log=print) -> tuple:
+    """`pvvjax dynamic`: claim `out` for the config's `[dynamic]`, `[train]`, `[analysis]` and
+    seed on this campaign, record the config there (`config.toml`, with the campaign's
+    folder: what `export --element` reads) and train, resume and compare every model
+    (`dynamics.run_comparison`). Returns (the folder, the comparison table)."""
+    import dataclasses
+
+    from ._strict import to_dict
+    from .dynamics import run_comparison
+    from .io import claim_folder, write_config
+
+    settings = dict(command="dynamic", dynamic=to_dict(cfg.dynamic), train=to_dict(cfg.train),
+                    analysis=to_dict(cfg.analysis), seed=cfg.seed, columns=to_dict(cfg.campaign)["columns"])
+    out = claim_folder(out, settings, campaign.fingerprint)
+    write_config(cfg.with_(campaign=dataclasses.replace(cfg.campaign, path=str(campaign_dir), synthetic="")),
+                 out / "config.toml")
+    return out, run_comparison(campaign, cfg, out, log)
+
+
 def run_main_job(cfg, source: str | Path = "") -> Path:
     """The main job of an experiment config, end to end: the campaign, its databases and the
     paper's Figs 1-9, then (as `cfg.run` asks) the sweep of nets beside the paper's Figs 10-12
@@ -272,13 +291,14 @@ def run_main_job(cfg, source: str | Path = "") -> Path:
     studies = replay and cfg.run.studies
     stages = ["campaign", "databases", "figures"] + (["networks"] if cfg.run.networks else []) + (
         ["replay"] if replay else []) + (["studies"] if studies else []) + (
-        ["discovery"] if cfg.run.discovery_scenario else [])
+        ["discovery"] if cfg.run.discovery_scenario else []) + (["dynamic"] if cfg.run.dynamic else [])
+
     def step(name, text):
         check_interrupt()  # between stages: a Ctrl-C lost inside one stops the job here
         print(f"[{stages.index(name) + 1}/{len(stages)}] {text}")
 
     step("campaign", f"campaign ({'embedded synthetic' if not cfg.campaign.path else cfg.campaign.path})")
-    campaign, _ = resolve_campaign(cfg)
+    campaign, campaign_dir = resolve_campaign(cfg)
     claim_folder(out, to_dict(cfg), campaign.fingerprint)
     step("databases", "harmonic analysis, peak PVV, databases 1-3")
     dbs = build_databases(campaign, cfg.analysis)
@@ -305,10 +325,16 @@ def run_main_job(cfg, source: str | Path = "") -> Path:
     if cfg.run.discovery_scenario:
         step("discovery", f"discovery on the hidden-effect scenario {cfg.run.discovery_scenario}")
         disc = _run_discovery(cfg, out / "discovery")
+    dyn = None
+    if cfg.run.dynamic:
+        step("dynamic", f"PVV through time: {', '.join(cfg.dynamic.models)} on {', '.join(cfg.dynamic.databases)}, "
+                        f"{cfg.dynamic.seeds} seeds x {cfg.dynamic.folds} folds")
+        enable_compilation_cache()
+        dyn = run_dynamic(cfg, campaign, campaign_dir, out / "dynamic")[1]
     checks = pd.concat([c for c in checks if c is not None and len(c)], ignore_index=True)
     write_table(checks, out / "paper_comparison", cfg)
     report = _write_report(cfg, out, summary, figures, paper_figs, checks, nets, reps, sections, disc,
-                           time.perf_counter() - t0)
+                           time.perf_counter() - t0, dyn)
     print(f"done in {time.perf_counter() - t0:.1f} s; results in {out}")
     print(f"report: {report}")
     return report
@@ -412,8 +438,24 @@ def _run_discovery(cfg, out: Path):
     return res, hidden
 
 
+def _dynamic_section(table) -> list[str]:
+    """The report's section of `pvvjax dynamic`'s comparison (in `dynamic/`)."""
+    from .io import markdown_table
+
+    cols = ["database", "model", "rms_g", "rms_transient_g", "peak_err_rms_g", "time_of_peak_err_median_s",
+            "faa_pass_share", "kendall_tau", "rms_kind_holdout_g", "best"]
+    lines = ["## PVV through time: dynamic models against the quasi-static map", "",
+             "Held out by condition; `rms_kind_holdout_g` holds out a maneuver kind at a time; FAA Part 60 test "
+             "3.f.1 pass share per condition (+3/-6 dB, or 10 % of the nominal cruise level). Full tables, the "
+             "identified response and every window: [dynamic/report.md](dynamic/report.md).", "",
+             markdown_table(table[[c for c in cols if c in table]], "{:.4g}"), ""]
+    for db in dict.fromkeys(table.database):
+        lines += [f"![through time, {db}](dynamic/figures/through_time_{db}.png)", ""]
+    return lines
+
+
 def _write_report(cfg, out: Path, summary: str, figures, paper_figs, checks, nets, reps, sections, disc,
-                  seconds: float) -> Path:
+                  seconds: float, dyn=None) -> Path:
     """report.md (and report.html) of the main job: every number beside the paper's, the
     paper's figures and tables reproduced, the studies and the discovery scenario."""
     from .paper.comparison import comparison_markdown
@@ -427,7 +469,9 @@ def _write_report(cfg, out: Path, summary: str, figures, paper_figs, checks, net
              + (" · [networks](#networks-paper-figs-10-12-table-1)" if nets else "")
              + (" · [replay](#quasi-static-replay-of-the-pull-up-11022-paper-figs-13-14)" if reps else "")
              + (" · [studies](#studies-the-paper-left-open)" if sections else "")
-             + (" · [discovery](#discovery-on-a-hidden-effect-scenario)" if disc else ""), "",
+             + (" · [discovery](#discovery-on-a-hidden-effect-scenario)" if disc else "")
+             + (" · [PVV through time](#pvv-through-time-dynamic-models-against-the-quasi-static-map)"
+                if dyn is not None else ""), "",
              "## Every number beside the paper's", "", comparison_markdown(checks),
              "The same rows: `paper_comparison.csv`.", "",
              "## Databases 1-3", "", "```", summary, "```", "",
@@ -465,6 +509,8 @@ def _write_report(cfg, out: Path, summary: str, figures, paper_figs, checks, net
                   "![residual map](discovery/figures/residual_map.png)", ""]
         for e in js["effects"]:
             lines += [f"![effect {e['rank']}](discovery/figures/effect_{e['rank']}.png)", ""]
+    if dyn is not None:
+        lines += _dynamic_section(dyn)
     path = out / "report.md"
     path.write_text("\n".join(lines))
     if cfg.run.html:

@@ -190,3 +190,20 @@ def test_export_takes_the_best_model_or_a_named_one_into_the_element(dynamic_run
     assert ("response" in json.loads((tmp_path / "best" / "element.json").read_text())) == (best == "dynamic")
     assert main(["export", str(out), "--element", "--model", "rnn", "--out", str(tmp_path / "rnn")]) == 2
     assert main(["export", str(out), "--out", str(tmp_path / "plain")]) == 2  # a comparison exports elements only
+
+
+def test_main_job_reports_the_dynamic_stage(tmp_path, small_campaign_dir, capsys):
+    from pvvjax.cli import main
+
+    cfg = tmp_path / "d.toml"
+    cfg.write_text(f'''name = "d"\nout_dir = "{tmp_path.as_posix()}"
+[campaign]\npath = "{small_campaign_dir.as_posix()}"
+[run]\ndynamic = true\nhtml = false
+[train]\nmax_steps = 50\neval_every = 25
+[dynamic]\nmodels = ["quasi_static", "window_static", "dynamic"]\nseeds = 1\nfolds = 3\nkind_holdout = false\n''')
+    assert main(["run", str(cfg)]) == 0
+    assert "[4/4] PVV through time" in capsys.readouterr().out
+    report = (tmp_path / "d" / "report.md").read_text()
+    assert "## PVV through time" in report and "dynamic/figures/through_time_db1.png" in report
+    table = pd.read_csv(tmp_path / "d" / "dynamic" / "comparison.csv")
+    assert list(table.model) == ["quasi_static", "window_static", "dynamic"] and "rms_kind_holdout_g" not in table

@@ -466,8 +466,8 @@ def cmd_realtime(args) -> int:
 
 
 def cmd_dynamic(args) -> int:
-    """Train and compare the models of PVV through time (`dynamics.study.run_comparison`)."""
-    from ..dynamics.study import run_comparison
+    """Train and compare the models of PVV through time (`experiment.run_dynamic`)."""
+    from ..experiment import run_dynamic
 
     t0 = time.perf_counter()
     cfg = _experiment(args)
@@ -475,14 +475,7 @@ def cmd_dynamic(args) -> int:
         cfg = cfg.with_(dynamic=dataclasses.replace(cfg.dynamic, seeds=args.seeds))
     enable_compilation_cache()
     campaign, folder = resolve_campaign(cfg, args.campaign)
-    out = claim_folder(args.out, dict(command="dynamic", dynamic=to_dict(cfg.dynamic), train=to_dict(cfg.train),
-                                      analysis=to_dict(cfg.analysis), seed=cfg.seed,
-                                      columns=to_dict(cfg.campaign)["columns"]), campaign.fingerprint)
-    from ..io import write_config
-
-    write_config(cfg.with_(campaign=dataclasses.replace(cfg.campaign, path=str(folder), synthetic="")),
-                 out / "config.toml")  # what `export --element` reads the campaign and windows from
-    table = run_comparison(campaign, cfg, out)
+    out, table = run_dynamic(cfg, campaign, folder, args.out)
     cols = ["database", "model", "rms_g", "peak_err_rms_g", "time_of_peak_err_median_s", "faa_pass_share",
             "kendall_tau", "best"]
     print(table[cols].round(4).to_string(index=False))

@@ -293,6 +293,8 @@ class RunConfig:
             kind, the window length (gradient and brute-force grid) and a stick lag.
         discovery_scenario: a generator config (TOML) whose campaign hides an effect; the
             main job runs the discovery workflow on it ("": no discovery stage).
+        dynamic: the models of PVV through time beside the quasi-static map ([dynamic];
+            `pvvjax dynamic` into `OUT/dynamic`), with its table and figures in the report.
         html: also write report.html beside report.md.
     """
 
@@ -300,4 +302,5 @@ class RunConfig:
     replay: bool = True
     studies: bool = True
     discovery_scenario: str = ""
+    dynamic: bool = False
     html: bool = True
