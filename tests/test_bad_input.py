@@ -322,6 +322,17 @@ def _cli_out_in_a_campaign(tmp_path):
     return ["build-db", "--campaign", str(camp), "--out", str(camp / "db")], f"lies inside the campaign folder {camp}"
 
 
+def _cli_dynamic_without_cruise(tmp_path):
+    (tmp_path / "cfg.toml").write_text("[dynamic]\nfolds = 3\nseeds = 1\n[train]\nmax_steps = 10\n")
+    return ["dynamic", "--campaign", str(write_tiny(tmp_path / "c")), "--config", str(tmp_path / "cfg.toml"),
+            "--out", str(tmp_path / "d")], "no level flight with an advance ratio in [0.25, 0.35]"
+
+
+def _cli_export_comparison_without_element(tmp_path):
+    (tmp_path / "comparison.parquet").write_text("")
+    return ["export", str(tmp_path), "--out", str(tmp_path / "e")], "export its models with --element"
+
+
 def _element(flag, value, needle):
     def case(tmp_path):
         return ["export", str(tmp_path), "--element", flag, value, "--out", str(tmp_path / "e")], needle
@@ -330,6 +341,9 @@ def _element(flag, value, needle):
 
 # kind -> case(tmp_path) -> (argv, what the message names). Exit 2, no traceback.
 CLI_KINDS = {
+    "dynamic seeds of zero": lambda tmp_path: (["dynamic", "--out", str(tmp_path / "d"), "--seeds", "0"], "--seeds"),
+    "dynamic on a campaign without cruise flights": _cli_dynamic_without_cruise,
+    "export of a dynamic comparison without --element": _cli_export_comparison_without_element,
     "--out on a file": _cli_out_is_a_file,
     "--out under a file": _cli_unwritable_out,
     "a campaign folder that is not there": _cli_missing_campaign,
@@ -381,6 +395,12 @@ CONFIG = {
     "a column map of scale 0": ('[campaign.columns.airspeed_kt]\nto = "airspeed_kt"\nscale = 0.0\n',
                                 "campaign.columns.airspeed_kt: scale 0"),
     "config list with a value twice": ('[sweep]\ndatabases = ["db1", "db1"]\n', "sweep.databases: 'db1' given twice"),
+    "dynamic model unknown": ('[dynamic]\nmodels = ["lstm"]\n', "dynamic.models: unknown ['lstm']"),
+    "dynamic model without the map it starts from": ('[dynamic]\nmodels = ["dynamic"]\n',
+                                                     "dynamic.models: dynamic starts from window_static"),
+    "dynamic hop above one revolution": ("[dynamic]\nhop_revs = 2.0\n", "dynamic.hop_revs must lie in (0, 1]"),
+    "dynamic cruise band reversed": ("[dynamic]\ncruise_advance_ratio = [0.3, 0.2]\n",
+                                     "dynamic.cruise_advance_ratio must be [lo, hi]"),
 }
 
 

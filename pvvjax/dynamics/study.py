@@ -61,11 +61,11 @@ def prepare_database(campaign, cfg, db: str) -> Database:
     long = window_sequences(campaign, inputs, window_revs=cfg.analysis.window_revs, hop_revs=dc.hop_revs,
                             chain=True, harmonic=cfg.analysis.harmonic)
     peaks = build_databases(campaign, cfg.analysis)["peaks"].set_index("condition").loc[list(seq.conditions)]
+    measured, _ = row_peaks(seq.amplitude, seq.mask, seq.time)
+    nominal = nominal_cruise(measured, seq.maneuvers, peaks["advance_ratio"].to_numpy(), dc.cruise_advance_ratio)
     splits = [compare.condition_split(seq.conditions, dc.folds, cfg.seed)]
     if dc.kind_holdout:
         splits.append(compare.kind_split(seq.conditions, seq.maneuvers, dc.folds, cfg.seed))
-    measured, _ = row_peaks(seq.amplitude, seq.mask, seq.time)
-    nominal = nominal_cruise(measured, seq.maneuvers, peaks["advance_ratio"].to_numpy(), dc.cruise_advance_ratio)
     return Database(db, seq, long, peaks[list(inputs)].to_numpy(np.float64), peaks[OUTPUT].to_numpy(np.float64),
                     tuple(splits), nominal)
 
@@ -81,11 +81,12 @@ def _train(d: Database, split, model: str, cfg, done: dict) -> tuple[dict, dict]
                                                seq.mask, split, grid)
         held = compare.heldout(every[:, None], split)
         extra = {"offset_s": offsets}
+    elif model == "dynamic":
+        t = compare.fit_response(done["window_static"], seq.time, seq.amplitude, seq.mask, split, dc, cfg.train)
+        held, extra = compare.heldout(t.pred, split), {}
     else:
         x = compare.model_inputs(seq, model)
-        if model == "dynamic":
-            init = compare.dynamic_from(done["window_static"], dc)
-        elif model == "rnn":
+        if model == "rnn":
             init = compare.recurrent_init(x.shape[-1], dc.rnn_hidden)
         else:
             init = compare.static_init(x.shape[-1], dc.hidden)
