@@ -45,7 +45,7 @@ class DynamicConfig:
     window_revs: float = 2.0
     hop_revs: float = 1.0
     hidden: tuple[int, ...] = field(default=(10, 5), metadata={"repeats": True})  # layer widths
-    rnn_hidden: int = 16
+    rnn_hidden: int = 8
     seeds: int = 4
     folds: int = 5
     kind_holdout: bool = True
