@@ -32,7 +32,7 @@ from pvvjax.config import TRANSIENT_MANEUVERS, DynamicConfig, TrainConfig
 from pvvjax.dynamics import (
     compare,
     condition_split,
-    fit_response,
+    dynamic_apply,
     fit_sequence_model,
     heldout,
     heldout_scores,
@@ -69,15 +69,17 @@ ax.legend()
 
 # %% [markdown]
 # ## The window-level map, then the dynamic model from it
-# One net per (fold, seed), all in one vmapped program. The dynamic model keeps each fold's
-# window-level map as fitted and identifies the delay, natural frequency and damping behind it.
+# One net per (fold, seed), all in one vmapped program. The dynamic model is the same map
+# with the delay, natural frequency and damping behind it, all trained together.
 
 # %%
 split = condition_split(seq.conditions, folds, seed=0)
 x_static = compare.model_inputs(seq, "window_static")
 static = fit_sequence_model(compare.static_init(x_static.shape[-1], (10, 5)), mlp_apply, x_static, seq.amplitude,
                             seq.mask, split, seeds, train)
-dynamic = fit_response(static, seq.time, seq.amplitude, seq.mask, split, DynamicConfig(), train)
+x_dynamic = compare.model_inputs(seq, "dynamic")  # the inputs, then the window times
+dynamic = fit_sequence_model(compare.dynamic_model_init(x_static.shape[-1], (10, 5), DynamicConfig()),
+                             dynamic_apply, x_dynamic, seq.amplitude, seq.mask, split, seeds, train)
 ident = compare.identified_table(dynamic.params)
 print({k: np.round(np.median(v), 3) for k, v in ident.items()})
 

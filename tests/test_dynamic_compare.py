@@ -207,26 +207,3 @@ def test_main_job_reports_the_dynamic_stage(tmp_path, small_campaign_dir, capsys
     assert "## PVV through time" in report and "dynamic/figures/through_time_db1.png" in report
     table = pd.read_csv(tmp_path / "d" / "dynamic" / "comparison.csv")
     assert list(table.model) == ["quasi_static", "window_static", "dynamic"] and "rms_kind_holdout_g" not in table
-
-
-def test_the_identified_model_predicts_as_dynamic_apply_of_its_parameters():
-    """`fit_response` identifies the response behind each fold's fixed map; its parameters,
-    map and response together, are a `dynamic_apply` model that gives its predictions."""
-    from pvvjax.config import DynamicConfig
-    from pvvjax.dynamics import dynamic_apply
-    from pvvjax.nets.networks import mlp_apply
-
-    rng = np.random.default_rng(0)
-    x = rng.normal(size=(12, 30, 2)).astype(np.float32)
-    t = np.cumsum(rng.uniform(0.2, 0.26, (12, 30)), axis=1)
-    y = (0.1 + 0.03 * np.tanh(x[..., 0])).astype(np.float32)
-    mask = np.ones((12, 30), bool)
-    split = compare.condition_split([f"c{i}" for i in range(12)], 3, 0)
-    cfg = TrainConfig(max_steps=100, eval_every=25, patience=100)
-    static = compare.fit_sequence_model(compare.static_init(2, (4,)), mlp_apply, x, y, mask, split, 2, cfg)
-    dyn = compare.fit_response(static, t, y, mask, split, DynamicConfig(), cfg)
-    xt = np.concatenate([x, t[..., None]], axis=-1).astype(np.float32)
-    for f, s in [(0, 0), (2, 1)]:
-        p = jax.tree.map(lambda a: a[f, s], dyn.params)
-        np.testing.assert_allclose(np.asarray(dynamic_apply(p, xt)), dyn.pred[f, s], atol=1e-5)
-        np.testing.assert_array_equal(p["layers"][0]["w"], static.params["layers"][0]["w"][f, s])  # map as fitted

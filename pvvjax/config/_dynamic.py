@@ -31,8 +31,6 @@ class DynamicConfig:
         kind_holdout: also hold out one maneuver kind at a time (a second split).
         f_n_hz, zeta, delay_s: the response's starting natural frequency (Hz), damping
             ratio and delay (s).
-        response_learning_rate: Adam step size of the response's three parameters (log
-            frequency, log damping, delay), identified behind each fold's fixed map.
         offset_bounds, offset_step_s: the grid the quasi-static map's input-to-vibration
             offset is calibrated on, per fold on its training records (s).
         cruise_advance_ratio: [lo, hi] advance ratio of the level flights whose median
@@ -52,7 +50,6 @@ class DynamicConfig:
     f_n_hz: float = 0.5
     zeta: float = 0.7
     delay_s: float = 0.1
-    response_learning_rate: float = 0.02
     offset_bounds: tuple[float, float] = field(default=(-1.0, 3.0), metadata={"repeats": True})
     offset_step_s: float = 0.1
     cruise_advance_ratio: tuple[float, float] = field(default=(0.25, 0.35), metadata={"repeats": True})
@@ -63,8 +60,6 @@ class DynamicConfig:
         bad = [m for m in self.models if m not in MODELS]
         if bad or not self.models:
             raise ValueError(f"dynamic.models: unknown {bad}; use {list(MODELS)}")
-        if "dynamic" in self.models and "window_static" not in self.models:
-            raise ValueError("dynamic.models: dynamic starts from window_static's map; list both")
         if not 0 < self.hop_revs <= 1:
             raise ValueError(f"dynamic.hop_revs must lie in (0, 1] revolution, got {self.hop_revs}")
         if not self.window_revs >= 1:
@@ -73,7 +68,7 @@ class DynamicConfig:
             raise ValueError("dynamic.hidden and dynamic.rnn_hidden need widths >= 1")
         if self.seeds < 1 or self.folds < 3:
             raise ValueError("dynamic.seeds must be >= 1 and dynamic.folds >= 3")
-        for name in ("f_n_hz", "zeta", "offset_step_s", "response_learning_rate"):
+        for name in ("f_n_hz", "zeta", "offset_step_s"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"dynamic.{name} must be > 0, got {getattr(self, name)}")
         if self.delay_s < 0:

@@ -10,7 +10,6 @@ from .compare import (
     Trained,
     condition_split,
     fit_peak_map,
-    fit_response,
     fit_sequence_model,
     heldout,
     kind_split,
@@ -22,6 +21,6 @@ from .sequences import Sequences, window_sequences
 from .study import EXPORTABLE, run_comparison
 
 __all__ = ["EXPORTABLE", "FAA_RATIO", "Recurrent", "Response", "Sequences", "Split", "Trained", "condition_split",
-           "delayed", "dynamic_apply", "dynamic_init", "faa_pass", "fit_peak_map", "fit_response",
-           "fit_sequence_model", "heldout", "heldout_scores", "identified", "kind_split", "nominal_cruise",
+           "delayed", "dynamic_apply", "dynamic_init", "faa_pass", "fit_peak_map", "fit_sequence_model",
+           "heldout", "heldout_scores", "identified", "kind_split", "nominal_cruise",
            "rnn_apply", "rnn_init", "row_peaks", "run_comparison", "second_order", "window_sequences"]

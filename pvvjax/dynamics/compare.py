@@ -19,10 +19,10 @@ import numpy as np
 
 from ..nets import train
 from ..nets.networks import mlp_apply, mlp_init, scaling
-from .models import Response, dynamic_apply, identified, rnn_apply, rnn_init
+from .models import dynamic_apply, dynamic_init, identified, rnn_apply, rnn_init
 from .sequences import Sequences
 
-__all__ = ["APPLY", "Split", "Trained", "condition_split", "fit_peak_map", "fit_response", "fit_sequence_model",
+__all__ = ["APPLY", "Split", "Trained", "condition_split", "dynamic_model_init", "fit_peak_map", "fit_sequence_model",
            "heldout", "identified_table", "kind_split", "model_inputs", "offset_replay", "recurrent_init",
            "static_init"]
 
@@ -200,51 +200,16 @@ def identified_table(params: dict) -> dict:
     return {**out, "tau_slow_pole_s": slow}
 
 
-def _response_apply(params: dict, x):
-    """The response alone, of a map's output sequence: x (..., W, 2) = (map output g, time s)."""
-    return Response().apply({"params": params["response"]}, x[..., 0], x[..., 1])
-
-
-def fit_response(static: Trained, time, y, mask, split: Split, dc, cfg) -> Trained:
-    """The physics-shaped dynamic model: each (fold, seed) window-level map held as it was
-    fitted, and a delay and second-order response identified behind it on the same rows, by
-    the same early stopping (on the fold's validation rows). With the map fixed, the three
-    response parameters are identified from the map's output sequence alone (precomputed),
-    and no step can overfit the map.
-
-    Args:
-        static: the window_static model of the same split (its `pred` is every net's map
-            output on every row). time: (R, W) window times, s. y: (R, W) measured PVV, g.
-        mask: (R, W) real windows. split: the folds.
-        dc: `DynamicConfig` (the response's starting f_n_hz, zeta, delay_s and its
-            response_learning_rate). cfg: `TrainConfig` (step budget, patience).
-
-    Returns:
-        `Trained` with the dynamic model's parameters (the map's and `response`) and its
-        predictions.
-    """
-    folds, seeds = np.shape(static.pred)[:2]
-    y, mask = np.asarray(y, np.float32), np.asarray(mask, bool)
-    x = np.stack([np.asarray(static.pred, np.float32), np.broadcast_to(np.asarray(time, np.float32),
-                                                                      np.shape(static.pred))], axis=-1)
-    trains = [~split.test[f] & ~split.val[f] for f in range(folds)]
-    n_train, n_val = max(int(r.sum()) for r in trains), max(int(v.sum()) for v in split.val)
-    r0 = Response(2 * np.pi * dc.f_n_hz, dc.zeta, dc.delay_s).init(jax.random.key(0), jnp.zeros(2),
-                                                                     jnp.arange(2.0))["params"]
-    params, data = [], []
-    for f, rows in enumerate(trains):
-        for s in range(seeds):
-            d = _rows(x[f, s], y, mask, rows, n_train) + _rows(x[f, s], y, mask, split.val[f], n_val)
-            params.append({"response": r0, "y_scale": static.params["y_scale"][f, s]})
-            data.append(train.Data(*d))
-    hp = train.hyper(cfg, learning_rate=dc.response_learning_rate)
-    fit = jax.jit(jax.vmap(lambda p, d: train.fit(p, d, cfg, apply=_response_apply, hp=hp)))
-    res = fit(_stack(params), _stack(data))
-    pred = jax.jit(jax.vmap(_response_apply))(res.params, x.reshape((-1,) + x.shape[2:]))
-    shape = (folds, seeds)
-    reshape = lambda a: np.asarray(a).reshape(shape + np.shape(a)[1:])  # noqa: E731
-    return Trained({**static.params, "response": jax.tree.map(reshape, res.params["response"])}, reshape(pred),
-                   reshape(res.best_step), reshape(res.failed_step))
+def dynamic_model_init(n_in: int, hidden, dc) -> Callable:
+    """`init` for `fit_sequence_model` of the dynamic model trained whole: an MLP on the
+    fold's scaling of its `n_in` inputs (the last channel, the window times, is not an
+    input of the map) and the response at `dc`'s start (`DynamicConfig` f_n_hz, zeta,
+    delay_s)."""
+    def init(key, sc, fs):
+        sc = {**sc, "x_shift": sc["x_shift"][:n_in], "x_scale": sc["x_scale"][:n_in]}
+        return dynamic_init(mlp_init(key, n_in, tuple(hidden), scale=sc), omega_n=2 * np.pi * dc.f_n_hz,
+                            zeta=dc.zeta, delay_s=dc.delay_s)
+    return init
 
 
 def static_init(n_in: int, hidden) -> Callable:

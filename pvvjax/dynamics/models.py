@@ -66,7 +66,7 @@ def dynamic_apply(params: dict, x):
 def identified(params: dict) -> dict:
     """The response's physical parameters: omega_n_rad_s, f_n_hz, zeta, delay_s and the
     equivalent time constant 2ζ/ω_n, s (the first-order lag a slow response resembles)."""
-    r = jax.tree.map(np.asarray, params["response"])
+    r = jax.tree.map(lambda a: np.asarray(a, np.float64), params["response"])
     w, z = np.exp(r["log_omega_n"]), np.exp(r["log_zeta"])
     return dict(omega_n_rad_s=w, f_n_hz=w / (2 * np.pi), zeta=z, delay_s=np.logaddexp(0.0, r["delay_raw"]),
                 tau_equivalent_s=2 * z / w)

@@ -70,7 +70,7 @@ def prepare_database(campaign, cfg, db: str) -> Database:
                     tuple(splits), nominal)
 
 
-def _train(d: Database, split, model: str, cfg, done: dict) -> tuple[dict, dict]:
+def _train(d: Database, split, model: str, cfg) -> tuple[dict, dict]:
     """Train one model of one split: (stacked params, arrays: heldout (R, W) and per-net
     best_step, failed_step, and the quasi-static offsets)."""
     dc, seq = cfg.dynamic, d.seq
@@ -81,12 +81,11 @@ def _train(d: Database, split, model: str, cfg, done: dict) -> tuple[dict, dict]
                                                seq.mask, split, grid)
         held = compare.heldout(every[:, None], split)
         extra = {"offset_s": offsets}
-    elif model == "dynamic":
-        t = compare.fit_response(done["window_static"], seq.time, seq.amplitude, seq.mask, split, dc, cfg.train)
-        held, extra = compare.heldout(t.pred, split), {}
     else:
         x = compare.model_inputs(seq, model)
-        if model == "rnn":
+        if model == "dynamic":
+            init = compare.dynamic_model_init(x.shape[-1] - 1, dc.hidden, dc)
+        elif model == "rnn":
             init = compare.recurrent_init(x.shape[-1], dc.rnn_hidden)
         else:
             init = compare.static_init(x.shape[-1], dc.hidden)
@@ -96,7 +95,7 @@ def _train(d: Database, split, model: str, cfg, done: dict) -> tuple[dict, dict]
     return t.params, dict(heldout=held, best_step=t.best_step, failed_step=t.failed_step, **extra)
 
 
-def _part(folder: Path, d: Database, split, model: str, cfg, done: dict, log) -> compare.Trained:
+def _part(folder: Path, d: Database, split, model: str, cfg, log) -> tuple:
     """A part from `folder` if a run saved it, else trained and saved (arrays first, the
     parameter file last: its presence marks the part done)."""
     stem = folder / f"{d.name}-{split.name}-{model}"
@@ -109,7 +108,7 @@ def _part(folder: Path, d: Database, split, model: str, cfg, done: dict, log) ->
         import time
 
         t0 = time.perf_counter()
-        params, arrays = _train(d, split, model, cfg, done)
+        params, arrays = _train(d, split, model, cfg)
         folder.mkdir(parents=True, exist_ok=True)
         tmp = stem.with_suffix(".arrays.tmp.npz")
         np.savez(tmp, **arrays)
@@ -133,7 +132,7 @@ def run_parts(campaign, cfg, folder: Path, log=print) -> dict:
         for split in d.splits:
             done, arrays = {}, {}
             for model in cfg.dynamic.models:
-                done[model], arrays[model] = _part(folder, d, split, model, cfg, done, log)
+                done[model], arrays[model] = _part(folder, d, split, model, cfg, log)
                 check_interrupt()
             by_split[split.name] = {m: (done[m], arrays[m]) for m in done}
         out[db] = (d, by_split)
