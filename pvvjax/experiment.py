@@ -232,25 +232,6 @@ def prepare_sweep(config, out=None):
     return cfg, dbs, res, out
 
 
-def run_dynamic(cfg, campaign, campaign_dir, out, log=print) -> tuple:
-    """`pvvjax dynamic`: claim `out` for the config's `[dynamic]`, `[train]`, `[analysis]` and
-    seed on this campaign, record the config there (`config.toml`, with the campaign's
-    folder: what `export --element` reads) and train, resume and compare every model
-    (`dynamics.run_comparison`). Returns (the folder, the comparison table)."""
-    import dataclasses
-
-    from ._strict import to_dict
-    from .dynamics import run_comparison
-    from .io import claim_folder, write_config
-
-    settings = dict(command="dynamic", dynamic=to_dict(cfg.dynamic), train=to_dict(cfg.train),
-                    analysis=to_dict(cfg.analysis), seed=cfg.seed, columns=to_dict(cfg.campaign)["columns"])
-    out = claim_folder(out, settings, campaign.fingerprint)
-    write_config(cfg.with_(campaign=dataclasses.replace(cfg.campaign, path=str(campaign_dir), synthetic="")),
-                 out / "config.toml")
-    return out, run_comparison(campaign, cfg, out, log)
-
-
 def run_main_job(cfg, source: str | Path = "") -> Path:
     """The main job of an experiment config, end to end: the campaign, its databases and the
     paper's Figs 1-9, then (as `cfg.run` asks) the sweep of nets beside the paper's Figs 10-12
@@ -267,14 +248,7 @@ def run_main_job(cfg, source: str | Path = "") -> Path:
     cfg = absolute_paths(cfg)
     if cfg.run.networks and cfg.run.replay:
         cfg.check_replay()
-    if cfg.run.discovery_scenario:  # read now: a mistake there is said before hours of work, not after
-        from ._strict import ConfigError
-        from .synth import load_synth_config
-
-        try:
-            load_synth_config(cfg.run.discovery_scenario)
-        except ConfigError as e:
-            raise ConfigError(f"run.discovery_scenario: {e}") from None
+    cfg.check_scenario()  # read now: a mistake there is said before hours of work, not after
     if cfg.run.networks:
         use_cpu_cores(cfg.sweep.cpu_devices)  # before anything imports JAX (else a no-op)
     use_deterministic_gpu()
@@ -289,9 +263,9 @@ def run_main_job(cfg, source: str | Path = "") -> Path:
     t0 = time.perf_counter()
     replay = cfg.run.networks and cfg.run.replay
     studies = replay and cfg.run.studies
-    stages = ["campaign", "databases", "figures"] + (["networks"] if cfg.run.networks else []) + (
-        ["replay"] if replay else []) + (["studies"] if studies else []) + (
-        ["discovery"] if cfg.run.discovery_scenario else []) + (["dynamic"] if cfg.run.dynamic else [])
+    stages = [name for name, on in (("campaign", True), ("databases", True), ("figures", True),
+                                    ("networks", cfg.run.networks), ("replay", replay), ("studies", studies),
+                                    ("discovery", cfg.run.discovery_scenario), ("dynamic", cfg.run.dynamic)) if on]
 
     def step(name, text):
         check_interrupt()  # between stages: a Ctrl-C lost inside one stops the job here
@@ -329,8 +303,7 @@ def run_main_job(cfg, source: str | Path = "") -> Path:
     if cfg.run.dynamic:
         step("dynamic", f"PVV through time: {', '.join(cfg.dynamic.models)} on {', '.join(cfg.dynamic.databases)}, "
                         f"{cfg.dynamic.seeds} seeds x {cfg.dynamic.folds} folds")
-        enable_compilation_cache()
-        dyn = run_dynamic(cfg, campaign, campaign_dir, out / "dynamic")[1]
+        dyn = _run_dynamic(cfg, campaign, campaign_dir, out / "dynamic")
     checks = pd.concat([c for c in checks if c is not None and len(c)], ignore_index=True)
     write_table(checks, out / "paper_comparison", cfg)
     report = _write_report(cfg, out, summary, figures, paper_figs, checks, nets, reps, sections, disc,
@@ -338,6 +311,14 @@ def run_main_job(cfg, source: str | Path = "") -> Path:
     print(f"done in {time.perf_counter() - t0:.1f} s; results in {out}")
     print(f"report: {report}")
     return report
+
+
+def _run_dynamic(cfg, campaign, campaign_dir, out: Path):
+    """`pvvjax dynamic` as a stage (`dynamics.study.run_dynamic`): its comparison table."""
+    from .dynamics.study import run_dynamic
+
+    enable_compilation_cache()
+    return run_dynamic(cfg, campaign, campaign_dir, out)[1]
 
 
 def _run_networks(cfg, dbs, out: Path, source) -> tuple:
@@ -438,22 +419,6 @@ def _run_discovery(cfg, out: Path):
     return res, hidden
 
 
-def _dynamic_section(table) -> list[str]:
-    """The report's section of `pvvjax dynamic`'s comparison (in `dynamic/`)."""
-    from .io import markdown_table
-
-    cols = ["database", "model", "rms_g", "rms_transient_g", "peak_err_rms_g", "time_of_peak_err_median_s",
-            "faa_pass_share", "kendall_tau", "rms_kind_holdout_g", "best"]
-    lines = ["## PVV through time: dynamic models against the quasi-static map", "",
-             "Held out by condition; `rms_kind_holdout_g` holds out a maneuver kind at a time; FAA Part 60 test "
-             "3.f.1 pass share per condition (+3/-6 dB, or 10 % of the nominal cruise level). Full tables, the "
-             "identified response and every window: [dynamic/report.md](dynamic/report.md).", "",
-             markdown_table(table[[c for c in cols if c in table]], "{:.4g}"), ""]
-    for db in dict.fromkeys(table.database):
-        lines += [f"![through time, {db}](dynamic/figures/through_time_{db}.png)", ""]
-    return lines
-
-
 def _write_report(cfg, out: Path, summary: str, figures, paper_figs, checks, nets, reps, sections, disc,
                   seconds: float, dyn=None) -> Path:
     """report.md (and report.html) of the main job: every number beside the paper's, the
@@ -510,7 +475,9 @@ def _write_report(cfg, out: Path, summary: str, figures, paper_figs, checks, net
         for e in js["effects"]:
             lines += [f"![effect {e['rank']}](discovery/figures/effect_{e['rank']}.png)", ""]
     if dyn is not None:
-        lines += _dynamic_section(dyn)
+        from .dynamics.study import report_section
+
+        lines += report_section(dyn, "dynamic/")
     path = out / "report.md"
     path.write_text("\n".join(lines))
     if cfg.run.html:

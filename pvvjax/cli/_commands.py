@@ -175,64 +175,32 @@ def _export_element(args, res, sweep: Path) -> int:
 
 
 def _export_dynamic_element(args, folder: Path) -> int:
-    """A model of a `pvvjax dynamic` comparison as a real-time element: its fold and seed nets
-    (their median) of the condition split, with the windows it was trained on, and for the
-    dynamic model the median identified response."""
-    import numpy as np
+    """A model of a `pvvjax dynamic` comparison as a real-time element (`dynamics.study.
+    element_model`), its input envelope the windows it was judged on."""
     import pandas as pd
 
-    from ..analysis.databases import DB_INPUTS
     from ..config import load_config
-    from ..dynamics import EXPORTABLE, identified, window_sequences
+    from ..dynamics import window_sequences
+    from ..dynamics.study import element_model
     from ..realtime.export import element_spec
-    from ..realtime.npnet import read_npz
 
-    table = pd.read_parquet(folder / "comparison.parquet")
-    best = table[table.best].iloc[0]
-    model = args.model or best.model
-    database = best.database if args.model is None else args.database
-    if model not in EXPORTABLE:
-        raise ValueError(f"--model {model}: the element runs {', '.join(EXPORTABLE)}")
-    rows = table[(table.model == model) & (table.database == database)]
-    if rows.empty:
-        raise KeyError(f"{folder / 'comparison.parquet'}: no {model} model of {database}")
     cfg = load_config(folder / "config.toml")
+    em = element_model(folder, cfg, args.model, args.database if args.model else None)
     campaign, _ = resolve_campaign(cfg)
-    stacked, _ = read_npz(folder / "parts" / f"{database}-condition-{model}.params.npz")
-    folds, seeds = np.shape(stacked["y_scale"])
-    inputs = list(DB_INPUTS[database])
-    nets = [(_take_net(stacked, f, s), {"inputs": inputs, "model": model}) for f in range(folds)
-            for s in range(seeds)]
-    window, offset = cfg.dynamic.window_revs, 0.0
-    if model == "quasi_static":
-        window, offset = cfg.analysis.window_revs, float(rows.offset_s.iloc[0])
-    pred = pd.read_parquet(folder / "predictions.parquet", columns=["counter"])  # the records it was judged on
-    seq = window_sequences(campaign, inputs, window_revs=window, hop_revs=cfg.dynamic.hop_revs,
-                           counters=sorted(set(pred.counter)))
+    counters = sorted(set(pd.read_parquet(folder / "predictions.parquet", columns=["counter"]).counter))
+    seq = window_sequences(campaign, em.nets[0][1]["inputs"], window_revs=em.window_revs, hop_revs=em.hop_revs,
+                           counters=counters)
     x = seq.inputs[seq.mask]
-    spec = element_spec([f"net_{i}.npz" for i in range(len(nets))], inputs, (x.min(axis=0), x.max(axis=0)), campaign,
-                        cfg.analysis.window_revs, window_revs=window, hop_revs=cfg.dynamic.hop_revs, offset_s=offset,
-                        stick_offset_s=0.0)
-    if model == "dynamic":
-        ident = identified({"response": {k: np.asarray(v) for k, v in stacked["response"].items()}})
-        spec["response"] = {k: float(np.median(ident[n])) for k, n in (("omega_n_rad_s", "omega_n_rad_s"),
-                                                                        ("zeta", "zeta"), ("delay_s", "delay_s"))}
-        nets = [({k: v for k, v in p.items() if k != "response"}, m) for p, m in nets]
-    source = f"{len(nets)} {model} nets ({database}) of {folder}"
-    out = _write_element_format(args, spec, nets, source)
-    print(f"exported a real-time element ({args.format}): {source}, window {window:g} revs, hop "
-          f"{cfg.dynamic.hop_revs:g} revs" + (f", response {spec['response']}" if "response" in spec else "")
-          + f", to {out}")
+    spec = element_spec([f"net_{i}.npz" for i in range(len(em.nets))], em.nets[0][1]["inputs"],
+                        (x.min(axis=0), x.max(axis=0)), campaign, cfg.analysis.window_revs,
+                        window_revs=em.window_revs, hop_revs=em.hop_revs, offset_s=em.offset_s, stick_offset_s=0.0)
+    if em.response is not None:
+        spec["response"] = em.response
+    source = f"{len(em.nets)} {em.model} nets ({em.database}) of {folder}"
+    out = _write_element_format(args, spec, em.nets, source)
+    print(f"exported a real-time element ({args.format}): {source}, window {em.window_revs:g} revs, hop "
+          f"{em.hop_revs:g} revs" + (f", response {em.response}" if em.response else "") + f", to {out}")
     return 0
-
-
-def _take_net(tree, f: int, s: int):
-    """Net (f, s) of parameters stacked over folds and seeds (NumPy arrays)."""
-    if isinstance(tree, dict):
-        return {k: _take_net(v, f, s) for k, v in tree.items()}
-    if isinstance(tree, tuple):
-        return tuple(_take_net(v, f, s) for v in tree)
-    return tree[f, s]
 
 
 def _write_element_format(args, spec: dict, nets: list, source: str) -> Path:
@@ -466,8 +434,8 @@ def cmd_realtime(args) -> int:
 
 
 def cmd_dynamic(args) -> int:
-    """Train and compare the models of PVV through time (`experiment.run_dynamic`)."""
-    from ..experiment import run_dynamic
+    """Train and compare the models of PVV through time (`dynamics.study.run_dynamic`)."""
+    from ..dynamics.study import run_dynamic
 
     t0 = time.perf_counter()
     cfg = _experiment(args)

@@ -61,6 +61,17 @@ class ExperimentConfig:
                                   f"sweep.databases {list(self.sweep.databases)} does not train (replay.sweep is "
                                   "empty: the replay uses the config's own sweep)")
 
+    def check_scenario(self) -> None:
+        """Read the main job's discovery scenario (`run.discovery_scenario`), refusing a
+        missing or mistaken one by name before any work."""
+        if self.run.discovery_scenario:
+            from ..synth import load_synth_config
+
+            try:
+                load_synth_config(self.run.discovery_scenario)
+            except ConfigError as e:
+                raise ConfigError(f"run.discovery_scenario: {e}") from None
+
     def with_(self, **changes) -> "ExperimentConfig":
         return dataclasses.replace(self, **changes)
 

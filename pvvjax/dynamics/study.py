@@ -20,11 +20,13 @@ from ..interrupts import check_interrupt
 from ..io import markdown_table
 from ..realtime.npnet import read_npz, write_npz
 from . import compare
+from .models import identified
 from .scores import heldout_scores, nominal_cruise, row_peaks
 from .sequences import Sequences, window_sequences
 
-__all__ = ["EXPORTABLE", "PAPER_PULLUP", "Database", "comparison_table", "figures", "identified_rows",
-           "predictions_table", "prepare_database", "report", "run_comparison", "run_parts", "shown_conditions"]
+__all__ = ["EXPORTABLE", "PAPER_PULLUP", "Database", "ElementModel", "comparison_table", "element_model", "figures",
+           "identified_rows", "predictions_table", "prepare_database", "report", "report_section", "run_comparison",
+           "run_dynamic", "run_parts", "shown_conditions"]
 
 # Models the real-time element runs (`pvvjax export --element`): `best` is chosen among them.
 EXPORTABLE = ("quasi_static", "window_static", "dynamic")
@@ -298,3 +300,91 @@ def run_comparison(campaign, cfg, out: Path, log=print) -> pd.DataFrame:
     tmp.replace(out / "predictions.parquet")
     report(table, ident, figures(parts, cfg, out), out)
     return table
+
+
+def report_section(table: pd.DataFrame, folder: str = "") -> list[str]:
+    """The main job's report section of a comparison written to `folder` (relative to the
+    report, e.g. "dynamic/"): its table and figures."""
+    cols = ["database", "model", "rms_g", "rms_transient_g", "peak_err_rms_g", "time_of_peak_err_median_s",
+            "faa_pass_share", "kendall_tau", "rms_kind_holdout_g", "best"]
+    lines = ["## PVV through time: dynamic models against the quasi-static map", "",
+             "Held out by condition; `rms_kind_holdout_g` holds out a maneuver kind at a time; FAA Part 60 test "
+             "3.f.1 pass share per condition (+3/-6 dB, or 10 % of the nominal cruise level). Full tables, the "
+             f"identified response and every window: [{folder}report.md]({folder}report.md).", "",
+             markdown_table(table[[c for c in cols if c in table]], "{:.4g}"), ""]
+    for db in dict.fromkeys(table.database):
+        lines += [f"![through time, {db}]({folder}figures/through_time_{db}.png)", ""]
+    return lines
+
+
+class ElementModel(NamedTuple):
+    """What the real-time element takes from a comparison folder (`element_model`).
+
+    Attributes:
+        model, database: which model of which database.
+        nets: one (parameters, metadata) per fold and seed of the condition split: the
+            static maps whose median the element predicts.
+        response: the median identified response (omega_n_rad_s, zeta, delay_s), or None.
+        window_revs, hop_revs, offset_s: the windows the model was judged on, and the
+            quasi-static replay's calibrated offset (0 for the others).
+    """
+
+    model: str
+    database: str
+    nets: list
+    response: dict | None
+    window_revs: float
+    hop_revs: float
+    offset_s: float
+
+
+def _take(tree, f: int, s: int):
+    if isinstance(tree, dict):
+        return {k: _take(v, f, s) for k, v in tree.items()}
+    if isinstance(tree, tuple):
+        return tuple(_take(v, f, s) for v in tree)
+    return tree[f, s]
+
+
+def element_model(folder: Path, cfg, model: str | None = None, database: str | None = None) -> ElementModel:
+    """A model of the comparison in `folder` for the element: the `best` row's (default),
+    or `model` of `database` (one of `EXPORTABLE`). `cfg`: the folder's config.toml."""
+    table = pd.read_parquet(Path(folder) / "comparison.parquet")
+    best = table[table.best].iloc[0]
+    model, database = model or best.model, database or best.database
+    if model not in EXPORTABLE:
+        raise ValueError(f"--model {model}: the element runs {', '.join(EXPORTABLE)}")
+    rows = table[(table.model == model) & (table.database == database)]
+    if rows.empty:
+        raise KeyError(f"{Path(folder) / 'comparison.parquet'}: no {model} model of {database}")
+    stacked, _ = read_npz(Path(folder) / "parts" / f"{database}-condition-{model}.params.npz")
+    folds, seeds = np.shape(stacked["y_scale"])
+    meta = {"inputs": list(DB_INPUTS[database]), "model": model}
+    nets = [({k: v for k, v in _take(stacked, f, s).items() if k != "response"}, meta)
+            for f in range(folds) for s in range(seeds)]
+    response = None
+    if model == "dynamic":
+        ident = identified({"response": stacked["response"]})
+        response = {k: float(np.median(ident[k])) for k in ("omega_n_rad_s", "zeta", "delay_s")}
+    quasi = model == "quasi_static"
+    return ElementModel(model, database, nets, response,
+                        cfg.analysis.window_revs if quasi else cfg.dynamic.window_revs, cfg.dynamic.hop_revs,
+                        float(rows.offset_s.iloc[0]) if quasi else 0.0)
+
+
+def run_dynamic(cfg, campaign, campaign_dir, out, log=print) -> tuple:
+    """`pvvjax dynamic`: claim `out` for the config's `[dynamic]`, `[train]`, `[analysis]` and
+    seed on this campaign, record the config there (`config.toml`, with the campaign's
+    folder: what `export --element` reads) and train, resume and compare every model
+    (`dynamics.run_comparison`). Returns (the folder, the comparison table)."""
+    import dataclasses
+
+    from .._strict import to_dict
+    from ..io import claim_folder, write_config
+
+    settings = dict(command="dynamic", dynamic=to_dict(cfg.dynamic), train=to_dict(cfg.train),
+                    analysis=to_dict(cfg.analysis), seed=cfg.seed, columns=to_dict(cfg.campaign)["columns"])
+    out = claim_folder(out, settings, campaign.fingerprint)
+    write_config(cfg.with_(campaign=dataclasses.replace(cfg.campaign, path=str(campaign_dir), synthetic="")),
+                 out / "config.toml")
+    return out, run_comparison(campaign, cfg, out, log)
