@@ -12,8 +12,11 @@ Both run the same frames; the C outputs are checked against the NumPy ones. Medi
 percentile and max per frame, and the ratio.
 
     python benchmarks/bench_c_element.py [--sweep runs/paper/sweep] [--pinned]
+    python benchmarks/bench_c_element.py --dynamic runs/dynamic [--model dynamic]
 
-Needs a sweep with db1 nets (`make demo` writes runs/paper/sweep) and a C compiler.
+Needs a sweep with db1 nets (`make demo` writes runs/paper/sweep) and a C compiler; with
+`--dynamic`, the folder of `pvvjax dynamic` instead: its model's nets (every fold and seed),
+windows and, for `dynamic`, its response.
 """
 
 from __future__ import annotations
@@ -31,9 +34,12 @@ import numpy as np
 import pandas as pd
 
 from pvvjax.analysis.databases import DB_INPUTS
+from pvvjax.config import load_config
 from pvvjax.data.campaign import load_campaign
+from pvvjax.dynamics.study import element_model
 from pvvjax.nets import load_nets
 from pvvjax.realtime import CHANNELS, NumpyNet, VibrationElement, c_compiler, write_c_element
+from pvvjax.realtime.cexport import CSourceLimits
 from pvvjax.synth import cached_campaign
 
 HOST = r"""
@@ -83,25 +89,39 @@ int main(int argc, char **argv)
 """
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--sweep", default="runs/paper/sweep", help="sweep folder with db1 nets")
-    ap.add_argument("--pinned", action="store_true", help="pin to one core (as a real-time host would)")
-    args = ap.parse_args()
-    if args.pinned:
-        os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
-    sweep = Path(args.sweep)
+def _sweep_nets(sweep: Path) -> tuple[list, str]:
+    """Every net of the db1 architecture that holds out best, and its name."""
     if not (sweep / "results.parquet").is_file():
         sys.exit(f"{sweep}: no sweep here; run `make demo` (writes runs/paper/sweep) or give --sweep")
-    cc = c_compiler()
-    if cc is None:
-        sys.exit("no C compiler (set CC or install cc/gcc/clang)")
     res = pd.read_parquet(sweep / "results.parquet")
     db1 = res[res.database == "db1"]
     arch = db1.groupby("architecture").test_rms_g.median().idxmin()
     ids = list(db1[db1.architecture == arch].sort_values(["test_fold", "seed"]).net_id)
-    nets = [NumpyNet(p, m) for p, m in load_nets(sweep, ids, res)]
-    kw = dict(window_revs=8.0, hop_revs=1.0, offset_s=0.66, stick_offset_s=0.0)
+    return [NumpyNet(p, m) for p, m in load_nets(sweep, ids, res)], arch
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--sweep", default="runs/paper/sweep", help="sweep folder with db1 nets")
+    ap.add_argument("--pinned", action="store_true", help="pin to one core (as a real-time host would)")
+    ap.add_argument("--dynamic", default=None, help="a `pvvjax dynamic` folder: time its model's element instead")
+    ap.add_argument("--model", default="dynamic", help="with --dynamic: which model (default: dynamic)")
+    args = ap.parse_args()
+    if args.pinned:
+        os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
+    cc = c_compiler()
+    if cc is None:
+        sys.exit("no C compiler (set CC or install cc/gcc/clang)")
+    if args.dynamic:
+        em = element_model(Path(args.dynamic), load_config(Path(args.dynamic) / "config.toml"), args.model)
+        nets = [NumpyNet(p, m) for p, m in em.nets]
+        arch, inputs = f"{em.model} ({em.database})", list(DB_INPUTS[em.database])
+        kw = dict(window_revs=em.window_revs, hop_revs=em.hop_revs, offset_s=em.offset_s, stick_offset_s=0.0)
+        extra = {} if em.response is None else {"response": em.response}
+    else:
+        nets, arch = _sweep_nets(Path(args.sweep))
+        inputs, kw, extra = list(DB_INPUTS["db1"]), dict(window_revs=8.0, hop_revs=1.0, offset_s=0.66,
+                                                         stick_offset_s=0.0), {}
 
     camp = load_campaign(cached_campaign())
     rec = camp.records["11022"]
@@ -112,10 +132,10 @@ def main():
     x = np.stack([np.interp(t, t0, x0[:, c]) for c in range(x0.shape[1])], 1)
     compiler = subprocess.run([cc, "--version"], capture_output=True, text=True).stdout.splitlines()[0]
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores{' (pinned to one)' if args.pinned else ''}, "
-          f"numpy {np.__version__}, {compiler}; element: {len(nets)} db1 {arch} nets, record 11022 at 1 kHz "
+          f"numpy {np.__version__}, {compiler}; element: {len(nets)} {arch} nets, {kw}{extra}, record 11022 at 1 kHz "
           f"({t.size} frames)")
 
-    el = VibrationElement(nets, DB_INPUTS["db1"], **kw)
+    el = VibrationElement(nets, inputs, **kw, **extra)
     lat_np, ref = np.empty(t.size), np.empty((t.size, 2))
     clock = time.perf_counter_ns
     for i in range(t.size):
@@ -126,7 +146,9 @@ def main():
 
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
-        write_c_element(tmp, dict(inputs=list(DB_INPUTS["db1"]), aircraft=dict(blades=4), **kw), nets)
+        lo = min(CSourceLimits().window_revs[0], kw["window_revs"])
+        write_c_element(tmp, dict(inputs=inputs, aircraft=dict(blades=4), **kw, **extra), nets,
+                        CSourceLimits(window_revs=(lo, CSourceLimits().window_revs[1])))
         (tmp / "host.c").write_text(HOST)
         subprocess.run([cc, "-std=c99", "-O2", "-o", str(tmp / "host"), str(tmp / "host.c"),
                         str(tmp / "pvv_element.c"), "-lm"], check=True)
