@@ -6,6 +6,8 @@
 2. A synthetic campaign of that aircraft (UH-60A-like physics scaled to its 2-bladed rotor:
    a stand-in until measured data exist) trains the config's nets (`pvvjax sweep`), exported as
    the element (`pvvjax export --element`: NumPy; and C, `--format c`, where a C compiler is).
+   With `model = "dynamic"` the nets are `pvvjax dynamic`'s physics-shaped model instead (the
+   config's [dynamic] and [train]), its delay and second-order response in the element.
 3. Each flight of the config runs JSBSim's `ah1s_flight_test.xml` script frame by frame; each
    frame is mapped to the data contract's channels (`realtime.JSBSIM_CHANNELS`) and fed to the
    element, the rotor azimuth integrated from the rotor speed. A flight may add a pitch-attitude
@@ -26,11 +28,12 @@ import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 import pandas as pd
 
-from pvvjax.config import CampaignConfig, ExperimentConfig, SweepConfig, TrainConfig, load_config
+from pvvjax.config import CampaignConfig, DynamicConfig, ExperimentConfig, SweepConfig, TrainConfig, load_config
 from pvvjax.realtime import CElement, VibrationElement, c_compiler, compile_shared
 from pvvjax.realtime.jsbsim import JSBSIM_CHANNELS, frame_channels, jsbsim_aircraft, quiet_stdout
 
@@ -65,8 +68,11 @@ class JSBSimFlightConfig:
         aircraft, script: JSBSim's model and script (relative to JSBSim's root folder).
         sample_rate_hz: the synthetic campaign's sample rate (64 per revolution at 115 % rpm).
         counts: the campaign's random conditions per maneuver kind (empty: the default campaign).
-        database, offset_s, window_revs, hop_revs: the element (`pvvjax export --element`).
-        sweep, train: the nets (as an experiment config's sections).
+        database, offset_s, window_revs, hop_revs: the quasi-static element (`pvvjax export
+            --element`).
+        model: "quasi_static" (the sweep's nets, replayed) or "dynamic" (`pvvjax dynamic`'s
+            dynamic model of `database`, with its own windows and response).
+        sweep, train, dynamic: the nets (as an experiment config's sections).
         flights: name -> `Flight`.
     """
 
@@ -80,8 +86,10 @@ class JSBSimFlightConfig:
     offset_s: float = 0.5
     window_revs: float = 8.0
     hop_revs: float = 1.0
+    model: Literal["quasi_static", "dynamic"] = "quasi_static"
     sweep: SweepConfig = field(default_factory=SweepConfig)
     train: TrainConfig = field(default_factory=TrainConfig)
+    dynamic: DynamicConfig = field(default_factory=DynamicConfig)
     flights: dict[str, Flight] = field(default_factory=dict)
 
 
@@ -99,11 +107,21 @@ def train_element(cfg: JSBSimFlightConfig, out: Path) -> tuple[Path, Path | None
     campaign = cached_campaign(scfg)
     print(f"synthetic {cfg.aircraft} campaign (UH-60A-like physics scaled to its rotor): {campaign}")
     ecfg = ExperimentConfig(name=cfg.name, out_dir=cfg.out_dir, campaign=CampaignConfig(path=str(campaign)),
-                            sweep=dataclasses.replace(cfg.sweep, databases=(cfg.database,)), train=cfg.train)
-    _, _, res, sweep = prepare_sweep(ecfg, out / "sweep")
-    print(f"{len(res)} nets in {sweep}")
-    export = [sys.executable, "-m", "pvvjax", "export", str(sweep), "--element", "--database", cfg.database,
-              "--offset", repr(cfg.offset_s), "--window", repr(cfg.window_revs), "--hop", repr(cfg.hop_revs)]
+                            sweep=dataclasses.replace(cfg.sweep, databases=(cfg.database,)), train=cfg.train,
+                            dynamic=dataclasses.replace(cfg.dynamic, databases=(cfg.database,)))
+    if cfg.model == "dynamic":
+        from pvvjax.dynamics.study import run_dynamic
+        from pvvjax.experiment import resolve_campaign
+
+        folder, table = run_dynamic(ecfg, resolve_campaign(ecfg)[0], campaign, out / "dynamic")
+        print(table[["model", "rms_g", "faa_pass_share", "best"]].to_string(index=False))
+        export = [sys.executable, "-m", "pvvjax", "export", str(folder), "--element", "--model", "dynamic",
+                  "--database", cfg.database]
+    else:
+        _, _, res, sweep = prepare_sweep(ecfg, out / "sweep")
+        print(f"{len(res)} nets in {sweep}")
+        export = [sys.executable, "-m", "pvvjax", "export", str(sweep), "--element", "--database", cfg.database,
+                  "--offset", repr(cfg.offset_s), "--window", repr(cfg.window_revs), "--hop", repr(cfg.hop_revs)]
     subprocess.run(export + ["--out", str(out / "element")], check=True)
     if c_compiler() is None:
         print("no C compiler: the C element is left out")
