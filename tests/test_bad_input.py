@@ -89,6 +89,11 @@ def _fractions(df):
     return df
 
 
+def _one_stick_fraction(df):
+    df["lateral_pct"] = df["lateral_pct"] / 100.0
+    return df
+
+
 def _azimuth(fn):
     """A record given the azimuth its rotor speed integrates to, as `fn(degrees)` writes it."""
     def edit(df):
@@ -143,6 +148,8 @@ CAMPAIGN = {
     "time in milliseconds": (_records(_scaled("time_s", 1000.0)), 1, "C1.csv", "time_s", "milliseconds"),
     "sampling too slow for the harmonic": (_records(_slow), 1, "C1.csv", "time_s", "samples per cycle"),
     "sticks as fractions": (_records(_fractions), 1, "C1.csv", "collective_pct", "fraction"),
+    "one stick a fraction, the others in % (a warning)": (_records(_one_stick_fraction), 0, "C1.csv", "lateral_pct",
+                                                          "the other sticks are not"),
     "negative airspeed": (_records(_set("airspeed_kt", -5.0, row=2)), 1, "C1.csv", "airspeed_kt", "row 2"),
     "airspeed beyond any rotor (advance ratio > 0.6)": (_records(_set("airspeed_kt", 400.0, row=2)), 1, "C1.csv",
                                                          "airspeed_kt", "advance ratio"),

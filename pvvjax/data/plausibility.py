@@ -126,10 +126,14 @@ def plausibility(df: pd.DataFrame, file: str, aircraft: Aircraft, harmonic: int,
     _sample_rule("climb_rate_fpm", _numeric(df["climb_rate_fpm"]), file, "climb_rate_fpm", problems)
     _sample_rule("pitch_rate_dps", _numeric(df["pitch_rate_dps"]), file, "pitch_rate_dps", problems)
 
-    if all(float(_numeric(df[s]).max()) <= 1.0 for s in STICKS):
+    within_one = [s for s in STICKS if float(np.nanmax(np.abs(_numeric(df[s])))) <= 1.0]
+    if len(within_one) == len(STICKS):
         for s in STICKS:
             problems.append(Problem(file, s, None, "every stick within 0–1 throughout the record: fractions, not % "
                                     "(map it with unit = \"fraction\")"))
+    for s in within_one if len(within_one) < len(STICKS) else ():  # one stick a fraction, the others in %?
+        problems.append(Problem(file, s, None, "within 0–1 throughout the record while the other sticks are not: a "
+                                "fraction, not %? (map it with unit = \"fraction\")", warning=True))
 
     w, sigma = float(_numeric(df["gross_weight_lb"])[0]), float(_numeric(df["density_ratio"])[0])
     rho = aircraft.rho0_slug_ft3 * sigma
