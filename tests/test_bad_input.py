@@ -94,6 +94,16 @@ def _one_stick_fraction(df):
     return df
 
 
+def _swapped_axes(df):
+    df["ay_g"] = df["az_g"]  # the lateral carrying the vertical's 1 g (and its vibration)
+    return df
+
+
+def _horizontal_in_m_s2(df):
+    df["ax_g"] = 9.80665 * 0.8 * (df["az_g"] - 1.0)  # a longitudinal vibration 0.8x the vertical's, in m/s²
+    return df
+
+
 def _azimuth(fn):
     """A record given the azimuth its rotor speed integrates to, as `fn(degrees)` writes it."""
     def edit(df):
@@ -148,6 +158,9 @@ CAMPAIGN = {
     "time in milliseconds": (_records(_scaled("time_s", 1000.0)), 1, "C1.csv", "time_s", "milliseconds"),
     "sampling too slow for the harmonic": (_records(_slow), 1, "C1.csv", "time_s", "samples per cycle"),
     "sticks as fractions": (_records(_fractions), 1, "C1.csv", "collective_pct", "fraction"),
+    "axes swapped: the lateral carrying the vertical's 1 g": (_records(_swapped_axes), 1, "C1.csv", "ay_g",
+                                                              "axes swapped"),
+    "a horizontal axis in m/s²": (_records(_horizontal_in_m_s2), 1, "C1.csv", "ax_g", "m/s²"),
     "one stick a fraction, the others in % (a warning)": (_records(_one_stick_fraction), 0, "C1.csv", "lateral_pct",
                                                           "the other sticks are not"),
     "negative airspeed": (_records(_set("airspeed_kt", -5.0, row=2)), 1, "C1.csv", "airspeed_kt", "row 2"),

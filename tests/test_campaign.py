@@ -216,3 +216,21 @@ def test_conditions_group_segments_in_order():
     c["segment"] = [2, 1, 1]
     camp = campaign_from_frames(c, r)
     assert camp.conditions() == {"A": ["C2", "C1"], "B": ["C3"]}
+
+
+def test_horizontal_axes_are_optional_channels_checked_and_kept(tmp_path):
+    """`ax_g`/`ay_g` in g (about 0 g, a vibration below the vertical's) validate and load; the
+    vertical's databases are those of the same campaign without them."""
+    from pvvjax.analysis.databases import build_databases
+
+    c, r = tiny_records(n_counters=3)
+    plain = load_campaign(write_tiny(tmp_path / "plain", c, r))
+    rng = np.random.default_rng(0)
+    three = {k: v.assign(ax_g=0.5 * (v.az_g - 1.0) + 0.002 * rng.standard_normal(len(v)),
+                         ay_g=0.05 + 0.3 * (v.az_g - 1.0)) for k, v in r.items()}
+    folder = write_tiny(tmp_path / "three", c, three)
+    assert [p for p in validate_campaign(folder) if not p.warning] == []
+    camp = load_campaign(folder)
+    assert {"ax_g", "ay_g"} <= set(camp.records["C1"].columns)
+    for name, df in build_databases(plain).items():
+        pd.testing.assert_frame_equal(build_databases(camp)[name], df)

@@ -16,8 +16,8 @@ import pandas as pd
 from .checks import Problem, _first_bad, _numeric
 from .constants import KT_TO_FT_S, Aircraft
 
-__all__ = ["LIMITS", "MIN_SAMPLES_PER_CYCLE", "STICKS", "TIME_PRECISION_SHARE", "condition_consistency",
-           "plausibility", "rebase_time"]
+__all__ = ["HORIZONTAL_AXES", "LIMITS", "MIN_SAMPLES_PER_CYCLE", "STICKS", "TIME_PRECISION_SHARE",
+           "condition_consistency", "plausibility", "rebase_time"]
 
 STICKS = ("collective_pct", "lateral_pct", "longitudinal_pct")
 
@@ -40,7 +40,13 @@ LIMITS: dict[str, tuple[tuple, tuple, str]] = {
                                       "rotor_rpm × 6 × the step: degrees, forwards, at the rotor's rate"),
     "az_g vibration": ((1e-3, None), (None, None), "standard deviation of az_g about its one-revolution moving "
                                                    "mean, g: a vibration channel carries vibration"),
+    "ax_g, ay_g median": ((-0.5, 0.5), (None, None), "the record's median, g (about 0: the 1 g is the vertical's)"),
+    "ax_g, ay_g vibration / az_g's": ((None, 4.0), (None, None),
+                                      "its standard deviation about its one-revolution moving mean over az_g's: "
+                                      "a horizontal axis does not shake 4x the vertical"),
 }
+# The optional horizontal axes at the pilot floor, beside az_g: name -> (axis, sign).
+HORIZONTAL_AXES = {"ax_g": ("longitudinal", "positive forward"), "ay_g": ("lateral", "positive right")}
 # Time stamps are analysed in single precision: a record whose times float32 would round by
 # more than this share of its sample step is rebased to start at 0 s (refused where even that
 # is not enough).
@@ -114,6 +120,9 @@ def plausibility(df: pd.DataFrame, file: str, aircraft: Aircraft, harmonic: int,
                                     f"{_span(warn)} g", warning=True))
 
     _vibration_rule(t, az, rpm, file, problems)
+    for axis in HORIZONTAL_AXES:
+        if axis in df:
+            _horizontal_rule(axis, t, _numeric(df[axis]), az, rpm, file, problems)
     n = len(problems)
     _sample_rule("rotor_rpm / nominal", rpm / aircraft.nominal_rpm, file, "rotor_rpm", problems,
                  f" (nominal {aircraft.nominal_rpm:g} rpm); rad/s or rev/s?")
@@ -149,16 +158,41 @@ def plausibility(df: pd.DataFrame, file: str, aircraft: Aircraft, harmonic: int,
     return problems
 
 
+def _spread(t, x, rpm) -> float | None:
+    """Standard deviation of `x` about its one-revolution moving mean, g (None where a
+    revolution holds fewer than 3 samples: the sampling rule says so)."""
+    spr = max(1, int(round(60.0 / float(np.median(rpm)) / float(np.median(np.diff(t))))))
+    if spr < 3 or len(x) <= spr:
+        return None
+    c = np.concatenate([[0.0], np.cumsum(x - x.mean())])
+    moving = (c[spr:] - c[:-spr]) / spr
+    centred = (x - x.mean())[spr // 2: spr // 2 + len(moving)]
+    return float(np.std(centred - moving))
+
+
+def _horizontal_rule(axis, t, x, az, rpm, file, problems):
+    """`ax_g`/`ay_g`: about 0 g in the mean (an axis carrying 1 g is the vertical: swapped
+    axes), and no more vibration than 4x the vertical's (9.81x: m/s², not g)."""
+    name, sign = HORIZONTAL_AXES[axis]
+    med = float(np.median(x))
+    err, _, _ = LIMITS["ax_g, ay_g median"]
+    if _outside(med, err):
+        problems.append(Problem(file, axis, None, f"median {med:.4g} g on the {name} axis ({sign}), outside "
+                                f"{_span(err)} g: the vertical's 1 g? axes swapped (az_g is the vertical)?"))
+        return
+    own, vertical = _spread(t, x, rpm), _spread(t, az, rpm)
+    hi = LIMITS["ax_g, ay_g vibration / az_g's"][0][1]
+    if own is not None and vertical and own / vertical > hi:
+        problems.append(Problem(file, axis, None, f"vibration {own:.3g} about its one-revolution mean, "
+                                f"{own / vertical:.3g}x az_g's (above {hi:g}x): in m/s² (9.81x g)?"))
+
+
 def _vibration_rule(t, az, rpm, file, problems):
     """`az_g` must vary within a revolution: a constant, or a smooth channel (the load
     factor in the vibration's place), carries no N/rev vibration to analyse."""
-    spr = max(1, int(round(60.0 / float(np.median(rpm)) / float(np.median(np.diff(t))))))
-    if spr < 3 or len(az) <= spr:  # sampled too slowly for a revolution's mean: the sampling rule says so
+    spread = _spread(t, az, rpm)
+    if spread is None:
         return
-    c = np.concatenate([[0.0], np.cumsum(az - az.mean())])
-    moving = (c[spr:] - c[:-spr]) / spr
-    centred = (az - az.mean())[spr // 2: spr // 2 + len(moving)]
-    spread = float(np.std(centred - moving))
     lo = LIMITS["az_g vibration"][0][0]
     if spread < lo:
         problems.append(Problem(file, "az_g", None, f"carries no vibration: {spread:.2g} g about its one-revolution "

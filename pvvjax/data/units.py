@@ -29,6 +29,8 @@ _UNITS: dict[str, tuple[str, float]] = {
 CANONICAL_UNITS: dict[str, str] = {
     "time_s": "s",
     "az_g": "g",
+    "ax_g": "g",
+    "ay_g": "g",
     "azimuth_deg": "deg",
     "rotor_rpm": "rpm",
     "airspeed_kt": "kt",
