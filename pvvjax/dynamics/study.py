@@ -246,6 +246,7 @@ def figures(parts: dict, cfg, out: Path) -> list[Path]:
             pred = {m: a["heldout"][r, :n] for m, (_, a) in by_split["condition"].items()}
             plots.through_time(d.seq.time[r, :n], d.seq.amplitude[r, :n], pred,
                                f"{cond} ({d.seq.maneuvers[r]}, {d.seq.counters[r]}), held out: {db}", ax=ax)
+        fig.tight_layout()
         paths.append(plots.save(fig, out / "figures" / f"through_time_{db}.png"))
     return paths
 
