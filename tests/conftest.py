@@ -271,33 +271,43 @@ def _code_key() -> str:
     return h.hexdigest()[:16]
 
 
-@pytest.fixture(scope="session")
-def small_sweep(small_campaign_dir) -> Path:
-    """The shared small sweep's folder (read-only: copy it), trained once per code version
-    and cached beside the campaigns, under a lock so that the workers train it once."""
+def cached_folder(kind: str, marker: str, make) -> Path:
+    """A results folder made once per code version and cached beside the campaigns
+    (read-only: copy it), under a lock so that the workers make it once. `make(tmp)` writes it
+    into the new folder `tmp`; `marker` is the file whose presence says it is complete."""
     import fcntl
     import shutil
     import tempfile
 
     from pvvjax._cache import cache_dir
-    from pvvjax.cli import main
 
-    root = cache_dir() / "sweeps"
+    root = cache_dir() / kind
     final = root / f"small-{_code_key()}"
-    if (final / "results.parquet").exists():
+    if (final / marker).exists():
         return final
     root.mkdir(parents=True, exist_ok=True)
     with open(root / f"{final.name}.lock", "a") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
-        if not (final / "results.parquet").exists():
+        if not (final / marker).exists():
             tmp = Path(tempfile.mkdtemp(dir=root, prefix=".tmp-"))
             try:
-                cfg = small_sweep_config(tmp / "s.toml", tmp, small_campaign_dir)
-                assert main(["sweep", str(cfg), "--out", str(tmp / "sweep")]) == 0
-                os.rename(tmp / "sweep", final)
+                os.rename(make(tmp), final)
             finally:
                 shutil.rmtree(tmp, ignore_errors=True)
     return final
+
+
+@pytest.fixture(scope="session")
+def small_sweep(small_campaign_dir) -> Path:
+    """The shared small sweep's folder (read-only: copy it), trained once per code version."""
+    from pvvjax.cli import main
+
+    def make(tmp):
+        cfg = small_sweep_config(tmp / "s.toml", tmp, small_campaign_dir)
+        assert main(["sweep", str(cfg), "--out", str(tmp / "sweep")]) == 0
+        return tmp / "sweep"
+
+    return cached_folder("sweeps", "results.parquet", make)
 
 
 _DISCOVERY_BASELINES: dict = {}

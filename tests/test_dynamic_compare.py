@@ -113,14 +113,27 @@ rnn_hidden = 4
 
 @pytest.fixture(scope="module")
 def dynamic_run(small_campaign_dir, tmp_path_factory):
+    """`pvvjax dynamic` on the small campaign (run once per code version and cached, as the
+    small sweep is), copied into this module's folder with its config."""
+    import shutil
+
+    from conftest import cached_folder
+
     from pvvjax.cli import main
 
+    def args_in(folder):
+        (folder / "small.toml").write_text(SMALL)
+        return ["dynamic", "--campaign", str(small_campaign_dir), "--out", str(folder / "out"), "--config",
+                str(folder / "small.toml")]
+
+    def make(tmp):
+        assert main(args_in(tmp)) == 0
+        return tmp / "out"
+
     folder = tmp_path_factory.mktemp("dynamic")
-    (folder / "small.toml").write_text(SMALL)
-    out = folder / "out"
-    args = ["dynamic", "--campaign", str(small_campaign_dir), "--out", str(out), "--config", str(folder / "small.toml")]
-    assert main(args) == 0
-    return folder, out, args
+    args = args_in(folder)
+    shutil.copytree(cached_folder("dynamic", "report.md", make), folder / "out")
+    return folder, folder / "out", args
 
 
 def test_dynamic_command_writes_every_model_every_window_once(dynamic_run, small_campaign_dir):
