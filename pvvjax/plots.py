@@ -126,6 +126,16 @@ def size_search(val: pd.DataFrame, chosen: dict, title: str):
     return fig
 
 
+def _time_axes(fig, ax, ylabel: str, title: str):
+    """Label a PVV-against-time panel; the figure if the plot made one, else the axes."""
+    ax.set_xlabel("time, s")
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, fontsize=9)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    return fig if fig is not None else ax
+
+
 def replay(series: dict[str, pd.DataFrame], title: str, ax=None, measured_label="flight test (4P PVV)"):
     """Quasi-static replay of one counter (paper Figs 13-14): measured PVV per window and one
     predicted series per label (window tables of `replay_tables.replay_windows`)."""
@@ -138,12 +148,7 @@ def replay(series: dict[str, pd.DataFrame], title: str, ax=None, measured_label=
     for k, (label, w) in enumerate(series.items()):
         w = w[w.weight >= 0.999]
         ax.plot(w.time_s, w.predicted_g, "s--" if k % 2 else "^-", ms=3.5, lw=1.0, color=f"C{k}", label=label)
-    ax.set_xlabel("time, s")
-    ax.set_ylabel("PVV (4P), g")
-    ax.set_title(title, fontsize=9)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=7)
-    return fig if fig is not None else ax
+    return _time_axes(fig, ax, "PVV (4P), g", title)
 
 
 def cost_map(grid: pd.DataFrame, optimum: tuple[float, float] | None, title: str, ax=None):
@@ -281,9 +286,4 @@ def through_time(time, measured, predicted: dict, title: str, ax=None):
     ax.plot(time, measured, "k-", lw=1.6, label="measured")
     for k, (label, values) in enumerate(predicted.items()):
         ax.plot(time, values, "--" if k % 2 else "-", lw=1.1, color=f"C{k}", label=label)
-    ax.set_xlabel("time, s")
-    ax.set_ylabel("PVV (N/rev), g")
-    ax.set_title(title, fontsize=9)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=7)
-    return fig if fig is not None else ax
+    return _time_axes(fig, ax, "PVV (N/rev), g", title)

@@ -135,6 +135,19 @@ def test_fmu_passes_fmpy_validation(fmu):
     assert float(by["offset_s"].start) == 0.6 and float(by["window_revs"].max) == 16.0
 
 
+def _fmu_input(fmu, T, AZ, X):
+    """FMPy's input signal for the FMU's inputs: the record's frames (times T, azimuth AZ,
+    channels X)."""
+    import fmpy
+
+    names = [v.name for v in fmpy.read_model_description(str(fmu)).modelVariables if v.causality == "input"]
+    signal = np.zeros(len(T), [("time", float)] + [(k, float) for k in names])
+    signal["time"] = T
+    for k in names:
+        signal[k] = AZ if k == "azimuth_deg" else X[:, CHANNELS.index(k)]
+    return signal
+
+
 @pytest.mark.parametrize("kind", ["pullup", "autorotation"])
 def test_fmpy_simulation_equals_the_numpy_element(element, fmu, kind):
     """FMPy as the host: the recorded counter at the campaign's frame rate; the output after the
@@ -144,12 +157,7 @@ def test_fmpy_simulation_equals_the_numpy_element(element, fmu, kind):
     T, AZ, X = _frames(element["camp"], kind)
     dt = float(np.median(np.diff(T)))
     assert np.allclose(np.diff(T), dt)
-    md = fmpy.read_model_description(str(fmu))
-    names = [v.name for v in md.modelVariables if v.causality == "input"]
-    signal = np.zeros(len(T), [("time", float)] + [(k, float) for k in names])
-    signal["time"] = T
-    for k in names:
-        signal[k] = AZ if k == "azimuth_deg" else X[:, CHANNELS.index(k)]
+    signal = _fmu_input(fmu, T, AZ, X)
     res = fmpy.simulate_fmu(str(fmu), start_time=T[0], stop_time=T[-1], step_size=dt, output_interval=dt,
                             input=signal, output=["pvv_g", "shake_g", "out_of_envelope", "ready"],
                             start_values={"stick_offset_s": -0.3})
@@ -200,12 +208,7 @@ def test_dynamic_fmu_simulation_equals_the_numpy_element(element, dynamic_elemen
     fmu = build_fmu(tmp_path / "pvv_element.fmu", dynamic_element["spec"], element["nets"], dynamic_element["limits"])
     T, AZ, X = _frames(element["camp"], "pullup")
     dt = float(np.median(np.diff(T)))
-    md = fmpy.read_model_description(str(fmu))
-    names = [v.name for v in md.modelVariables if v.causality == "input"]
-    signal = np.zeros(len(T), [("time", float)] + [(k, float) for k in names])
-    signal["time"] = T
-    for k in names:
-        signal[k] = AZ if k == "azimuth_deg" else X[:, CHANNELS.index(k)]
+    signal = _fmu_input(fmu, T, AZ, X)
     res = fmpy.simulate_fmu(str(fmu), start_time=T[0], stop_time=T[-1], step_size=dt, output_interval=dt,
                             input=signal, output=["pvv_g"])
     ref = dynamic_element["reference"]()

@@ -8,6 +8,7 @@ resumes where it stopped; the tables and the report are written from the parts a
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 from typing import NamedTuple
 
@@ -107,8 +108,6 @@ def _part(folder: Path, d: Database, split, model: str, cfg, log) -> tuple:
             arrays = dict(z)
         log(f"  {d.name} {split.name} {model}: saved part")
     else:
-        import time
-
         t0 = time.perf_counter()
         params, arrays = _train(d, split, model, cfg)
         folder.mkdir(parents=True, exist_ok=True)
@@ -339,14 +338,6 @@ class ElementModel(NamedTuple):
     offset_s: float
 
 
-def _take(tree, f: int, s: int):
-    if isinstance(tree, dict):
-        return {k: _take(v, f, s) for k, v in tree.items()}
-    if isinstance(tree, tuple):
-        return tuple(_take(v, f, s) for v in tree)
-    return tree[f, s]
-
-
 def element_model(folder: Path, cfg, model: str | None = None, database: str | None = None) -> ElementModel:
     """A model of the comparison in `folder` for the element: the `best` row's (default),
     or `model` of `database` (one of `EXPORTABLE`). `cfg`: the folder's config.toml."""
@@ -361,7 +352,7 @@ def element_model(folder: Path, cfg, model: str | None = None, database: str | N
     stacked, _ = read_npz(Path(folder) / "parts" / f"{database}-condition-{model}.params.npz")
     folds, seeds = np.shape(stacked["y_scale"])
     meta = {"inputs": list(DB_INPUTS[database]), "model": model}
-    nets = [({k: v for k, v in _take(stacked, f, s).items() if k != "response"}, meta)
+    nets = [({k: v for k, v in jax.tree.map(lambda a: a[f, s], stacked).items() if k != "response"}, meta)
             for f in range(folds) for s in range(seeds)]
     response = None
     if model == "dynamic":
