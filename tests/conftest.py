@@ -139,6 +139,15 @@ def default_dbs(default_campaign):
     return build_databases(default_campaign)
 
 
+@pytest.fixture(scope="session")
+def default_dbs_axes(default_campaign):
+    """The embedded campaign's N/rev peak table of every axis (`axis_peak_tables`), by axis."""
+    from pvvjax.analysis import axis_peak_tables
+
+    n = default_campaign.aircraft.blades
+    return {axis: t for (axis, k), t in axis_peak_tables(default_campaign, harmonics=(n,)).items()}
+
+
 SMALL_COUNTS = dict(level=10, climb=3, descent=3, turn=3, roll=3, pushover=2, pullup=3, autorotation=1, flare=2)
 
 

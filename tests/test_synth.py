@@ -117,13 +117,46 @@ def test_effects_change_vibration_only():
     assert diff[base.time_s.between(12, 16)].max() > 0.05 and diff[base.time_s < 8].max() < 1e-6
 
 
+def _harmonic(r, axis, k):
+    """Amplitude of harmonic k of one axis over a whole record, g."""
+    return 2 * abs(np.mean(r[axis] * np.exp(-1j * k * np.deg2rad(r.azimuth_deg))))
+
+
+def test_the_horizontal_axes_are_switchable_effects_that_leave_the_vertical_alone():
+    # A steady 45-degree turn: the lateral N/rev carries the bank effect; switching it off lowers the lateral
+    # only. Track and balance is the 1/rev of both horizontal axes, at its set amplitude.
+    cfg = lambda **e: SynthConfig(conditions=("T1-turn45-145",), noise_g=0.0, effects=e)  # noqa: E731
+    base = generate(cfg())[1]["T1-turn45-145"]
+    no_bank = generate(cfg(lateral_bank=EffectConfig(enabled=False)))[1]["T1-turn45-145"]
+    no_tb = generate(cfg(track_balance=EffectConfig(enabled=False)))[1]["T1-turn45-145"]
+    pd.testing.assert_frame_equal(base.drop(columns="ay_g"), no_bank.drop(columns="ay_g"))
+    assert _harmonic(base, "ay_g", 4) - _harmonic(no_bank, "ay_g", 4) > 0.15  # 0.25·sin 45°, less the lag's ramp
+    tb = EFFECTS["track_balance"].params
+    for axis in "xy":
+        assert _harmonic(base, f"a{axis}_g", 1) == pytest.approx(tb[f"a_{axis}"], rel=0.05)
+        assert _harmonic(no_tb, f"a{axis}_g", 1) < 0.1 * tb[f"a_{axis}"]
+    pd.testing.assert_frame_equal(base.drop(columns=["ax_g", "ay_g"]), no_tb.drop(columns=["ax_g", "ay_g"]))
+
+
+def test_lateral_peaks_in_flares_and_turns_and_longitudinal_follows_the_vertical(default_dbs_axes):
+    peaks = default_dbs_axes
+    y = peaks["ay_g"].groupby("maneuver")[OUTPUT].median()
+    assert y[["flare", "turn", "roll"]].min() > 2 * y["level"] and y.max() < 0.35
+    z, x = peaks["az_g"], peaks["ax_g"]
+    level = (z["maneuver"] == "level").to_numpy()
+    # Longitudinal follows the vertical's advance-ratio trend in level flight, lower.
+    assert np.corrcoef(z[OUTPUT][level], x[OUTPUT][level])[0, 1] > 0.8
+    assert (x[OUTPUT] < z[OUTPUT]).mean() > 0.9
+
+
 def test_vibration_weight_changes_the_vibration_only():
     # 11022 flies at 16055 lb: holding the vibration's weight there changes nothing; heavier, only
     # the acceleration changes, and its 4P grows (blade loading and its stall knee).
     cfg = lambda w: SynthConfig(conditions=("11022",), vibration_weight_lb=w)  # noqa: E731
     own, same, heavy = (generate(cfg(w))[1]["11022"] for w in (None, 16055.0, 21000.0))
     pd.testing.assert_frame_equal(own, same)
-    pd.testing.assert_frame_equal(own.drop(columns="az_g"), heavy.drop(columns="az_g"))
+    accel = ["az_g", "ax_g", "ay_g"]
+    pd.testing.assert_frame_equal(own.drop(columns=accel), heavy.drop(columns=accel))
     p4 = lambda r: abs(np.mean(r.az_g * np.exp(-4j * np.deg2rad(r.azimuth_deg))))  # noqa: E731
     assert p4(heavy) > 1.1 * p4(own)
 
@@ -164,7 +197,7 @@ def test_generator_config_errors(tmp_path, text, needle):
 
 def test_every_effect_is_documented_and_switchable():
     for e in EFFECTS.values():
-        assert e.formula and e.physics and e.kind in ("additive", "gain", "lag")
+        assert e.formula and e.physics and e.kind in ("additive", "gain", "lag", "once_per_rev")
     required = {"transition", "high_speed", "blade_loading", "dynamic_stall", "descent_bvi", "rotor_resonance",
                 "dynamic_lag", "pitch_rate", "roll_rate"}
     assert required <= set(EFFECTS)

@@ -5,6 +5,7 @@ differentiable in L); `databases` takes each condition's peak window into db1-db
 (data-contract §2).
 """
 
+from .axes import AXES, AxisWindows, analyze_axes, axis_windows, resolved_harmonics
 from .databases import (
     DATABASES,
     DB_INPUTS,
@@ -12,9 +13,12 @@ from .databases import (
     OUTPUT,
     STATE_CHANNELS,
     Peaks,
+    axis_peak_tables,
     build_databases,
+    campaign_axes,
     condition_peaks,
     peak_table,
+    peaks_from_windows,
     window_table,
 )
 from .harmonics import (
@@ -29,13 +33,17 @@ from .harmonics import (
     means_from_sums,
     plan_windows,
     record_bounds,
+    make_columns,
     record_columns,
     stack_columns,
+    window_bounds,
     window_sums,
     with_prefix,
 )
 
 __all__ = [
+    "AXES",
+    "AxisWindows",
     "Columns",
     "DATABASES",
     "DB_INPUTS",
@@ -47,17 +55,25 @@ __all__ = [
     "WindowPlan",
     "Windows",
     "analyze",
+    "analyze_axes",
+    "axis_peak_tables",
+    "axis_windows",
     "build_databases",
+    "campaign_axes",
     "condition_peaks",
     "edge_weight",
     "harmonic_from_means",
     "harmonic_windows",
+    "make_columns",
     "means_from_sums",
     "peak_table",
+    "peaks_from_windows",
     "plan_windows",
     "record_bounds",
     "record_columns",
+    "resolved_harmonics",
     "stack_columns",
+    "window_bounds",
     "window_sums",
     "window_table",
     "with_prefix",

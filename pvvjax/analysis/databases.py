@@ -23,6 +23,7 @@ from ..config import AnalysisConfig
 from ..data.batch import bucket_size, to_batch
 from ..data.campaign import Campaign
 from ..data.features import derive_features
+from .axes import AXES, analyze_axes, resolved_harmonics
 from .harmonics import Windows, analyze
 
 __all__ = [
@@ -32,9 +33,12 @@ __all__ = [
     "OUTPUT",
     "STATE_CHANNELS",
     "Peaks",
+    "axis_peak_tables",
     "build_databases",
+    "campaign_axes",
     "condition_peaks",
     "peak_table",
+    "peaks_from_windows",
     "window_table",
 ]
 
@@ -101,22 +105,45 @@ def window_table(campaign: Campaign, windows: Windows, counters) -> pd.DataFrame
     })
 
 
+def _counters(campaign: Campaign):
+    conds = campaign.conditions()
+    return list(conds), [c for cs in conds.values() for c in cs]
+
+
+def campaign_axes(campaign: Campaign) -> tuple[str, ...]:
+    """The pilot-floor axes every record of a campaign carries (`az_g` always; `ax_g`,
+    `ay_g` where given)."""
+    return tuple(a for a in AXES if all(a in r.columns for r in campaign.records.values()))
+
+
+def _check_axis(campaign: Campaign, axis: str) -> None:
+    if axis not in campaign_axes(campaign):
+        raise ValueError(f"analysis.axis = {axis!r}: campaign {campaign.source} has no {axis} channel in every record "
+                         f"(its axes: {', '.join(campaign_axes(campaign))})")
+
+
 def peak_table(campaign: Campaign, analysis: AnalysisConfig = AnalysisConfig()) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """Analyse every counter and take each condition's peak window.
+    """Analyse every counter's `analysis.axis` and take each condition's peak window.
 
     Returns:
         (peaks, windows): one row per condition with every state channel and derived
         feature at the peak window; and the long table of all valid windows.
     """
-    conds = campaign.conditions()
-    counters = [c for cs in conds.values() for c in cs]
-    batch = to_batch(campaign, STATE_CHANNELS, counters)
+    _check_axis(campaign, analysis.axis)
+    cond_names, counters = _counters(campaign)
+    batch = to_batch(campaign, STATE_CHANNELS, counters, axis=analysis.axis)
     win = analyze(batch, analysis.window_revs, analysis.hop, harmonic=analysis.harmonic or campaign.aircraft.blades,
                   taper_revs=analysis.taper_revs)
+    return peaks_from_windows(campaign, win, counters, analysis), window_table(campaign, win, counters)
+
+
+def peaks_from_windows(campaign: Campaign, win: Windows, counters, analysis: AnalysisConfig) -> pd.DataFrame:
+    """Each condition's peak window of an analysis of `counters` (every counter of the
+    campaign, condition by condition), with every state channel and derived feature there."""
     if not bool(np.asarray(win.valid).any(axis=1).all()):
         short = [c for c, ok in zip(counters, np.asarray(win.valid).any(axis=1)) if not ok]
         raise ValueError(f"counters with no complete analysis window: {short}")
-    cond_names = list(conds)
+    cond_names, _ = _counters(campaign)
     cond_ids = np.array([cond_names.index(campaign.counters.loc[c, "condition"]) for c in counters])
     # Conditions counted in buckets (an empty condition's peak is -inf, and it is sliced off).
     pk = condition_peaks(win.amplitude, win.valid, jnp.asarray(cond_ids), num_conditions=bucket_size(len(cond_names)))
@@ -127,7 +154,7 @@ def peak_table(campaign: Campaign, analysis: AnalysisConfig = AnalysisConfig()) 
     ch = {name: vals[:, i] for i, name in enumerate(STATE_CHANNELS)}
     feats = {k: np.asarray(v) for k, v in derive_features(ch, campaign.aircraft).items()}
     peak_counters = [counters[i] for i in row]
-    table = pd.DataFrame({
+    return pd.DataFrame({
         "condition": cond_names,
         "counter": peak_counters,
         "maneuver": campaign.counters.loc[peak_counters, "maneuver"].to_numpy(),
@@ -137,7 +164,28 @@ def peak_table(campaign: Campaign, analysis: AnalysisConfig = AnalysisConfig()) 
         **ch,
         OUTPUT: np.asarray(pk.value),
     })
-    return table, window_table(campaign, win, counters)
+
+
+def axis_peak_tables(campaign: Campaign, analysis: AnalysisConfig = AnalysisConfig(),
+                     harmonics=None) -> dict[tuple[str, int], pd.DataFrame]:
+    """A peak table per pilot-floor axis and harmonic, from one windowed pass
+    (`analyze_axes`): for every axis the campaign carries, the 1/rev, N/rev and 2N/rev
+    (`harmonics`, default) that its sampling and windows resolve. Each table is what
+    `peak_table` gives for that `analysis.axis` and `harmonic`: its own peak window per
+    condition, the flight state there, and the peak in `OUTPUT` (g).
+
+    Returns:
+        (axis, harmonic) -> table, axes in `AXES` order, harmonics ascending.
+    """
+    n = campaign.aircraft.blades
+    cond_names, counters = _counters(campaign)
+    axes = campaign_axes(campaign)
+    batch = to_batch(campaign, STATE_CHANNELS, counters, axis=axes)
+    wanted = sorted(set(harmonics or (1, n, 2 * n)))
+    ks = resolved_harmonics(batch, wanted, analysis.window_revs)
+    win = analyze_axes(batch, ks, analysis.window_revs, analysis.hop, taper_revs=analysis.taper_revs)
+    return {(axis, k): peaks_from_windows(campaign, win.select(a, h), counters, analysis)
+            for a, axis in enumerate(axes) for h, k in enumerate(ks)}
 
 
 def build_databases(campaign: Campaign, analysis: AnalysisConfig = AnalysisConfig()) -> dict[str, pd.DataFrame]:

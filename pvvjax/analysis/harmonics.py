@@ -44,11 +44,13 @@ __all__ = [
     "edge_weight",
     "harmonic_from_means",
     "harmonic_windows",
+    "make_columns",
     "means_from_sums",
     "plan_windows",
     "record_bounds",
     "record_columns",
     "stack_columns",
+    "window_bounds",
     "window_sums",
     "with_prefix",
 ]
@@ -187,9 +189,16 @@ def record_columns(az, cos_psi, sin_psi, rev, width, time, x, *, harmonic: int, 
     # Channels are averaged as deviations from the record's first sample (added back after):
     # exact for constants, and no float32 loss on large values such as gross weight.
     x_ref = x[0]
-    # Each column is reduced on its own: stacking full-length columns costs more than the analysis.
     cols = (az * ck, az * sk, ck, sk, az, time) + tuple(x[:, c] - x_ref[c] for c in range(x.shape[1]))
+    return make_columns(cols, rev, width, x_ref, block=block)
+
+
+def make_columns(cols: tuple, rev, width, x_ref, *, block: int) -> Columns:
+    """`Columns` of any tuple of (T,) columns: their width-weighted block sums, beside the
+    record's revolutions and widths (`record_columns` for one harmonic of one axis)."""
+    T = rev.shape[0]
     nb = T // block
+    # Each column is reduced on its own: stacking full-length columns costs more than the analysis.
     blocks = jnp.stack(_sums([(width * v).reshape(nb, block) for v in cols] + [width.reshape(nb, block)], axis=1),
                        axis=-1)
     return Columns(cols, blocks, x_ref, rev, width, jnp.max(width))
@@ -361,18 +370,24 @@ def harmonic_windows(az, cos_psi, sin_psi, rev, width, time, x, mask, window_rev
     """
     kind = _edge_kind(edge, taper_revs)
     W = plan.n_windows
-    dt = az.dtype
     T = az.shape[0]
     cols = record_columns(az, cos_psi, sin_psi, rev, width, time, x, harmonic=harmonic, block=plan.block)
-    rec_start, rec_end = record_bounds(rev, width, mask)
-    a = rec_start + 0.5 * taper_revs + start_revs + hop_revs * jnp.arange(W, dtype=dt)
-    b = a + window_revs
+    a, b, inside_record = window_bounds(rev, width, mask, window_revs, hop_revs, start_revs, taper_revs, W)
     mean, wsum = means_from_sums(window_sums(cols, a, b, kind=kind, taper_revs=taper_revs, plan=plan))
     amplitude, phase, t_mid = harmonic_from_means(mean)
     center = jax.vmap(lambda col: jnp.interp(t_mid, time[:T], col), in_axes=1, out_axes=1)(x[:T])
-    inside_record = (a - 0.5 * taper_revs >= rec_start - _EPS_REVS) & (b + 0.5 * taper_revs <= rec_end + _EPS_REVS)
     valid = inside_record & (wsum > 0)
     return Windows(amplitude, phase, t_mid, mean[:, N_HARMONIC_COLS:] + cols.x_ref, center, valid)
+
+
+def window_bounds(rev, width, mask, window_revs, hop_revs, start_revs, taper_revs: float, n_windows: int):
+    """Starts and ends (revolutions) of a record's `n_windows` windows, every `hop_revs`
+    from `start_revs` past the record's start, and whether each lies wholly inside it."""
+    rec_start, rec_end = record_bounds(rev, width, mask)
+    a = rec_start + 0.5 * taper_revs + start_revs + hop_revs * jnp.arange(n_windows, dtype=rev.dtype)
+    b = a + window_revs
+    inside = (a - 0.5 * taper_revs >= rec_start - _EPS_REVS) & (b + 0.5 * taper_revs <= rec_end + _EPS_REVS)
+    return a, b, inside
 
 
 def plan_windows(batch: RecordBatch, max_window_revs: float, min_hop_revs: float, taper_revs: float = 0.0,
@@ -431,7 +446,7 @@ def analyze(batch: RecordBatch, window_revs: float = 8.0, hop_revs: float | None
         partial(harmonic_windows, harmonic=harmonic, taper_revs=float(taper_revs), plan=plan, edge=edge),
         in_axes=(0, 0, 0, 0, 0, 0, 0, 0, None, None, None),
     )
-    arrays = (batch.az, batch.cos_psi, batch.sin_psi, batch.rev, batch.width, batch.time, batch.x, batch.mask)
+    arrays = (batch.accel, batch.cos_psi, batch.sin_psi, batch.rev, batch.width, batch.time, batch.x, batch.mask)
     n = arrays[0].shape[0]
     if isinstance(arrays[0], jax.core.Tracer):  # under a caller's jit or vmap: its shapes, as given
         return fn(*arrays, window_revs, hop, start_revs)

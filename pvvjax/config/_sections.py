@@ -49,6 +49,10 @@ class AnalysisConfig:
         inputs: how a database row takes the flight state at the peak window: "mean"
             averages each channel over the window (the paper's replay inputs), "center"
             takes the instantaneous value at the window's center.
+        axis: the pilot-floor acceleration the databases' output is the peak of: "az_g"
+            vertical (the paper's PVV), "ax_g" longitudinal or "ay_g" lateral (data
+            contract). With `harmonic`, it picks any of `build-db`'s per-axis tables as the
+            output that the sweep, the replay and the dynamic model then work on.
     """
 
     window_revs: float = 8.0
@@ -56,6 +60,7 @@ class AnalysisConfig:
     harmonic: int | None = None
     taper_revs: float = 0.0
     inputs: Literal["mean", "center"] = "mean"
+    axis: Literal["az_g", "ax_g", "ay_g"] = "az_g"
 
     def __post_init__(self):
         if not self.window_revs > 0:

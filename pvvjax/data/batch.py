@@ -70,11 +70,13 @@ class RecordBatch:
             float64 from the wrapped azimuth, so it carries no wrap or rounding artefact).
         width: (B, T) revolutions each sample stands for (half-way to each neighbour); 0 in
             padding, so it is also the sample's weight in a harmonic analysis.
-        az: (B, T) pilot-floor vertical acceleration, g (0 in padding).
+        accel: (B, T) the analysed pilot-floor acceleration (the `axis` channel of
+            `to_batch`: `az_g` vertical unless asked otherwise), g (0 in padding).
         x: (B, T, C) flight-state channels named by `channels`, canonical units.
         mask: (B, T) True on real samples.
         counters: (static) the counter of each batch row.
         channels: (static) the channel of each slice of `x`.
+        axis: (static) the acceleration channel `accel` holds (a tuple: its last axis).
     """
 
     time: jax.Array
@@ -82,11 +84,12 @@ class RecordBatch:
     cos_psi: jax.Array
     sin_psi: jax.Array
     width: jax.Array
-    az: jax.Array
+    accel: jax.Array
     x: jax.Array
     mask: jax.Array
     counters: tuple[str, ...] = ()
     channels: tuple[str, ...] = ()
+    axis: str | tuple[str, ...] = "az_g"
 
     def channel(self, name: str):
         """The (B, T) array of one channel."""
@@ -99,8 +102,8 @@ class RecordBatch:
 
 jax.tree_util.register_dataclass(
     RecordBatch,
-    data_fields=["time", "rev", "cos_psi", "sin_psi", "width", "az", "x", "mask"],
-    meta_fields=["counters", "channels"],
+    data_fields=["time", "rev", "cos_psi", "sin_psi", "width", "accel", "x", "mask"],
+    meta_fields=["counters", "channels", "axis"],
 )
 
 
@@ -116,7 +119,7 @@ def _pad_linear(v: np.ndarray, n: int) -> np.ndarray:
 
 
 def to_batch(campaign: Campaign, channels: Sequence[str], counters: Sequence[str] | None = None,
-             min_length: int = 0, dtype=np.float32) -> RecordBatch:
+             min_length: int = 0, dtype=np.float32, axis: str | tuple[str, ...] = "az_g") -> RecordBatch:
     """Stack a campaign's records into a padded `RecordBatch`.
 
     Args:
@@ -125,6 +128,8 @@ def to_batch(campaign: Campaign, channels: Sequence[str], counters: Sequence[str
         counters: which counters, in which order (default: condition then segment order).
         min_length: pad to at least this many samples.
         dtype: floating dtype of the arrays.
+        axis: the pilot-floor acceleration analysed (`az_g`, `ax_g` or `ay_g`, data
+            contract): what `accel` holds; a tuple of them makes `accel` (B, T, A).
 
     The length is padded to whole `BLOCK`s, in `bucket_size` steps of blocks.
 
@@ -134,15 +139,17 @@ def to_batch(campaign: Campaign, channels: Sequence[str], counters: Sequence[str
     if counters is None:
         counters = [c for cs in campaign.conditions().values() for c in cs]
     counters = list(counters)
+    axes = (axis,) if isinstance(axis, str) else tuple(axis)
     recs = [campaign.records[c] for c in counters]
     for c, r in zip(counters, recs):
-        missing = [ch for ch in channels if ch not in r.columns]
+        missing = [ch for ch in (*channels, *axes) if ch not in r.columns]
         if missing:
             raise KeyError(f"counter {c!r} has no channel(s) {missing}")
     T = max(max(len(r) for r in recs), min_length)
     T = bucket_size(-(-T // BLOCK)) * BLOCK  # whole blocks for the harmonic analysis, few distinct lengths
     B, C = len(recs), len(channels)
-    out = {k: np.zeros((B, T), dtype) for k in ("time", "rev", "cos_psi", "sin_psi", "width", "az")}
+    out = {k: np.zeros((B, T), dtype) for k in ("time", "rev", "cos_psi", "sin_psi", "width")}
+    out["accel"] = np.zeros((B, T, len(axes)), dtype)
     x = np.zeros((B, T, C), dtype)
     mask = np.zeros((B, T), bool)
     for i, r in enumerate(recs):
@@ -156,10 +163,11 @@ def to_batch(campaign: Campaign, channels: Sequence[str], counters: Sequence[str
         psi = 2.0 * np.pi * np.mod(rev, 1.0)
         out["cos_psi"][i], out["sin_psi"][i] = np.cos(psi), np.sin(psi)
         out["width"][i, :n] = sample_widths(rev[:n])
-        out["az"][i, :n] = r["az_g"].to_numpy(np.float64)
+        out["accel"][i, :n] = r[list(axes)].to_numpy(np.float64)
         vals = r[list(channels)].to_numpy(np.float64)
         x[i, :n] = vals
         x[i, n:] = vals[-1]
         mask[i, :n] = True
-    return RecordBatch(out["time"], out["rev"], out["cos_psi"], out["sin_psi"], out["width"], out["az"], x, mask,
-                       tuple(counters), tuple(channels))
+    accel = np.ascontiguousarray(out["accel"][..., 0]) if isinstance(axis, str) else out["accel"]
+    return RecordBatch(out["time"], out["rev"], out["cos_psi"], out["sin_psi"], out["width"], accel, x, mask,
+                       tuple(counters), tuple(channels), axis)

@@ -166,7 +166,7 @@ def prepare(batch: RecordBatch, *, harmonic: int = 4, block: int = 16) -> Replay
     """
     if tuple(batch.channels) != STATE_CHANNELS:
         raise ValueError(f"replay needs a batch of the channels {STATE_CHANNELS}, got {batch.channels}")
-    arrays = (batch.az, batch.cos_psi, batch.sin_psi, batch.rev, batch.width, batch.time, batch.x, batch.mask)
+    arrays = (batch.accel, batch.cos_psi, batch.sin_psi, batch.rev, batch.width, batch.time, batch.x, batch.mask)
     n = arrays[0].shape[0]
     recs = unpad_rows(_prepare(pad_rows(arrays, bucket_size(n)), harmonic, block), n)
     return recs._replace(columns=with_prefix(recs.columns),

@@ -30,9 +30,9 @@ from ..io import refuse_in_campaign
 from . import _flight
 from ._conditions import DEFAULT_COUNTS, NAMED, Condition, catalogue, condition_rng, pilot_plan
 from ._scaling import scale_states, similarity
-from ._vibration import EFFECTS, amplitude_4p, vibration_state
+from ._vibration import EFFECTS, amplitude_4p, amplitude_axis, vibration_state
 
-GENERATOR_VERSION = "1"
+GENERATOR_VERSION = "2"
 MAX_RATE_HZ = 20000.0  # the highest sample or dynamics rate a generator config may ask for
 
 
@@ -54,7 +54,7 @@ class SynthConfig:
         seed: random seed; same config and seed give the same campaign.
         sample_rate_hz: time-series sample rate (≥ 64 samples per revolution up to 115 % rpm).
         dynamics_rate_hz: rate of the flight-dynamics model (states are interpolated).
-        noise_g: broadband measurement noise on `az_g`, g (standard deviation).
+        noise_g: broadband measurement noise on each acceleration channel, g (standard deviation).
         scatter: condition-to-condition scatter of the 4P level (relative std).
         format: time-series file format.
         conditions: generate only these condition ids (empty: all).
@@ -214,6 +214,7 @@ def generate(cfg: SynthConfig = SynthConfig()) -> tuple[pd.DataFrame, dict[str, 
     a4, _ = amplitude_4p(vstate, settings, dt)
     a4 = a4 * np.maximum(scat, 0.5)[:, None]
     phi4 = 1.2 * vstate["mu"] + 3.0 * (vstate["loading"] - 0.07)
+    a_xy = {axis: amplitude_axis(vstate, settings, dt, axis) * np.maximum(scat, 0.5)[:, None] for axis in "xy"}
 
     rows, records = [], {}
     for k, c in enumerate(conds):
@@ -234,6 +235,8 @@ def generate(cfg: SynthConfig = SynthConfig()) -> tuple[pd.DataFrame, dict[str, 
               + cfg.noise_g * rng.standard_normal(ts.size))
         ch = {
             "time_s": ts, "az_g": az, "azimuth_deg": np.mod(np.rad2deg(psi), 360.0), "rotor_rpm": rpm,
+            **_horizontal(psi, n, {axis: interp(a) for axis, a in a_xy.items()}, interp(phi4), settings, cfg.noise_g,
+                          condition_rng(cfg.seed, "signal-xy:" + c.id)),
         }
         for name in ("airspeed_kt", "pitch_rate_dps", "roll_angle_deg", "climb_rate_fpm", "collective_pct",
                      "lateral_pct", "longitudinal_pct", "pedal_pct", "roll_rate_dps", "yaw_rate_dps",
@@ -255,6 +258,22 @@ def generate(cfg: SynthConfig = SynthConfig()) -> tuple[pd.DataFrame, dict[str, 
                 records[name] = part
                 rows.append(_row(name, c, seg, scale))
     return pd.DataFrame(rows), records, ground_truth(cfg)
+
+
+def _horizontal(psi, n: int, amp: dict, phase_n, settings: dict, noise_g: float, rng) -> dict:
+    """The longitudinal and lateral pilot-floor accelerations (`ax_g` forward, `ay_g` right,
+    g): each axis's N/rev at its amplitude `amp[axis]` and the vertical's phase trend, a
+    2N/rev at a fifth of it, the 1/rev of rotor track and balance (constant amplitude, set
+    phase: effect `track_balance`) and measurement noise. Drawn from its own random stream,
+    so that the vertical channel is the same whether or not these exist."""
+    on, scale, tb = settings["track_balance"]
+    out = {}
+    for axis in "xy":
+        pn, p2n = rng.uniform(0, 2 * np.pi, 2)
+        once = scale * tb[f"a_{axis}"] * np.cos(psi + tb[f"phase_{axis}"]) if on else 0.0
+        out[f"a{axis}_g"] = (once + amp[axis] * np.cos(n * psi + pn + phase_n) + 0.2 * amp[axis] * np.cos(2 * n * psi + p2n)
+                             + noise_g * rng.standard_normal(psi.size))
+    return out
 
 
 def _row(counter: str, c: Condition, segment: int, f: dict) -> dict:

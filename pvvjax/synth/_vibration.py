@@ -33,13 +33,14 @@ class Effect:
     """A named physical effect on the 4P amplitude."""
 
     name: str
-    kind: str  # "additive", "gain" or "lag"
+    kind: str  # "additive", "gain", "lag" or "once_per_rev"
     formula: str
     physics: str
     params: dict
     channels: tuple[str, ...]
     default_on: bool = True
     fn: Callable | None = None
+    axis: str = "z"  # the pilot-floor axis whose N/rev it shapes: "z" vertical, "y" lateral, "x" longitudinal
 
 
 def _baseline(s, a0):
@@ -87,6 +88,18 @@ def _collective_stall(s, a, knee):
     return a * _ramp(s["collective"] - knee, 1.0)
 
 
+def _lateral_tail_rotor(s, a, mu0, width, q_ref):
+    return a * np.exp(-(((s["mu"] - mu0) / width) ** 2)) * (1.0 + np.abs(s["q"]) / q_ref)
+
+
+def _bank(s, a):
+    return a * np.abs(np.sin(np.deg2rad(s["phi"])))
+
+
+def _longitudinal_trend(s, ratio):
+    return ratio * sum(EFFECTS[name].fn(s, **EFFECTS[name].params) for name in _TREND)
+
+
 def _rotor_resonance(s, gain, f_mode, bandwidth, f_ref):
     h = lambda f: 1.0 + gain / (1.0 + ((f - f_mode) / bandwidth) ** 2)  # noqa: E731
     return h(s["f4"]) / h(f_ref)
@@ -132,6 +145,30 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in [
     Effect("rotor_resonance", "gain", "H(f4)/H(f_ref), H(f) = 1 + gain/(1 + ((f − f_mode)/bandwidth)²)",
            "airframe response at 4Ω near a fuselage mode (H-60 pilot-station peak at 17–17.5 Hz)",
            dict(gain=0.5, f_mode=17.4, bandwidth=0.6, f_ref=17.19), ("rotor_rpm",), fn=_rotor_resonance),
+    Effect("lateral_baseline", "additive", "a0",
+           "steady lateral N/rev at the pilot floor: in-plane hub shears reach the seat (lateral axis)",
+           dict(a0=0.025), (), fn=_baseline, axis="y"),
+    Effect("lateral_sideslip", "additive", "a·|β|",
+           "sideslip puts the tail rotor and fin into the main-rotor wake off-axis: lateral N/rev grows "
+           "with |β| (flares, uncoordinated turns)", dict(a=0.02), ("sideslip_deg",), fn=_sideslip, axis="y"),
+    Effect("lateral_roll_rate", "additive", "a·|p|",
+           "roll rate tilts the disk and loads the blades asymmetrically: lateral N/rev in turn entries "
+           "and rolls", dict(a=0.004), ("roll_rate_dps",), fn=_roll_rate, axis="y"),
+    Effect("lateral_tail_rotor", "additive", "a·exp(−((μ − μ0)/width)²)·(1 + |q|/q_ref)",
+           "at low speed the main-rotor wake sweeps over the tail rotor; a pitch-up (flare) moves it through "
+           "the tail-rotor disk", dict(a=0.05, mu0=0.12, width=0.07, q_ref=2.0),
+           ("advance_ratio", "pitch_rate_dps"), fn=_lateral_tail_rotor, axis="y"),
+    Effect("lateral_bank", "additive", "a·|sin φ|",
+           "in a banked turn the tail-rotor thrust and the rotor's lateral shears grow with the load it "
+           "carries sideways", dict(a=0.25), ("roll_angle_deg",), fn=_bank, axis="y"),
+    Effect("longitudinal_trend", "additive", "ratio·(baseline + transition + high_speed + blade_loading + "
+           "dynamic_stall)", "the longitudinal N/rev follows the vertical's advance-ratio and blade-loading "
+           "trends at a lower level (the same hub loads, a stiffer path to the seat)",
+           dict(ratio=0.45), ("advance_ratio", "blade_loading"), fn=_longitudinal_trend, axis="x"),
+    Effect("track_balance", "once_per_rev", "a_x·cos(ψ + φ_x), a_y·cos(ψ + φ_y)",
+           "rotor track and balance: a 1/rev at the pilot floor, constant in amplitude with a set phase "
+           "to the reference blade (longitudinal and lateral)",
+           dict(a_x=0.02, phase_x=0.6, a_y=0.035, phase_y=2.2), (), fn=None, axis="xy"),
     Effect("dynamic_lag", "lag", "τ·dA/dt = A_static − A",
            "rotor inflow and wake settle after a change of flight state: the vibration lags the state",
            dict(tau_s=0.6), (), fn=None),
@@ -140,6 +177,11 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in [
            "before it settles (unit steady-state gain)",
            dict(f_n_hz=0.5, zeta=0.4), (), default_on=False, fn=None),
 ]}
+
+
+# The vertical effects the longitudinal trend follows (their default parameters).
+_TREND = ("baseline", "transition", "high_speed", "blade_loading", "dynamic_stall")
+AXES = ("z", "y", "x")
 
 
 def vibration_state(states: dict, aircraft) -> dict:
@@ -156,7 +198,7 @@ def vibration_state(states: dict, aircraft) -> dict:
     return dict(
         mu=mu, loading=cw / aircraft.solidity * states["nz_g"], climb_fpm=states["climb_rate_fpm"],
         q=states["pitch_rate_dps"], p=states["roll_rate_dps"], qdot=states["pitch_accel_dps2"],
-        beta=states["sideslip_deg"], collective=states["collective_pct"],
+        beta=states["sideslip_deg"], collective=states["collective_pct"], phi=states["roll_angle_deg"],
         f4=aircraft.blades * states["rotor_rpm"] / 60.0 * (UH60A.nominal_np_hz() / aircraft.nominal_np_hz()),
     )
 
@@ -217,7 +259,7 @@ def amplitude_4p(state: dict, settings: dict, dt: float) -> tuple[np.ndarray, di
     total = np.zeros_like(state["mu"])
     for name, eff in EFFECTS.items():
         on, scale, params = settings[name]
-        if eff.kind == "additive" and on:
+        if eff.kind == "additive" and eff.axis == "z" and on:
             parts[name] = scale * eff.fn(state, **params)
             total = total + parts[name]
     gain_on, gain_scale, gain_params = settings["rotor_resonance"]
@@ -230,3 +272,22 @@ def amplitude_4p(state: dict, settings: dict, dt: float) -> tuple[np.ndarray, di
     if mode_on:
         total = second_order_response(total, dt, 2.0 * np.pi * mode["f_n_hz"], mode["zeta"])
     return total, parts
+
+
+def amplitude_axis(state: dict, settings: dict, dt: float, axis: str) -> np.ndarray:
+    """N/rev amplitude (g) of the lateral ("y") or longitudinal ("x") axis: the sum of that
+    axis's switched-on additive effects, through the same lag and mode as the vertical (the
+    rotor's inflow and wake settle the same way; the airframe's 4Ω resonance is the
+    vertical's own and is left out)."""
+    total = np.zeros_like(state["mu"])
+    for name, eff in EFFECTS.items():
+        on, scale, params = settings[name]
+        if eff.kind == "additive" and eff.axis == axis and on:
+            total = total + scale * eff.fn(state, **params)
+    lag_on, lag_scale, lag_params = settings["dynamic_lag"]
+    if lag_on:
+        total = first_order_lag(total, lag_scale * lag_params["tau_s"], dt)
+    mode_on, _, mode = settings["second_order"]
+    if mode_on:
+        total = second_order_response(total, dt, 2.0 * np.pi * mode["f_n_hz"], mode["zeta"])
+    return total
