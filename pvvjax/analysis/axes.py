@@ -24,8 +24,8 @@ import numpy as np
 
 from ..data.batch import RecordBatch, bucket_size, pad_rows, unpad_rows
 from .harmonics import (
-    Windows,
     WindowPlan,
+    Windows,
     _edge_kind,
     _phasor_power,
     make_columns,

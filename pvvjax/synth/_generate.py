@@ -271,8 +271,8 @@ def _horizontal(psi, n: int, amp: dict, phase_n, settings: dict, noise_g: float,
     for axis in "xy":
         pn, p2n = rng.uniform(0, 2 * np.pi, 2)
         once = scale * tb[f"a_{axis}"] * np.cos(psi + tb[f"phase_{axis}"]) if on else 0.0
-        out[f"a{axis}_g"] = (once + amp[axis] * np.cos(n * psi + pn + phase_n) + 0.2 * amp[axis] * np.cos(2 * n * psi + p2n)
-                             + noise_g * rng.standard_normal(psi.size))
+        out[f"a{axis}_g"] = (once + amp[axis] * np.cos(n * psi + pn + phase_n)
+                             + 0.2 * amp[axis] * np.cos(2 * n * psi + p2n) + noise_g * rng.standard_normal(psi.size))
     return out
 
 
