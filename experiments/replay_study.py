@@ -35,7 +35,8 @@ def main():
     out = Path(cfg.out_dir) / cfg.name / "study"
     campaign, _ = resolve_campaign(cfg)
     counters = select_counters(campaign, cfg.replay)
-    info, batch, recs, models = load_replay_set(campaign, counters, cfg.replay.sweep, cfg.replay.databases)
+    info, batch, recs, models = load_replay_set(campaign, counters, cfg.replay.sweep, cfg.replay.databases,
+                                                analysis=cfg.analysis)
     cc = cfg.calibration
     fig_dir = out / "figures"
     md = [f"# Quasi-static replay and calibration: results\n\nConfig `{args.config}`; "

@@ -18,6 +18,7 @@ MODULES = [
     "data.constants",
     "data.features",
     "analysis.harmonics",
+    "analysis.axes",
     "analysis.databases",
     "nets",
     "nets.networks",

@@ -355,7 +355,7 @@ def _run_replay(cfg, campaign, out: Path) -> tuple:
     counters = select_counters(campaign, cfg.replay)
     if PULLUP not in counters:
         counters.append(PULLUP)
-    rset = load_replay_set(campaign, counters, out / "sweep", cfg.sweep.databases)
+    rset = load_replay_set(campaign, counters, out / "sweep", cfg.sweep.databases, analysis=cfg.analysis)
     info = rset[0]
     common = one_offset(*rset, cfg.calibration)
     tau = common.offset_s.to_dict()

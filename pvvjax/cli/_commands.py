@@ -293,7 +293,7 @@ def _replay_inputs(args, cfg):
     else:
         _, _, _, sweep = prepare_sweep(cfg)
     info, batch, recs, models = load_replay_set(campaign, counters, sweep, cfg.replay.databases,
-                                                cfg.replay.architecture)
+                                                cfg.replay.architecture, cfg.analysis)
     print(f"replaying {len(counters)} counters through the held-out nets of {sweep} ({', '.join(models)})")
     return info, batch, recs, models
 

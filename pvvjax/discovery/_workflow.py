@@ -150,7 +150,7 @@ def _context(campaign: Campaign, cfg: ExperimentConfig, log) -> _Ctx:
         if unknown:
             raise ValueError(f"discovery.exclude_channels: {unknown} are not candidate channels of campaign "
                              f"{source} (channels and derived features: {sorted(known)})")
-    batch = to_batch(campaign, STATE_CHANNELS, list(info.index))
+    batch = to_batch(campaign, STATE_CHANNELS, list(info.index), axis=cfg.analysis.axis)
     recs = prepare(batch, harmonic=cfg.analysis.harmonic or campaign.aircraft.blades)
     L = cfg.analysis.window_revs
     lo, hi = d.offset.bounds if d.offset.calibrate else (min(0.0, d.offset.fixed_s), max(0.0, d.offset.fixed_s))

@@ -45,8 +45,8 @@ __all__ = [
     "window_tables",
 ]
 
-# Not flight state: the clock, the vibration itself and the blade azimuth.
-EXCLUDED_CHANNELS = ("time_s", "az_g", "azimuth_deg")
+# Not flight state: the clock, the vibration itself (every pilot-floor axis) and the blade azimuth.
+EXCLUDED_CHANNELS = ("time_s", "az_g", "ax_g", "ay_g", "azimuth_deg")
 
 _WORDS = {
     "airspeed_kt": "airspeed", "rotor_rpm": "rotor speed", "pitch_rate_dps": "pitch rate", "roll_rate_dps": "roll rate",

@@ -59,7 +59,7 @@ class Sequences:
 
 def window_sequences(campaign: Campaign, inputs: Sequence[str], *, window_revs: float = 2.0, hop_revs: float = 1.0,
                      rates: bool = False, harmonic: int | None = None, counters: Sequence[str] | None = None,
-                     chain: bool = False) -> Sequences:
+                     chain: bool = False, axis: str = "az_g") -> Sequences:
     """The window sequences of a campaign's records.
 
     Args:
@@ -74,6 +74,7 @@ def window_sequences(campaign: Campaign, inputs: Sequence[str], *, window_revs: 
         counters: which records (default: every one, condition by condition).
         chain: join each condition's records (its segments, e.g. one autorotation recorded
             as two counters) into one row.
+        axis: the pilot-floor acceleration analysed (`az_g`, `ax_g`, `ay_g`).
 
     Returns:
         `Sequences`.
@@ -82,7 +83,7 @@ def window_sequences(campaign: Campaign, inputs: Sequence[str], *, window_revs: 
         raise ValueError(f"hop_revs {hop_revs:g}: must lie in (0, 1] revolution (a sequence needs the windows of "
                          "every revolution)")
     counters = list(counters) if counters is not None else [c for cs in campaign.conditions().values() for c in cs]
-    batch = to_batch(campaign, STATE_CHANNELS, counters)
+    batch = to_batch(campaign, STATE_CHANNELS, counters, axis=axis)
     win = analyze(batch, window_revs, hop_revs, harmonic=harmonic or campaign.aircraft.blades)
     mask = np.asarray(win.valid)
     if not mask.any(axis=1).all():

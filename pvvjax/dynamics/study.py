@@ -60,9 +60,9 @@ def prepare_database(campaign, cfg, db: str) -> Database:
     `ExperimentConfig`; its `[dynamic]`, `[analysis]` and `seed`)."""
     dc, inputs = cfg.dynamic, DB_INPUTS[db]
     seq = window_sequences(campaign, inputs, window_revs=dc.window_revs, hop_revs=dc.hop_revs, rates=True,
-                           chain=True, harmonic=cfg.analysis.harmonic)
+                           chain=True, harmonic=cfg.analysis.harmonic, axis=cfg.analysis.axis)
     long = window_sequences(campaign, inputs, window_revs=cfg.analysis.window_revs, hop_revs=dc.hop_revs,
-                            chain=True, harmonic=cfg.analysis.harmonic)
+                            chain=True, harmonic=cfg.analysis.harmonic, axis=cfg.analysis.axis)
     peaks = build_databases(campaign, cfg.analysis)["peaks"].set_index("condition").loc[list(seq.conditions)]
     measured, _ = row_peaks(seq.amplitude, seq.mask, seq.time)
     nominal = nominal_cruise(measured, seq.maneuvers, peaks["advance_ratio"].to_numpy(), dc.cruise_advance_ratio)

@@ -16,7 +16,7 @@ import numpy as np
 import pandas as pd
 
 from ..analysis.databases import STATE_CHANNELS
-from ..config import CalibrationConfig, ReplayConfig
+from ..config import AnalysisConfig, CalibrationConfig, ReplayConfig
 from ..data.batch import bucket_size, pad_rows, to_batch, unpad_rows
 from ..data.campaign import Campaign
 from ..nets.sweep import heldout_models
@@ -61,16 +61,17 @@ def select_counters(campaign: Campaign, cfg: ReplayConfig, named=None, what: str
     return list(sel.index)
 
 
-def load_replay_set(campaign: Campaign, counters, sweep_dir, databases, architecture: str = "") -> tuple:
+def load_replay_set(campaign: Campaign, counters, sweep_dir, databases, architecture: str = "",
+                    analysis: AnalysisConfig = AnalysisConfig()) -> tuple:
     """Prepare `counters` and load, for each database, the nets that held each counter's
-    condition out.
+    condition out; the records' `analysis.axis` and harmonic are what the nets predict.
 
     Returns:
         (info DataFrame, batch, recs, models by database).
     """
     info = campaign.counters.loc[list(counters), ["maneuver", "condition"]]
-    batch = to_batch(campaign, STATE_CHANNELS, list(counters))
-    recs = prepare(batch, harmonic=campaign.aircraft.blades)
+    batch = to_batch(campaign, STATE_CHANNELS, list(counters), axis=analysis.axis)
+    recs = prepare(batch, harmonic=analysis.harmonic or campaign.aircraft.blades)
     models = {db: heldout_models(Path(sweep_dir), db, list(info.condition), architecture or None) for db in databases}
     return info, batch, recs, models
 
