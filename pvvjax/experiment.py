@@ -153,6 +153,38 @@ def write_databases(dbs, out: Path, cfg) -> None:
     write_config(cfg, out / "config.toml")
 
 
+def axis_table_name(axis: str, harmonic: int) -> str:
+    """File stem of the peak table of one axis and harmonic, e.g. `peaks-ay_g-4rev`."""
+    return f"peaks-{axis}-{harmonic}rev"
+
+
+def write_axis_tables(tables: dict, out: Path, cfg) -> list[str]:
+    """Each table of `axis_peak_tables` as `out/peaks-AXIS-Krev.csv` and `.parquet`.
+
+    Returns:
+        The stems written."""
+    from .io import write_table
+
+    names = []
+    for (axis, k), df in tables.items():
+        names.append(axis_table_name(axis, k))
+        write_table(df, out / names[-1], cfg)
+    return names
+
+
+def axis_summary(tables: dict) -> str:
+    """One line per axis and harmonic: the range of the condition peaks and the maneuver kind
+    whose median peak is highest."""
+    from .analysis.databases import OUTPUT
+
+    lines = ["peaks per axis and harmonic (g):"]
+    for (axis, k), df in tables.items():
+        by_kind = df.groupby("maneuver")[OUTPUT].median()
+        lines.append(f"  {axis} {k}/rev: {df[OUTPUT].min():.3f}-{df[OUTPUT].max():.3f}, median "
+                     f"{df[OUTPUT].median():.3f}; highest median: {by_kind.idxmax()} {by_kind.max():.3f}")
+    return "\n".join(lines)
+
+
 def database_summary(dbs) -> str:
     """A plain-text summary of the databases: conditions, rows and inputs per database, peak
     PVV by maneuver kind, and the paper's Table 1 conditions beside their peaks here."""

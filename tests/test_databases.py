@@ -78,7 +78,12 @@ def test_build_db_cli_writes_csv_and_parquet(tmp_path, capsys):
         b = pd.read_parquet(out / f"{name}.parquet")
         pd.testing.assert_frame_equal(a, b, check_dtype=False)
     assert (out / "config.toml").exists()
-    assert "wrote db1, db2, db3" in capsys.readouterr().out
+    text = capsys.readouterr().out
+    assert "wrote db1, db2, db3" in text and "az_g 4/rev: " in text
+    # The tiny campaign has only az_g: its 1/rev, 4/rev and 8/rev peak tables; 4/rev's are db1's peaks.
+    assert sorted(p.name for p in (out / "axes").glob("*.csv")) == [f"peaks-az_g-{k}rev.csv" for k in (1, 4, 8)]
+    pd.testing.assert_frame_equal(pd.read_csv(out / "axes" / "peaks-az_g-4rev.csv")[["condition", OUTPUT]],
+                                  pd.read_csv(out / "peaks.csv")[["condition", OUTPUT]], rtol=1e-5)
 
 
 def test_validate_cli_exit_codes(tmp_path, capsys):

@@ -9,6 +9,7 @@ from pathlib import Path
 from .._strict import to_dict
 from ..experiment import (
     absolute_paths,
+    axis_summary,
     campaign_plots,
     database_summary,
     enable_compilation_cache,
@@ -16,6 +17,7 @@ from ..experiment import (
     progress_bar,
     resolve_campaign,
     run_main_job,
+    write_axis_tables,
     write_databases,
 )
 from ..io import claim_folder, new_file, own_folder
@@ -48,7 +50,7 @@ def cmd_validate(args) -> int:
 
 
 def cmd_build_db(args) -> int:
-    from ..analysis.databases import build_databases
+    from ..analysis.databases import axis_peak_tables, build_databases
 
     cfg = _experiment(args)
     campaign, _ = resolve_campaign(cfg, args.campaign)
@@ -57,7 +59,11 @@ def cmd_build_db(args) -> int:
     dbs = build_databases(campaign, cfg.analysis)
     write_databases(dbs, out, cfg)
     print(database_summary(dbs))
-    print(f"wrote db1, db2, db3 and peaks (.csv, .parquet) to {out}")
+    tables = axis_peak_tables(campaign, cfg.analysis)
+    names = write_axis_tables(tables, out / "axes", cfg)
+    print(axis_summary(tables))
+    print(f"wrote db1, db2, db3 and peaks (.csv, .parquet) to {out}; a peak table per axis and harmonic to "
+          f"{out / 'axes'} ({', '.join(names)})")
     return 0
 
 
