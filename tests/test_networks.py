@@ -100,3 +100,35 @@ def test_the_flax_modules_own_their_variables_and_apply_as_the_functions_do():
     np.testing.assert_array_equal(rbf_apply(r, x), RBF(6, 8).apply(
         {"params": {k: r[k] for k in ("centers", "log_width", "w", "b")},
          "constants": {k: r[k] for k in ("in_mask", "x_shift", "x_scale", "y_shift", "y_scale")}}, x))
+
+
+def test_a_multi_output_net_matches_numpy_and_its_padded_twin_trains_the_same():
+    # Three outputs at once (e.g. the N/rev of the three pilot-floor axes), each scaled on its own.
+    from pvvjax.config import TrainConfig
+    from pvvjax.nets.train import fit, make_data
+
+    rng = np.random.default_rng(4)
+    x = rng.normal(size=(40, 6)).astype(np.float32)
+    y = np.stack([np.tanh(x[:, 0]) * 0.1 + 0.2, 0.05 * np.tanh(x[:, 1]), 0.02 * x[:, 2] + 0.1], 1).astype(np.float32)
+    sc = scaling(x, y)
+    np.testing.assert_allclose(sc["y_shift"], y.mean(0), rtol=1e-5)
+    np.testing.assert_allclose(sc["y_scale"], y.std(0), rtol=1e-4)
+    p = mlp_init(jax.random.key(5), 6, (8, 4), scale=sc, n_out=3)
+    h = (x - np.asarray(sc["x_shift"])) / np.asarray(sc["x_scale"])
+    for layer in p["layers"][:-1]:
+        h = np.tanh(h @ np.asarray(layer["w"]) + np.asarray(layer["b"]))
+    ref = (h @ np.asarray(p["layers"][-1]["w"]) + np.asarray(p["layers"][-1]["b"])) * np.asarray(sc["y_scale"]) \
+        + np.asarray(sc["y_shift"])
+    assert mlp_apply(p, x).shape == (40, 3) and architecture_name(6, (8, 4), 3) == "6-8-4-3"
+    np.testing.assert_allclose(mlp_apply(p, x), ref, rtol=1e-5, atol=1e-6)
+    assert n_weights(6, (8, 4), 3) == sum(a * b + b for a, b in ((6, 8), (8, 4), (4, 3)))
+
+    pp = mlp_pad(p, (16, 8), 8)
+    xp = np.concatenate([x, rng.normal(size=(40, 2)).astype(np.float32)], 1)
+    np.testing.assert_allclose(mlp_apply(pp, xp), mlp_apply(p, x), rtol=1e-6, atol=1e-7)
+    tr, va = np.arange(40) < 30, np.arange(40) >= 30
+    cfg = TrainConfig(learning_rate=1e-2, max_steps=1000, eval_every=20)
+    a, b = fit(p, make_data(x, y, tr, va), cfg), fit(pp, make_data(xp, y, tr, va), cfg)
+    assert int(a.steps) == int(b.steps) > 0 and float(a.best_val_rms) == pytest.approx(float(b.best_val_rms), rel=1e-4)
+    np.testing.assert_allclose(mlp_apply(b.params, xp), mlp_apply(a.params, x), rtol=1e-4, atol=1e-5)
+    assert float(a.best_val_rms) < 0.5 * float(np.sqrt(np.mean((y[va] - y[tr].mean(0)) ** 2)))

@@ -12,6 +12,9 @@ layer is allocated at a maximum width and carries a 0/1 mask of its active units
 the input layer carries a mask of the active inputs (so databases with 6, 7 and 8 inputs
 stack into one array). A masked unit outputs exactly 0, so it contributes nothing to the
 output and receives no gradient: the padded net computes what its unpadded twin computes.
+
+An MLP may have several outputs (`n_out`), e.g. the N/rev of the three pilot-floor axes
+from one flight state: its output scaling is then per output, and it returns (..., n_out).
 """
 
 from __future__ import annotations
@@ -46,10 +49,11 @@ def scaling(x, y, in_mask=None):
     """Input/output standardisation from training data (masked inputs get shift 0, scale 1).
 
     Args:
-        x: (n, d) inputs. y: (n,) outputs. in_mask: (d,) active inputs (default all).
+        x: (n, d) inputs. y: (n,) outputs, or (n, k) for a net of k outputs.
+        in_mask: (d,) active inputs (default all).
 
     Returns:
-        dict with x_shift, x_scale (d,), y_shift, y_scale ().
+        dict with x_shift, x_scale (d,), y_shift, y_scale (() or (k,)).
 
     The rows are padded to a `bucket_size` count with weight 0, so one compiled program
     serves every training set of similar size.
@@ -66,19 +70,21 @@ def scaling(x, y, in_mask=None):
 def _weighted_scaling(x, y, w, in_mask):
     """`scaling` over the rows of weight w (0/1)."""
     n = jnp.maximum(jnp.sum(w), 1.0)
-    mx, my = (w @ x) / n, jnp.sum(w * y) / n
+    mx = (w @ x) / n
     sd = jnp.sqrt((w @ (x - mx) ** 2) / n)
-    return dict(
-        x_shift=mx * in_mask,
-        x_scale=jnp.where((sd > 0) & (in_mask > 0), sd, 1.0),
-        y_shift=my,
-        y_scale=jnp.maximum(jnp.sqrt(jnp.sum(w * (y - my) ** 2) / n), 1e-6),
-    )
+    if y.ndim == 1:
+        my = jnp.sum(w * y) / n
+        sy = jnp.sqrt(jnp.sum(w * (y - my) ** 2) / n)
+    else:  # one scaling per output
+        my = (w @ y) / n
+        sy = jnp.sqrt((w @ (y - my) ** 2) / n)
+    return dict(x_shift=mx * in_mask, x_scale=jnp.where((sd > 0) & (in_mask > 0), sd, 1.0), y_shift=my,
+                y_scale=jnp.maximum(sy, 1e-6))
 
 
 def mlp_init(key, n_in: int, hidden: Sequence[int], *, max_hidden: Sequence[int] | None = None,
-             in_mask=None, scale: dict | None = None) -> dict:
-    """Initialise an MLP n_in-hidden...-1 (tanh hidden layers, linear output).
+             in_mask=None, scale: dict | None = None, n_out: int = 1) -> dict:
+    """Initialise an MLP n_in-hidden...-n_out (tanh hidden layers, linear output).
 
     Args:
         key: PRNG key.
@@ -87,6 +93,7 @@ def mlp_init(key, n_in: int, hidden: Sequence[int], *, max_hidden: Sequence[int]
         max_hidden: allocated widths (default `hidden`): pad to share a compiled program.
         in_mask: (n_in,) 0/1 active inputs (default all).
         scale: output of `scaling` (default identity).
+        n_out: outputs; 1 gives a net of output shape (...,), more (..., n_out).
 
     Returns:
         Parameter dict: layers (tuple of {w, b}), masks (tuple of (width,) hidden-unit
@@ -94,21 +101,21 @@ def mlp_init(key, n_in: int, hidden: Sequence[int], *, max_hidden: Sequence[int]
     """
     max_hidden = tuple(max_hidden or hidden)
     in_mask = jnp.ones(n_in) if in_mask is None else jnp.asarray(in_mask, jnp.float32)
-    layers = _glorot_layers(key, n_in, tuple(hidden), max_hidden, in_mask)
+    layers = _glorot_layers(key, n_in, tuple(hidden), max_hidden, in_mask, n_out)
     masks = tuple((jnp.arange(m) < h).astype(jnp.float32) for h, m in zip(hidden, max_hidden))
-    return dict(layers=layers, masks=masks, in_mask=in_mask, **(scale or _identity_scaling(n_in)))
+    return dict(layers=layers, masks=masks, in_mask=in_mask, **(scale or _identity_scaling(n_in, n_out)))
 
 
-def _glorot_layers(key, n_in: int, hidden, max_hidden=(), in_mask=None) -> tuple:
+def _glorot_layers(key, n_in: int, hidden, max_hidden=(), in_mask=None, n_out: int = 1) -> tuple:
     """Layers {w, b} of an MLP allocated at `max_hidden`: Glorot-uniform on the *active*
     fan-in and fan-out (so padding does not change the draw), one key per layer split from
     `key`, zero biases."""
     max_hidden = tuple(max_hidden or hidden)
     if len(max_hidden) != len(hidden) or any(h > m for h, m in zip(hidden, max_hidden)):
         raise ValueError(f"hidden {tuple(hidden)} does not fit in max_hidden {max_hidden}")
-    sizes = (n_in, *max_hidden, 1)
+    sizes = (n_in, *max_hidden, n_out)
     keys = jax.random.split(key, len(sizes) - 1)
-    fan = (float(n_in if in_mask is None else np.sum(np.asarray(in_mask))), *map(float, hidden), 1.0)
+    fan = (float(n_in if in_mask is None else np.sum(np.asarray(in_mask))), *map(float, hidden), float(n_out))
     layers = []
     for i, k in enumerate(keys):
         lim = np.sqrt(6.0 / (fan[i] + fan[i + 1]))
@@ -120,8 +127,9 @@ def _glorot_layers(key, n_in: int, hidden, max_hidden=(), in_mask=None) -> tuple
 _SCALING = ("x_shift", "x_scale", "y_shift", "y_scale")
 
 
-def _identity_scaling(n_in: int) -> dict:
-    return dict(x_shift=jnp.zeros(n_in), x_scale=jnp.ones(n_in), y_shift=jnp.zeros(()), y_scale=jnp.ones(()))
+def _identity_scaling(n_in: int, n_out: int = 1) -> dict:
+    y = () if n_out == 1 else (n_out,)
+    return dict(x_shift=jnp.zeros(n_in), x_scale=jnp.ones(n_in), y_shift=jnp.zeros(y), y_scale=jnp.ones(y))
 
 
 def _constants(module: nn.Module, names, defaults) -> dict:
@@ -136,7 +144,7 @@ def _variables(params: dict, trainable, constants) -> dict:
 
 
 class MLP(nn.Module):
-    """An MLP n_in-hidden...-1 (tanh hidden layers, linear output) on standardised inputs.
+    """An MLP n_in-hidden...-n_out (tanh hidden layers, linear output) on standardised inputs.
 
     Variables: params `layers` ({w, b} per layer, allocated at `max_hidden`); constants
     `masks` (0/1 active units per hidden layer), `in_mask` (active inputs) and the scaling
@@ -144,35 +152,39 @@ class MLP(nn.Module):
     draws the layers as `mlp_init` does, from the key linen derives for them.
 
     Attributes:
-        n_in, hidden, max_hidden: the allocation and the active widths (for `init` only:
-            `apply` takes the shapes from the variables).
+        n_in, hidden, max_hidden, n_out: the allocation and the active widths (for `init`
+            only: `apply` takes the shapes from the variables).
     """
 
     n_in: int = 0
     hidden: tuple[int, ...] = ()
     max_hidden: tuple[int, ...] = ()
+    n_out: int = 1
 
     @nn.compact
     def __call__(self, x):
-        layers = self.param("layers", lambda key: _glorot_layers(key, self.n_in, self.hidden, self.max_hidden))
+        layers = self.param("layers", lambda key: _glorot_layers(key, self.n_in, self.hidden, self.max_hidden,
+                                                                  n_out=self.n_out))
         alloc = self.max_hidden or self.hidden
         defaults = lambda: dict(  # noqa: E731
             masks=tuple((jnp.arange(m) < h).astype(jnp.float32) for h, m in zip(self.hidden, alloc)),
-            in_mask=jnp.ones(self.n_in), **_identity_scaling(self.n_in))
+            in_mask=jnp.ones(self.n_in), **_identity_scaling(self.n_in, self.n_out))
         c = _constants(self, ("masks", "in_mask", *_SCALING), defaults)
         h = (x - c["x_shift"]) / c["x_scale"] * c["in_mask"]
         for layer, mask in zip(layers[:-1], c["masks"]):
             h = jnp.tanh(affine(h, layer["w"], layer["b"])) * mask
-        out = affine(h, layers[-1]["w"], layers[-1]["b"])[..., 0]
+        out = affine(h, layers[-1]["w"], layers[-1]["b"])
+        out = out[..., 0] if jnp.ndim(c["y_shift"]) == 0 else out  # one output: (...,)
         return out * c["y_scale"] + c["y_shift"]
 
 
 def mlp_apply(params: dict, x):
     """Evaluate an MLP (`MLP.apply` on a flat parameter dict as `mlp_init` makes it).
-    x: (..., n_in) in physical units -> (...,) peak PVV, g."""
+    x: (..., n_in) in physical units -> (...,) peak PVV, g ((..., n_out) for several outputs)."""
     layers = params["layers"]
     widths = tuple(int(layer["w"].shape[1]) for layer in layers[:-1])
-    module = MLP(int(layers[0]["w"].shape[0]), widths, widths)  # the allocation: apply checks the shapes
+    n_out = int(layers[-1]["w"].shape[1])
+    module = MLP(int(layers[0]["w"].shape[0]), widths, widths, n_out)  # the allocation: apply checks the shapes
     return module.apply(_variables(params, ("layers",), ("masks", "in_mask", *_SCALING)), x)
 
 
@@ -181,7 +193,7 @@ def mlp_pad(params: dict, max_hidden: Sequence[int], n_in: int | None = None) ->
     layers, masks = params["layers"], params["masks"]
     n_in0 = layers[0]["w"].shape[0]
     n_in = n_in or n_in0
-    sizes = (n_in, *max_hidden, 1)
+    sizes = (n_in, *max_hidden, layers[-1]["w"].shape[1])
     new_layers = []
     for i, layer in enumerate(layers):
         w = jnp.zeros((sizes[i], sizes[i + 1])).at[: layer["w"].shape[0], : layer["w"].shape[1]].set(layer["w"])
@@ -196,15 +208,15 @@ def mlp_pad(params: dict, max_hidden: Sequence[int], n_in: int | None = None) ->
                 y_shift=params["y_shift"], y_scale=params["y_scale"])
 
 
-def n_weights(n_in: int, hidden: Sequence[int]) -> int:
-    """Weights and biases of an MLP n_in-hidden...-1."""
-    sizes = (n_in, *hidden, 1)
+def n_weights(n_in: int, hidden: Sequence[int], n_out: int = 1) -> int:
+    """Weights and biases of an MLP n_in-hidden...-n_out."""
+    sizes = (n_in, *hidden, n_out)
     return int(sum(a * b + b for a, b in zip(sizes[:-1], sizes[1:])))
 
 
-def architecture_name(n_in: int, hidden: Sequence[int]) -> str:
+def architecture_name(n_in: int, hidden: Sequence[int], n_out: int = 1) -> str:
     """The paper's notation, e.g. '6-10-5-1'."""
-    return "-".join(str(int(v)) for v in (n_in, *hidden, 1))
+    return "-".join(str(int(v)) for v in (n_in, *hidden, n_out))
 
 
 # --------------------------------------------------------------------------- RBF

@@ -80,11 +80,18 @@ def _split(params: dict) -> tuple[dict, dict]:
             {k: v for k, v in params.items() if k not in TRAINABLE})
 
 
-def _wmse(pred, y, w, y_scale):  # over every row (and every window of a sequence model's rows)
+def _per_output(w, pred):
+    """Row weights (n,) broadcast over a multi-output net's outputs (n, k)."""
+    return jnp.broadcast_to(w.reshape(w.shape + (1,) * (pred.ndim - w.ndim)), pred.shape) if pred.ndim > w.ndim else w
+
+
+def _wmse(pred, y, w, y_scale):  # over every row (and every window of a sequence model's rows, every output)
+    w = _per_output(w, pred)
     return pairwise_sum((w * ((pred - y) / y_scale) ** 2).reshape(-1)) / jnp.maximum(pairwise_sum(w.reshape(-1)), 1.0)
 
 
 def _wrms(pred, y, w):
+    w = _per_output(w, pred)
     return jnp.sqrt(pairwise_sum((w * (pred - y) ** 2).reshape(-1)) / jnp.maximum(pairwise_sum(w.reshape(-1)), 1.0))
 
 
@@ -148,7 +155,7 @@ class Data(NamedTuple):
     """
 
     x: jax.Array  # (n_train, d)
-    y: jax.Array  # (n_train,)
+    y: jax.Array  # (n_train,) or (n_train, n_out)
     w: jax.Array  # (n_train,) 0/1
     x_val: jax.Array  # (n_val, d)
     y_val: jax.Array
