@@ -8,7 +8,16 @@ import pandas as pd
 import pytest
 from conftest import tiny_records
 
-from pvvjax.analysis import AXES, OUTPUT, analyze, analyze_axes, axis_peak_tables, build_databases, resolved_harmonics
+from pvvjax.analysis import (
+    AXES,
+    OUTPUT,
+    analyze,
+    analyze_axes,
+    axes_database,
+    axis_peak_tables,
+    build_databases,
+    resolved_harmonics,
+)
 from pvvjax.config import AnalysisConfig
 from pvvjax.data.batch import to_batch
 from pvvjax.data.campaign import campaign_from_frames
@@ -107,3 +116,18 @@ def test_an_axis_the_campaign_lacks_is_an_error_naming_it():
     with pytest.raises(ValueError, match="analysis.axis = 'ay_g': campaign .* has no ay_g"):
         build_databases(campaign_from_frames(c, r), AnalysisConfig(axis="ay_g"))
     assert list(axis_peak_tables(campaign_from_frames(c, r))) == [("az_g", 1), ("az_g", 4), ("az_g", 8)]
+
+
+def test_the_axes_database_has_each_axis_peak_row_with_every_axis_in_that_window():
+    campaign, _ = _three_axis_campaign()
+    rows = axes_database(campaign)
+    tables = axis_peak_tables(campaign, harmonics=(4,))
+    assert list(rows.peak_axis) == list(AXES)  # one condition: one row per axis
+    for axis in AXES:
+        row = rows[rows.peak_axis == axis].iloc[0]
+        peak = tables[axis, 4].iloc[0]
+        assert row[axis] == pytest.approx(peak[OUTPUT], rel=1e-6)
+        assert row.peak_time_s == pytest.approx(peak.peak_time_s) and row.advance_ratio == pytest.approx(
+            peak.advance_ratio, rel=1e-6)
+        # an axis's value in another axis's peak window is no more than its own peak
+        assert (rows[axis] <= row[axis] + 1e-7).all()

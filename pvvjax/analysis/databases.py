@@ -33,6 +33,7 @@ __all__ = [
     "OUTPUT",
     "STATE_CHANNELS",
     "Peaks",
+    "axes_database",
     "axis_peak_tables",
     "build_databases",
     "campaign_axes",
@@ -140,15 +141,27 @@ def peak_table(campaign: Campaign, analysis: AnalysisConfig = AnalysisConfig()) 
 def peaks_from_windows(campaign: Campaign, win: Windows, counters, analysis: AnalysisConfig) -> pd.DataFrame:
     """Each condition's peak window of an analysis of `counters` (every counter of the
     campaign, condition by condition), with every state channel and derived feature there."""
-    if not bool(np.asarray(win.valid).any(axis=1).all()):
-        short = [c for c, ok in zip(counters, np.asarray(win.valid).any(axis=1)) if not ok]
+    row, col, value = _peak_windows(campaign, win.amplitude, win.valid, counters)
+    return _state_table(campaign, win, counters, analysis, row, col).assign(**{OUTPUT: value})
+
+
+def _peak_windows(campaign: Campaign, amplitude, valid, counters):
+    """(batch row, window, value) of each condition's peak."""
+    if not bool(np.asarray(valid).any(axis=1).all()):
+        short = [c for c, ok in zip(counters, np.asarray(valid).any(axis=1)) if not ok]
         raise ValueError(f"counters with no complete analysis window: {short}")
     cond_names, _ = _counters(campaign)
     cond_ids = np.array([cond_names.index(campaign.counters.loc[c, "condition"]) for c in counters])
     # Conditions counted in buckets (an empty condition's peak is -inf, and it is sliced off).
-    pk = condition_peaks(win.amplitude, win.valid, jnp.asarray(cond_ids), num_conditions=bucket_size(len(cond_names)))
+    pk = condition_peaks(amplitude, valid, jnp.asarray(cond_ids), num_conditions=bucket_size(len(cond_names)))
     pk = jax.tree.map(lambda a: np.asarray(a)[: len(cond_names)], pk)
-    row, col = pk.counter, pk.window
+    return pk.counter, pk.window, pk.value
+
+
+def _state_table(campaign: Campaign, win, counters, analysis: AnalysisConfig, row, col) -> pd.DataFrame:
+    """One row per condition: where its window (batch row, window) lies, and the state
+    channels and derived features there."""
+    cond_names, _ = _counters(campaign)
     source = win.means if analysis.inputs == "mean" else win.center
     vals = np.asarray(source)[row, col]  # (K, C)
     ch = {name: vals[:, i] for i, name in enumerate(STATE_CHANNELS)}
@@ -162,8 +175,34 @@ def peaks_from_windows(campaign: Campaign, win: Windows, counters, analysis: Ana
         "window_revs": float(analysis.window_revs),
         **feats,
         **ch,
-        OUTPUT: np.asarray(pk.value),
     })
+
+
+def axes_database(campaign: Campaign, analysis: AnalysisConfig = AnalysisConfig()) -> pd.DataFrame:
+    """The rows a net of several outputs (one per pilot-floor axis) trains on: for each
+    condition and each axis the campaign carries, the axis's peak window (of harmonic
+    `analysis.harmonic`, default N/rev), with the flight state there and every axis's
+    amplitude in that same window. So each axis's peak is a target (column of that axis in
+    the rows whose `peak_axis` is it), and every row teaches all outputs what the state
+    gives in one window, as the element predicts them.
+
+    Returns:
+        Rows ordered by axis (`AXES` order) then condition: META_COLUMNS, `peak_axis`, the
+        state channels and features, and one amplitude column per axis (g).
+    """
+    axes = campaign_axes(campaign)
+    _, counters = _counters(campaign)
+    batch = to_batch(campaign, STATE_CHANNELS, counters, axis=axes)
+    k = analysis.harmonic or campaign.aircraft.blades
+    win = analyze_axes(batch, (k,), analysis.window_revs, analysis.hop, taper_revs=analysis.taper_revs)
+    amp = np.asarray(win.amplitude)[:, :, 0, :]  # (B, A, W)
+    parts = []
+    for a, axis in enumerate(axes):
+        row, col, _ = _peak_windows(campaign, amp[:, a], win.valid, counters)
+        part = _state_table(campaign, win, counters, analysis, row, col)
+        part.insert(len(META_COLUMNS), "peak_axis", axis)
+        parts.append(part.assign(**{name: amp[row, i, col] for i, name in enumerate(axes)}))
+    return pd.concat(parts, ignore_index=True)
 
 
 def axis_peak_tables(campaign: Campaign, analysis: AnalysisConfig = AnalysisConfig(),
