@@ -153,38 +153,6 @@ def write_databases(dbs, out: Path, cfg) -> None:
     write_config(cfg, out / "config.toml")
 
 
-def axis_table_name(axis: str, harmonic: int) -> str:
-    """File stem of the peak table of one axis and harmonic, e.g. `peaks-ay_g-4rev`."""
-    return f"peaks-{axis}-{harmonic}rev"
-
-
-def write_axis_tables(tables: dict, out: Path, cfg) -> list[str]:
-    """Each table of `axis_peak_tables` as `out/peaks-AXIS-Krev.csv` and `.parquet`.
-
-    Returns:
-        The stems written."""
-    from .io import write_table
-
-    names = []
-    for (axis, k), df in tables.items():
-        names.append(axis_table_name(axis, k))
-        write_table(df, out / names[-1], cfg)
-    return names
-
-
-def axis_summary(tables: dict) -> str:
-    """One line per axis and harmonic: the range of the condition peaks and the maneuver kind
-    whose median peak is highest."""
-    from .analysis.databases import OUTPUT
-
-    lines = ["peaks per axis and harmonic (g):"]
-    for (axis, k), df in tables.items():
-        by_kind = df.groupby("maneuver")[OUTPUT].median()
-        lines.append(f"  {axis} {k}/rev: {df[OUTPUT].min():.3f}-{df[OUTPUT].max():.3f}, median "
-                     f"{df[OUTPUT].median():.3f}; highest median: {by_kind.idxmax()} {by_kind.max():.3f}")
-    return "\n".join(lines)
-
-
 def database_summary(dbs) -> str:
     """A plain-text summary of the databases: conditions, rows and inputs per database, peak
     PVV by maneuver kind, and the paper's Table 1 conditions beside their peaks here."""
@@ -297,7 +265,8 @@ def run_main_job(cfg, source: str | Path = "") -> Path:
     studies = replay and cfg.run.studies
     stages = [name for name, on in (("campaign", True), ("databases", True), ("figures", True),
                                     ("networks", cfg.run.networks), ("replay", replay), ("studies", studies),
-                                    ("discovery", cfg.run.discovery_scenario), ("dynamic", cfg.run.dynamic)) if on]
+                                    ("discovery", cfg.run.discovery_scenario), ("dynamic", cfg.run.dynamic),
+                                    ("axes", cfg.run.axes)) if on]
 
     def step(name, text):
         check_interrupt()  # between stages: a Ctrl-C lost inside one stops the job here
@@ -336,10 +305,17 @@ def run_main_job(cfg, source: str | Path = "") -> Path:
         step("dynamic", f"PVV through time: {', '.join(cfg.dynamic.models)} on {', '.join(cfg.dynamic.databases)}, "
                         f"{cfg.dynamic.seeds} seeds x {cfg.dynamic.folds} folds")
         dyn = _run_dynamic(cfg, campaign, campaign_dir, out / "dynamic")
+    axes = None
+    if cfg.run.axes:
+        from .seat import report_section, run_study
+
+        step("axes", f"three axes: {', '.join(cfg.axes.databases)} per pilot-floor axis, {cfg.axes.seeds} seeds x "
+                     f"{cfg.axes.folds} folds; discovery on the axes none serves")
+        axes = report_section(*run_study(cfg, campaign, campaign_dir, out / "axes")[1:], cfg)
     checks = pd.concat([c for c in checks if c is not None and len(c)], ignore_index=True)
     write_table(checks, out / "paper_comparison", cfg)
     report = _write_report(cfg, out, summary, figures, paper_figs, checks, nets, reps, sections, disc,
-                           time.perf_counter() - t0, dyn)
+                           time.perf_counter() - t0, dyn, axes)
     print(f"done in {time.perf_counter() - t0:.1f} s; results in {out}")
     print(f"report: {report}")
     return report
@@ -452,7 +428,7 @@ def _run_discovery(cfg, out: Path):
 
 
 def _write_report(cfg, out: Path, summary: str, figures, paper_figs, checks, nets, reps, sections, disc,
-                  seconds: float, dyn=None) -> Path:
+                  seconds: float, dyn=None, axes=None) -> Path:
     """report.md (and report.html) of the main job: every number beside the paper's, the
     paper's figures and tables reproduced, the studies and the discovery scenario."""
     from .paper.comparison import comparison_markdown
@@ -468,7 +444,8 @@ def _write_report(cfg, out: Path, summary: str, figures, paper_figs, checks, net
              + (" · [studies](#studies-the-paper-left-open)" if sections else "")
              + (" · [discovery](#discovery-on-a-hidden-effect-scenario)" if disc else "")
              + (" · [PVV through time](#pvv-through-time-dynamic-models-against-the-quasi-static-map)"
-                if dyn is not None else ""), "",
+                if dyn is not None else "")
+             + (" · [three axes](#the-pilots-seat-in-three-axes-which-inputs-each-axis-needs)" if axes else ""), "",
              "## Every number beside the paper's", "", comparison_markdown(checks),
              "The same rows: `paper_comparison.csv`.", "",
              "## Databases 1-3", "", "```", summary, "```", "",
@@ -510,6 +487,7 @@ def _write_report(cfg, out: Path, summary: str, figures, paper_figs, checks, net
         from .dynamics.study import report_section
 
         lines += report_section(dyn, "dynamic/")
+    lines += axes or []
     path = out / "report.md"
     path.write_text("\n".join(lines))
     if cfg.run.html:

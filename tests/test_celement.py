@@ -20,6 +20,7 @@ pytestmark = pytest.mark.skipif(c_compiler() is None, reason="no C compiler (set
 KINDS = ["pullup", "pushover", "roll", "autorotation", "flare", "level", "turn", "climb", "descent"]
 SETTINGS = dict(window_revs=8.0, hop_revs=1.0, offset_s=0.6, stick_offset_s=-0.3)
 TOL = 1e-6  # g
+AXES = ("pvv_x_g", "pvv_y_g", "pvv_z_g", "shake_x_g", "shake_y_g", "shake_z_g")
 
 
 @pytest.fixture(scope="module")
@@ -57,8 +58,7 @@ def _compare(ref, c, frames):
     worst, flags = 0.0, []
     for t, az, x in frames:
         a, b = ref.step(t, az, x), c.step(t, az, x)
-        worst = max(worst, abs(a.pvv_g - b["pvv_g"]), abs(a.shake_g - b["shake_g"]),
-                    abs(a.amplitude_g - b["amplitude_g"]))
+        worst = max(worst, *(abs(getattr(a, k) - b[k]) for k in ("pvv_g", "shake_g", "amplitude_g") + AXES))
         assert (a.ready, a.out_of_envelope, a.rejected) == (b["ready"], b["out_of_envelope"], b["rejected"])
         flags.append(a.out_of_envelope)
     return worst, flags
@@ -107,7 +107,7 @@ def test_c_source_is_self_contained(element):
     includes = sorted({line.split()[1] for line in src.splitlines() if line.startswith("#include")})
     assert includes == ['"pvv_element.h"', "<math.h>"]
     assert "malloc" not in src and "calloc" not in src and "memmove" not in src
-    assert src.count("static double net") == 4
+    assert src.count("static void net") == 4
 
 
 @pytest.fixture(scope="module")
@@ -131,7 +131,8 @@ def test_fmu_passes_fmpy_validation(fmu):
         "climb_rate_fpm", "azimuth_deg"]  # db1's channels (and what its features need)
     assert (by["airspeed_kt"].unit, by["climb_rate_fpm"].unit, by["pvv_g"].unit) == ("kt", "ft/min", "g")
     assert {v.name for v in md.modelVariables if v.causality == "output"} == {
-        "pvv_g", "shake_g", "amplitude_g", "window_time_s", "ready", "out_of_envelope", "rejected", "overflow"}
+        "pvv_g", "shake_g", "amplitude_g", "window_time_s", "ready", "out_of_envelope", "rejected", "overflow", *AXES}
+    assert {by[k].unit for k in AXES} == {"g"}
     assert float(by["offset_s"].start) == 0.6 and float(by["window_revs"].max) == 16.0
 
 
@@ -215,3 +216,66 @@ def test_dynamic_fmu_simulation_equals_the_numpy_element(element, dynamic_elemen
     want = np.array([ref.step(t, az, x).pvv_g for t, az, x in zip(T, AZ, X)])
     got = res["pvv_g"][1:]
     np.testing.assert_allclose(got, want[:len(got)], atol=TOL)
+
+
+THREE = ("az_g", "ax_g", "ay_g")
+SHAKE = [dict(phase_rad=0.3, harmonics={"8": [0.2, -1.0]}, once_g=0.01, once_phase_rad=1.1),
+         dict(phase_rad=-0.7, once_g=0.02, once_phase_rad=0.6), dict(phase_rad=2.0, once_g=0.035, once_phase_rad=2.2)]
+
+
+@pytest.fixture(scope="module")
+def three_axis(element, small_dbs, tmp_path_factory):
+    """Three padded MLP nets of three outputs (az_g, ax_g, ay_g) on db1, each axis with its
+    N/rev phase and a 1/rev of track and balance; quasi-static and dynamic, compiled as C."""
+    db = small_dbs["db1"]
+    x = db[list(DB_INPUTS["db1"])].to_numpy(np.float32)
+    y = np.stack([db[OUTPUT], 0.5 * db[OUTPUT], 0.3 + db.advance_ratio], 1).astype(np.float32)
+    nets = [NumpyNet(jax.tree.map(np.asarray, mlp_pad(mlp_init(jax.random.key(s), x.shape[1], (8, 4),
+                                                              scale=scaling(x, y), n_out=3), (10, 6), x.shape[1])))
+            for s in range(3)]
+    out = {}
+    for name, extra in (("quasi", SETTINGS), ("dynamic", {**DYNAMIC, "response": RESPONSE})):
+        spec = {**element["spec"], **extra, "outputs": list(THREE), "shake": SHAKE}
+        limits = CSourceLimits(window_revs=(2.0, 16.0))
+        folder = write_c_element(tmp_path_factory.mktemp(f"c3{name}"), spec, nets, limits, source="test nets")
+        lib = compile_shared([folder / "pvv_element.c"], folder / "libpvv.so",
+                             flags=("-O2", "-Wall", "-Wextra", "-pedantic", "-Werror"))
+        out[name] = dict(spec=spec, lib=lib, limits=limits)
+    out["nets"] = nets
+    return out
+
+
+def _three_reference(element, three, name):
+    s = three[name]["spec"]
+    env = s["envelope"]
+    return VibrationElement(three["nets"], s["inputs"], envelope=(env["lo"], env["hi"]), outputs=THREE, shake=SHAKE,
+                            response=s.get("response"), **{k: s[k] for k in SETTINGS})
+
+
+@pytest.mark.parametrize("name, kind", [("quasi", "pullup"), ("quasi", "turn"), ("dynamic", "roll")])
+def test_each_axis_of_a_three_axis_c_element_equals_the_numpy_element(element, three_axis, name, kind):
+    T, AZ, X = _frames(element["camp"], kind)
+    ref = _three_reference(element, three_axis, name)
+    worst, _ = _compare(ref, CElement(three_axis[name]["lib"]), list(zip(T, AZ, X)))
+    assert worst < TOL
+    last = ref.step(T[-1] + 0.01, AZ[-1], X[-1])
+    assert last.pvv_z_g == last.pvv_g and min(last.pvv_x_g, last.pvv_y_g) > 0 and last.shake_z_g == last.shake_g
+
+
+def test_a_three_axis_fmu_declares_and_computes_every_axis(element, three_axis, tmp_path):
+    fmpy = pytest.importorskip("fmpy", reason="FMPy is in the sim extra (make test installs it)")
+    from fmpy.validation import validate_fmu
+
+    from pvvjax.realtime.fmu import build_fmu
+
+    q = three_axis["quasi"]
+    fmu = build_fmu(tmp_path / "pvv_element.fmu", q["spec"], three_axis["nets"], q["limits"])
+    assert validate_fmu(str(fmu)) == []
+    T, AZ, X = _frames(element["camp"], "flare")
+    dt = float(np.median(np.diff(T)))
+    res = fmpy.simulate_fmu(str(fmu), start_time=T[0], stop_time=T[-1], step_size=dt, output_interval=dt,
+                            input=_fmu_input(fmu, T, AZ, X), output=list(AXES))
+    ref = _three_reference(element, three_axis, "quasi")
+    want = np.array([[getattr(o, k) for k in AXES] for o in (ref.step(t, az, x) for t, az, x in zip(T, AZ, X))])
+    got = np.stack([res[k] for k in AXES], 1)[1:]
+    np.testing.assert_allclose(got, want[:len(got)], rtol=0, atol=TOL)

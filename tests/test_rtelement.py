@@ -181,3 +181,43 @@ def test_a_dynamic_element_equals_the_offline_response_of_the_replay(setup, kind
     static = _stream(VibrationElement([NumpyNet(p) for p in params], DB_INPUTS["db1"], window_revs=L,
                                       hop_revs=hop), *_frames(camp, counter))
     assert max(abs(streamed[k] - static[k]) for k in j) > 1e-3  # the response acts
+
+
+def _output(params, i):
+    """The one-output net computing output i of a net of several outputs."""
+    last = params["layers"][-1]
+    return {**params, "layers": (*params["layers"][:-1], dict(w=last["w"][:, i:i + 1], b=last["b"][i:i + 1])),
+            "y_shift": params["y_shift"][i], "y_scale": params["y_scale"][i]}
+
+
+@pytest.mark.parametrize("response", [None, dict(omega_n_rad_s=3.0, zeta=0.4, delay_s=0.2)])
+def test_each_axis_of_a_three_axis_element_is_the_element_of_that_output(setup, small_dbs, response):
+    """A three-output element predicts, frame by frame, each axis as the one-output element of
+    that output's net does (which equals the offline replay, above): PVV within 1e-9 g, and each
+    seat axis shakes its N/rev at its phase plus its constant 1/rev."""
+    from pvvjax.analysis.databases import OUTPUT
+    from pvvjax.nets.networks import mlp_init, scaling
+
+    camp, _, _ = setup
+    db = small_dbs["db1"]
+    x = db[list(DB_INPUTS["db1"])].to_numpy(np.float32)
+    y = np.stack([db[OUTPUT], 0.5 * db[OUTPUT], 0.3 + db.advance_ratio], 1).astype(np.float32)
+    params = [jax.tree.map(np.asarray, mlp_init(jax.random.key(s), x.shape[1], (8, 4), scale=scaling(x, y), n_out=3))
+              for s in range(3)]
+    outputs = ("ay_g", "az_g", "ax_g")  # any order: each output names the seat axis it shakes
+    shake = [dict(phase_rad=0.1 * i, once_g=0.01 * (i + 1), once_phase_rad=i) for i in range(3)]
+    kw = dict(window_revs=8.0, hop_revs=1.0, offset_s=0.6, response=response)
+    three = VibrationElement([NumpyNet(p) for p in params], DB_INPUTS["db1"], outputs=outputs, shake=shake, **kw)
+    ones = [VibrationElement([NumpyNet(_output(p, i)) for p in params], DB_INPUTS["db1"], outputs=(outputs[i],),
+                             shake=[shake[i]], **kw) for i in range(3)]
+    T, AZ, X = _frames(camp, camp.counters.index[camp.counters.maneuver == "turn"][0])
+    for t, az, x_ in zip(T, AZ, X):
+        o = three.step(t, az, x_)
+        for axis, one in zip(outputs, ones):
+            a = one.step(t, az, x_)
+            seat = {"ax_g": "x", "ay_g": "y", "az_g": "z"}[axis]
+            assert abs(getattr(o, f"pvv_{seat}_g") - a.pvv_g) < 1e-9
+            assert abs(getattr(o, f"shake_{seat}_g") - a.shake_g) < 1e-9
+    assert o.ready and o.pvv_g == o.pvv_y_g  # the first output is pvv_g
+    with pytest.raises(ValueError, match="each one of ax_g, ay_g, az_g, at most once"):
+        VibrationElement([], DB_INPUTS["db1"], outputs=("az_g", "az_g"))

@@ -9,7 +9,6 @@ from pathlib import Path
 from .._strict import to_dict
 from ..experiment import (
     absolute_paths,
-    axis_summary,
     campaign_plots,
     database_summary,
     enable_compilation_cache,
@@ -17,7 +16,6 @@ from ..experiment import (
     progress_bar,
     resolve_campaign,
     run_main_job,
-    write_axis_tables,
     write_databases,
 )
 from ..io import claim_folder, new_file, own_folder
@@ -51,6 +49,7 @@ def cmd_validate(args) -> int:
 
 def cmd_build_db(args) -> int:
     from ..analysis.databases import axis_peak_tables, build_databases
+    from ..seat.report import axis_summary, write_axis_tables
 
     cfg = _experiment(args)
     campaign, _ = resolve_campaign(cfg, args.campaign)
@@ -454,6 +453,21 @@ def cmd_dynamic(args) -> int:
             "kendall_tau", "best"]
     print(table[cols].round(4).to_string(index=False))
     print(f"wrote comparison.csv, predictions.parquet and report.md to {out} ({time.perf_counter() - t0:.1f} s)")
+    return 0
+
+
+def cmd_axes(args) -> int:
+    """Which inputs each pilot-floor axis needs (`seat.run_study`)."""
+    from ..seat import run_study
+
+    t0 = time.perf_counter()
+    cfg = _experiment(args)
+    enable_compilation_cache()
+    campaign, folder = resolve_campaign(cfg, args.campaign)
+    out, study, _ = run_study(cfg, campaign, folder, args.out, discover_unmet=not args.no_discovery)
+    print(study.table.drop(columns="fails").round(4).to_string(index=False))
+    print("\n".join(study.needs.text))
+    print(f"wrote axes.csv, needs.csv, predictions.parquet and report.md to {out} ({time.perf_counter() - t0:.1f} s)")
     return 0
 
 

@@ -238,6 +238,19 @@ def _replay_commands(sub):
                                                                   "config's)")
     s.set_defaults(fn=C.cmd_dynamic)
 
+    s = sub.add_parser("axes", help="which inputs each pilot-floor axis (vertical, longitudinal, lateral) needs",
+                       description="Nets of one output per axis on each database's inputs, held out by condition "
+                                   "and judged per axis by FAA Part 60 test 3.f.1 ([axes] of the config); the "
+                                   "discovery on every axis no database suffices for. Resumable. Writes "
+                                   "OUT/axes.csv, OUT/needs.csv, OUT/predictions.parquet, OUT/report.md and "
+                                   "OUT/discovery-AXIS/.")
+    s.add_argument("--campaign", default=None, help=_CAMPAIGN_OF_CONFIG)
+    s.add_argument("--out", required=True, help="output folder (claimed; rerun with the same config to resume)")
+    s.add_argument("--config", default=None, help="experiment config ([axes], [train], [analysis], [discovery] "
+                                                  "sections; default: none, the defaults)")
+    s.add_argument("--no-discovery", action="store_true", help="skip the discovery on the axes no database serves")
+    s.set_defaults(fn=C.cmd_axes)
+
     s = sub.add_parser("run", help="run an experiment config end to end (the main job)",
                        description="Campaign, databases and figures for one experiment config; with [run] "
                                    "networks the paper's networks (Figs 10-12, Table 1), with [run] "

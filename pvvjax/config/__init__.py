@@ -7,6 +7,7 @@ the working directory the command runs in.
 
 from .._strict import ConfigError, from_dict, to_dict
 from ..data.units import ColumnMap
+from ._axes import AxesConfig
 from ._discovery import (
     DiscoveryConfig,
     EnsembleConfig,
@@ -31,6 +32,7 @@ from ._sections import (
 
 __all__ = [
     "AnalysisConfig",
+    "AxesConfig",
     "CalibrationConfig",
     "CampaignConfig",
     "ColumnMap",

@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .._strict import ConfigError, from_dict, to_dict
+from ._axes import AxesConfig
 from ._discovery import DiscoveryConfig
 from ._dynamic import DynamicConfig
 from ._sections import (
@@ -43,6 +44,7 @@ class ExperimentConfig:
     calibration: CalibrationConfig = field(default_factory=CalibrationConfig)
     discovery: DiscoveryConfig = field(default_factory=DiscoveryConfig)
     dynamic: DynamicConfig = field(default_factory=DynamicConfig)
+    axes: AxesConfig = field(default_factory=AxesConfig)
     run: RunConfig = field(default_factory=RunConfig)
 
     def __post_init__(self):

@@ -300,6 +300,8 @@ class RunConfig:
             main job runs the discovery workflow on it ("": no discovery stage).
         dynamic: the models of PVV through time beside the quasi-static map ([dynamic];
             `pvvjax dynamic` into `OUT/dynamic`), with its table and figures in the report.
+        axes: the three-axis study ([axes]; `pvvjax axes` into `OUT/axes`): per pilot-floor
+            axis the held-out error, the FAA pass share and which inputs it needs.
         html: also write report.html beside report.md.
     """
 
@@ -308,4 +310,5 @@ class RunConfig:
     studies: bool = True
     discovery_scenario: str = ""
     dynamic: bool = False
+    axes: bool = False
     html: bool = True

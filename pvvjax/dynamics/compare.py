@@ -146,14 +146,16 @@ def fit_peak_map(x, y, split: Split, seeds: int, hidden, cfg) -> Trained:
 
     Args:
         x: (R, C) the database inputs at each row's (condition's) peak window.
-        y: (R,) the peak PVV, g. split, seeds, cfg: as `fit_sequence_model`.
+        y: (R,) the peak PVV, g; or (R, A): a net of A outputs (e.g. one per pilot-floor axis).
+        split, seeds, cfg: as `fit_sequence_model`.
         hidden: hidden-layer widths.
 
     Returns:
-        `Trained` whose `pred` is (F, S, R, 1): the map at the peak inputs.
+        `Trained` whose `pred` is (F, S, R, 1) (or (F, S, R, 1, A)): the map at the peak inputs.
     """
     n_in = np.shape(x)[-1]
-    init = lambda key, sc, fs: mlp_init(key, n_in, tuple(hidden), scale=sc)  # noqa: E731
+    n_out = 1 if np.ndim(y) == 1 else np.shape(y)[1]
+    init = lambda key, sc, fs: mlp_init(key, n_in, tuple(hidden), scale=sc, n_out=n_out)  # noqa: E731
     return fit_sequence_model(init, mlp_apply, np.asarray(x)[:, None, :], np.asarray(y)[:, None],
                               np.ones((len(y), 1), bool), split, seeds, cfg)
 

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .element import AIRCRAFT_DEFAULTS, CHANNELS, FEATURES
+from .element import AIRCRAFT_DEFAULTS, AXIS_OUTPUTS, CHANNELS, FEATURES
 
 __all__ = ["CElement", "CSourceLimits", "buffer_capacity", "c_compiler", "c_sources", "compile_shared",
            "write_c_element"]
@@ -103,27 +103,30 @@ def _array(name: str, values, ctype: str = "double") -> str:
 
 
 def _net_source(k: int, net) -> str:
-    """Constants and the evaluating function `net{k}` of one `NumpyNet` (MLP or RBF)."""
+    """Constants and the evaluating function `net{k}(z, out)` of one `NumpyNet` (MLP or RBF),
+    writing its `n_out` outputs."""
     p = f"NET{k}_"
     out = []
     if net.kind == "mlp":
         widths = [w.shape[1] for w in net.w[:-1]]
         for i, (w, b) in enumerate(zip(net.w[:-1], net.b[:-1])):
             out += [_array(f"{p}W{i}", w), _array(f"{p}B{i}", b)]
-        out.append(_array(f"{p}WOUT", net.w[-1]))
+        w_out = np.reshape(net.w[-1], (net.w[-1].shape[0], -1)).T  # (n_out, n_prev): one row per output
+        out += [_array(f"{p}WOUT", w_out), _array(f"{p}BOUT", np.ravel(net.b[-1]))]
         body = [f"    double {', '.join(f'h{i}[{n}]' for i, n in enumerate(widths))};"] if widths else []
         prev, n_prev = "z", net.n_in
         for i, n in enumerate(widths):
             body.append(f"    dense_tanh({prev}, {n_prev}, {p}W{i}, {p}B{i}, {n}, h{i});")
             prev, n_prev = f"h{i}", n
-        body.append(f"    return dot({prev}, {p}WOUT, {n_prev}) + {_num(net.b[-1])};")
+        body.append(f"    int o;\n    for (o = 0; o < {w_out.shape[0]}; o++) "
+                    f"out[o] = dot({prev}, {p}WOUT + o * {n_prev}, {n_prev}) + {p}BOUT[o];")
     else:
         n_c = net.centers.shape[0]
         out += [_array(f"{p}SHIFT", net.shift), _array(f"{p}SCALE", net.scale), _array(f"{p}CENTERS", net.centers),
                 _array(f"{p}INV2W2", np.broadcast_to(net.inv2w2, (n_c,))), _array(f"{p}WO", net.wo)]
-        body = [f"    return rbf(z, {net.n_in}, {n_c}, {p}SHIFT, {p}SCALE, {p}CENTERS, {p}INV2W2, {p}WO, "
+        body = [f"    out[0] = rbf(z, {net.n_in}, {n_c}, {p}SHIFT, {p}SCALE, {p}CENTERS, {p}INV2W2, {p}WO, "
                 f"{_num(net.bo)});"]
-    return "".join(out) + f"static double net{k}(const double *z)\n{{\n" + "\n".join(body) + "\n}\n"
+    return "".join(out) + f"static void net{k}(const double *z, double *out)\n{{\n" + "\n".join(body) + "\n}\n"
 
 
 def c_sources(spec: dict, nets: list, limits: CSourceLimits = CSourceLimits(), source: str = "") -> dict[str, str]:
@@ -154,33 +157,56 @@ def c_sources(spec: dict, nets: list, limits: CSourceLimits = CSourceLimits(), s
     d = len(inputs)
     elo = np.full(d, -np.inf) if env is None else np.asarray(env["lo"], float)
     ehi = np.full(d, np.inf) if env is None else np.asarray(env["hi"], float)
-    harm = {int(k): v for k, v in dict(spec.get("harmonics") or {}).items()}
-    defines = dict(BLADES=int(ac["blades"]), PHASE_RAD=_num(spec.get("phase_rad", 0.0)),
+    outputs, shake = element_outputs(spec)
+    n_out = {getattr(net, "n_out", 1) for net in nets}
+    if n_out != {len(outputs)}:
+        raise ValueError(f"the nets give {sorted(n_out)} output(s); the element predicts {len(outputs)} ({outputs})")
+    harm = [(i, int(k), v) for i, s in enumerate(shake) for k, v in dict(s.get("harmonics") or {}).items()]
+    defines = dict(BLADES=int(ac["blades"]),
                    ROTOR_RADIUS_FT=_num(ac["rotor_radius_ft"]), G_FT_S2=_num(ac["g_ft_s2"]),
                    DEFAULT_OFFSET_S=_num(spec["offset_s"]), DEFAULT_STICK_OFFSET_S=_num(spec["stick_offset_s"]),
                    DEFAULT_WINDOW_REVS=_num(spec["window_revs"]), DEFAULT_HOP_REVS=_num(spec["hop_revs"]),
                    N_INPUTS=d, N_HARMONICS=len(harm), N_NETS=len(nets), **_response_defines(spec))
+    seat_axis = {"x": 0, "y": 1, "z": 2}
     constants = "".join(f"#define PVV_{k} {v}\n" for k, v in defines.items()) + "\n"
     constants += f"/* inputs: {', '.join(inputs)} */\n"
     constants += _array("PVV_INPUT_FEATURE", [FEATURES.index(k) for k in inputs], "int")
     constants += _array("PVV_LO", elo) + _array("PVV_HI", ehi)
-    constants += _array("PVV_HARMONIC_K", list(harm)) + _array("PVV_HARMONIC_RATIO", [v[0] for v in harm.values()])
-    constants += _array("PVV_HARMONIC_PHASE", [v[1] for v in harm.values()])
+    constants += f"/* outputs: {', '.join(outputs)} */\n"
+    constants += _array("PVV_OUT_AXIS", [seat_axis[AXIS_OUTPUTS[o]] for o in outputs], "int")
+    constants += _array("PVV_PHASE", [s.get("phase_rad", 0.0) for s in shake])
+    constants += _array("PVV_ONCE_G", [s.get("once_g", 0.0) for s in shake])
+    constants += _array("PVV_ONCE_PHASE", [s.get("once_phase_rad", 0.0) for s in shake])
+    constants += _array("PVV_HARMONIC_OUT", [h[0] for h in harm], "int")
+    constants += _array("PVV_HARMONIC_K", [h[1] for h in harm])
+    constants += _array("PVV_HARMONIC_RATIO", [h[2][0] for h in harm])
+    constants += _array("PVV_HARMONIC_PHASE", [h[2][1] for h in harm])
     kinds = {net.kind for net in nets}
     helpers = "".join((_CSRC / f"net_{k}.inc").read_text() + "\n" for k in ("mlp", "rbf") if k in kinds)
     nets_src = helpers + "\n".join(_net_source(k, net) for k, net in enumerate(nets))
     table = ", ".join(f"net{k}" for k in range(len(nets)))
-    nets_src += ("\ntypedef double (*pvv_net_fn)(const double *z);\n"
+    nets_src += ("\ntypedef void (*pvv_net_fn)(const double *z, double *out);\n"
                  f"static const pvv_net_fn PVV_NETS[PVV_N_NETS] = {{{table}}};\n")
     header = dict(BLADES=str(int(ac["blades"])), SOURCE=source or "pvvjax", MAX_RATE_HZ=_num(limits.max_rate_hz),
                   MIN_RPM=_num(limits.min_rpm_ratio * ac["nominal_rpm"]), MIN_WINDOW_REVS=_num(lo),
                   MAX_WINDOW_REVS=_num(hi), MAX_OFFSET_S=_num(limits.max_offset_s),
                   MAX_STICK_OFFSET_S=_num(limits.max_stick_offset_s),
                   CAPACITY=str(buffer_capacity(limits, ac["nominal_rpm"])),
-                  HIST=str(history_capacity(spec, limits, ac["nominal_rpm"])))
+                  HIST=str(history_capacity(spec, limits, ac["nominal_rpm"])), N_OUT=str(len(outputs)),
+                  OUTPUTS=", ".join(outputs))
     h = _fill((_CSRC / "pvv_element.h").read_text(), header)
     c = _fill((_CSRC / "pvv_element.c").read_text(), dict(SOURCE=header["SOURCE"], CONSTANTS=constants, NETS=nets_src))
     return {"pvv_element.h": h, "pvv_element.c": c}
+
+
+def element_outputs(spec: dict) -> tuple[list[str], list[dict]]:
+    """An element's outputs (the axes its nets predict) and each one's shake settings, as
+    `VibrationElement` reads them from `element.json` (`outputs`, `shake`; an element of one
+    output may give only `phase_rad` and `harmonics`)."""
+    outputs = list(spec.get("outputs") or ["az_g"])
+    shake = spec.get("shake") or [dict(phase_rad=spec.get("phase_rad", 0.0), harmonics=spec.get("harmonics"))] + [
+        {}] * (len(outputs) - 1)
+    return outputs, [dict(s) for s in shake]
 
 
 def _fill(template: str, values: dict) -> str:
@@ -231,7 +257,8 @@ class _Settings(ctypes.Structure):
 
 
 class _Output(ctypes.Structure):
-    _fields_ = [(k, ctypes.c_double) for k in ("pvv_g", "shake_g", "amplitude_g", "window_time_s")] + [
+    _fields_ = [(k, ctypes.c_double) for k in ("pvv_g", "shake_g", "amplitude_g", "window_time_s", "pvv_x_g",
+                                                "pvv_y_g", "pvv_z_g", "shake_x_g", "shake_y_g", "shake_z_g")] + [
         (k, ctypes.c_int) for k in ("ready", "out_of_envelope", "rejected", "overflow")]
 
 

@@ -13,6 +13,13 @@ first frame past the window's end (its time t(b_j) is then known); `pvv_g` holds
 ready window, and the seat-shake amplitude ramps from the previous value to it over one
 hop, so that the shaker never steps.
 
+Nets of several outputs (`outputs`: the pilot-floor axes they predict, e.g. az_g, ax_g
+and ay_g of `pvvjax axes`) give a PVV per axis and a seat shake per axis (`shake_x_g`,
+`shake_y_g`, `shake_z_g`: x forward, y right, z vertical as the data contract's `ax_g`,
+`ay_g`, `az_g`): each axis's N/rev at its predicted amplitude and its phase, plus its 1/rev
+of rotor track and balance at a constant amplitude and set phase (`shake`). An axis the
+element does not predict shakes 0. `pvv_g` and `shake_g` are the first output's.
+
 With a `response` (the dynamic model of `pvvjax dynamic`), each window's prediction is the
 static map's value passed through a delay and a unit-gain second-order response along the
 window times, stepped exactly as `pvvjax.dynamics.second_order` integrates it (Tustin, from
@@ -35,7 +42,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["AIRCRAFT_DEFAULTS", "CHANNELS", "FEATURES", "ElementOutput", "VibrationElement"]
+__all__ = ["AIRCRAFT_DEFAULTS", "AXIS_OUTPUTS", "CHANNELS", "FEATURES", "ElementOutput", "VibrationElement"]
 
 # Frame channels, canonical units (data contract): what db1-db3 and their features need.
 CHANNELS = ("airspeed_kt", "gross_weight_lb", "rotor_rpm", "density_ratio", "pitch_rate_dps", "roll_angle_deg",
@@ -45,6 +52,8 @@ FEATURES = CHANNELS + ("advance_ratio", "mlf")
 # The rotor constants an element uses, where its settings give none (the UH-60A's).
 AIRCRAFT_DEFAULTS = {"rotor_radius_ft": 26.83, "g_ft_s2": 32.174, "blades": 4, "nominal_rpm": 257.8}
 _STICKS = ("collective_pct", "lateral_pct", "longitudinal_pct")
+# The pilot-floor axis a net output predicts -> the seat axis it shakes (x forward, y right, z vertical).
+AXIS_OUTPUTS = {"ax_g": "x", "ay_g": "y", "az_g": "z"}
 _KT_TO_FT_S = 6076.12 / 3600.0
 
 
@@ -59,6 +68,10 @@ class ElementOutput(NamedTuple):
         window_time_s: centre time of the window `pvv_g` belongs to (NaN before).
         out_of_envelope: some input of the latest window was clipped to the envelope.
         rejected: this frame was not used (non-finite value or time not advancing).
+        pvv_x_g, pvv_y_g, pvv_z_g: each seat axis's N/rev amplitude of the latest ready
+            window, g (0 for an axis the element does not predict).
+        shake_x_g, shake_y_g, shake_z_g: each seat axis's shake sample, g (x forward, y
+            right, z vertical; 0 for an axis the element does not predict).
     """
 
     pvv_g: float
@@ -68,6 +81,12 @@ class ElementOutput(NamedTuple):
     window_time_s: float
     out_of_envelope: bool
     rejected: bool
+    pvv_x_g: float = 0.0
+    pvv_y_g: float = 0.0
+    pvv_z_g: float = 0.0
+    shake_x_g: float = 0.0
+    shake_y_g: float = 0.0
+    shake_z_g: float = 0.0
 
 
 def edge_weight(u):
@@ -89,7 +108,8 @@ class VibrationElement:
     """Streaming PVV and seat shake from one frame of simulator state at a time.
 
     Args:
-        nets: callables x (n, d) -> (n,) PVV, g (e.g. `npnet.NumpyNet`); the median is used.
+        nets: callables x (n, d) -> (n,) PVV, g, or (n, A) for A `outputs` (e.g.
+            `npnet.NumpyNet`); the median over nets is used, output by output.
         inputs: the database's input names in the nets' order (features or channels).
         window_revs, hop_revs: window length and spacing, revolutions.
         offset_s, stick_offset_s: input-to-vibration offset and the sticks' extra offset, s.
@@ -101,16 +121,33 @@ class VibrationElement:
         clip: clip inputs to the envelope (always flagged).
         response: None (quasi-static), or dict of omega_n_rad_s, zeta and delay_s: the
             dynamic model's response after the nets' median.
+        outputs: the pilot-floor axis each net output predicts (`AXIS_OUTPUTS` keys).
+        shake: per output, dict of phase_rad (its N/rev phase), harmonics ({k: (ratio,
+            phase)}), once_g and once_phase_rad (its 1/rev of track and balance: constant
+            amplitude, g, and phase); default: the first output's `phase_rad` and
+            `harmonics`, the others 0, no 1/rev.
     """
 
     def __init__(self, nets, inputs, *, window_revs=8.0, hop_revs=1.0, offset_s=0.0, stick_offset_s=0.0,
-                 phase_rad=0.0, envelope=None, harmonics=None, aircraft=None, clip=True, response=None):
+                 phase_rad=0.0, envelope=None, harmonics=None, aircraft=None, clip=True, response=None,
+                 outputs=("az_g",), shake=None):
         self.nets = list(nets)
         self.inputs = tuple(inputs)
         self.L, self.hop = float(window_revs), float(hop_revs)
         self.tau, self.tau_stick = float(offset_s), float(stick_offset_s)
-        self.phase = float(phase_rad)
-        self.harmonics = {int(k): (float(v[0]), float(v[1])) for k, v in dict(harmonics or {}).items()}
+        self.outputs = tuple(outputs)
+        bad = [o for o in self.outputs if o not in AXIS_OUTPUTS] or len(set(self.outputs)) != len(self.outputs)
+        if bad or not self.outputs:
+            raise ValueError(f"outputs {list(self.outputs)}: each one of {', '.join(AXIS_OUTPUTS)}, at most once")
+        if shake is None:
+            shake = [dict(phase_rad=phase_rad, harmonics=harmonics)] + [{}] * (len(self.outputs) - 1)
+        if len(shake) != len(self.outputs):
+            raise ValueError(f"shake: one entry per output ({len(self.outputs)}), got {len(shake)}")
+        self.shake = [dict(phase_rad=float(s.get("phase_rad", 0.0)),
+                           harmonics={int(k): (float(v[0]), float(v[1]))
+                                      for k, v in dict(s.get("harmonics") or {}).items()},
+                           once_g=float(s.get("once_g", 0.0)), once_phase_rad=float(s.get("once_phase_rad", 0.0)))
+                      for s in shake]
         ac = {**AIRCRAFT_DEFAULTS, **(aircraft or {})}
         self.radius, self.g, self.blades = float(ac["rotor_radius_ft"]), float(ac["g_ft_s2"]), int(ac["blades"])
         self.envelope = None if envelope is None else (np.asarray(envelope[0], float), np.asarray(envelope[1], float))
@@ -152,8 +189,8 @@ class VibrationElement:
         self._az = None
         self._j = 0  # next window to predict
         self._start = None  # revolution where window 0 starts
-        self._pvv = 0.0
-        self._prev = 0.0
+        self._pvv = np.zeros(len(self.outputs))
+        self._prev = np.zeros(len(self.outputs))
         self._ramp_rev = 0.0  # revolution where the latest value arrived
         self._wtime = math.nan
         self._flag = False
@@ -163,9 +200,10 @@ class VibrationElement:
         self._hist_t, self._hist_u = [], []  # the static values of recent windows (the delay's past)
         self._dyn = None  # (time, delayed input, y, y') of the latest window
 
-    def _respond(self, u: float, t: float) -> float:
-        """The response's output at window time t, from the static value u (one Tustin step
-        of `dynamics.second_order` on the delayed input, as `dynamics.delayed` interpolates)."""
+    def _respond(self, u: np.ndarray, t: float) -> np.ndarray:
+        """The response's output at window time t, from the static values u (one per output:
+        one Tustin step of `dynamics.second_order` on the delayed input, as
+        `dynamics.delayed` interpolates)."""
         if self.response is None:
             return u
         d = self.response["delay_s"]
@@ -177,9 +215,10 @@ class VibrationElement:
             self._hist_t.pop(0)
             self._hist_u.pop(0)
         td = t - d
-        ud = self._first[1] if td <= self._first[0] else float(np.interp(td, self._hist_t, self._hist_u))
+        ud = self._first[1] if td <= self._first[0] else np.array(
+            [np.interp(td, self._hist_t, [h[i] for h in self._hist_u]) for i in range(len(u))])
         if self._dyn is None:
-            self._dyn = (t, ud, ud, 0.0)
+            self._dyn = (t, ud, ud, np.zeros_like(ud))
             return ud
         t0, ud0, y, v = self._dyn
         w2, c = self.response["omega_n_rad_s"] ** 2, 2.0 * self.response["zeta"] * self.response["omega_n_rad_s"]
@@ -247,17 +286,26 @@ class VibrationElement:
                 pass
         return self._output(rejected=False)
 
+    def _amplitude(self) -> np.ndarray:
+        """The shake amplitudes now, ramped from the previous window's values."""
+        frac = min(max((self._r[self._n - 1] - self._ramp_rev) / self.hop, 0.0), 1.0)
+        return self._prev + (self._pvv - self._prev) * frac
+
     def _output(self, rejected: bool) -> ElementOutput:
         if self._n == 0:
             return ElementOutput(0.0, 0.0, 0.0, False, math.nan, False, rejected)
-        r = self._r[self._n - 1]
-        frac = min(max((r - self._ramp_rev) / self.hop, 0.0), 1.0)
-        amp = self._prev + (self._pvv - self._prev) * frac
-        psi = 2.0 * math.pi * r
-        shake = amp * math.cos(self.blades * psi + self.phase)
-        for k, (ratio, ph) in self.harmonics.items():
-            shake += ratio * amp * math.cos(k * psi + ph)
-        return ElementOutput(self._pvv, shake, amp, self._ready, self._wtime, self._flag, rejected)
+        amp = self._amplitude()
+        psi = 2.0 * math.pi * self._r[self._n - 1]
+        pvv, shake = {}, {}
+        for i, (axis, s) in enumerate(zip(self.outputs, self.shake)):
+            a = float(amp[i])
+            v = a * math.cos(self.blades * psi + s["phase_rad"]) + s["once_g"] * math.cos(psi + s["once_phase_rad"])
+            for k, (ratio, ph) in s["harmonics"].items():
+                v += ratio * a * math.cos(k * psi + ph)
+            pvv[AXIS_OUTPUTS[axis]], shake[AXIS_OUTPUTS[axis]] = float(self._pvv[i]), v
+        first = AXIS_OUTPUTS[self.outputs[0]]
+        return ElementOutput(pvv[first], shake[first], float(amp[0]), self._ready, self._wtime, self._flag, rejected,
+                             *(pvv.get(a, 0.0) for a in "xyz"), *(shake.get(a, 0.0) for a in "xyz"))
 
     # ------------------------------------------------------------------ windows
 
@@ -291,13 +339,13 @@ class VibrationElement:
             x = x.copy()
             x[self._stick_cols] = means[1][self._stick_cols]
         z, flag = self._net_inputs(x)
-        pred = float(np.median([float(np.ravel(net(z[None]))[0]) for net in self.nets]))
+        pred = np.median([np.reshape(net(z[None]), -1) for net in self.nets], axis=0)  # (A,)
         if self.response is not None:  # at the window's weighted centre time, as the offline analysis
             h = width
             w = h * edge_weight((r - a) / h) * edge_weight((b - r) / h)
             w = np.where(np.isfinite(w), w, 0.0)
             pred = self._respond(pred, float(w @ t / w.sum()))
-        self._prev = self._output(False).amplitude_g if self._ready else pred
+        self._prev = self._amplitude() if self._ready else pred
         self._pvv, self._flag, self._ready = pred, flag, True
         self._ramp_rev = r[-1]
         self._wtime = 0.5 * (t_a + t_b)

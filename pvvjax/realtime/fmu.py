@@ -70,6 +70,10 @@ def fmu_channels(inputs) -> list[str]:
     return [c for c in CHANNELS if c in need]
 
 
+# The seat axes of the outputs shake_x_g, shake_y_g, shake_z_g (data contract: ax_g, ay_g, az_g).
+SEAT_AXES = (("x", "longitudinal, positive forward"), ("y", "lateral, positive right"), ("z", "vertical"))
+
+
 def _var(name, vr, kind, causality, variability, description, unit=None, start=None, initial=None, lo=None, hi=None):
     attrs = f'name="{name}" valueReference="{vr}" description={quoteattr(description)} causality="{causality}" ' \
             f'variability="{variability}"' + (f' initial="{initial}"' if initial else "")
@@ -108,7 +112,11 @@ def model_description(spec: dict, limits: CSourceLimits, guid: str, source: str 
             (20, "pvv_g", "g", f"peak {blades}/rev pilot-floor vertical vibration of the latest window"),
             (21, "shake_g", "g", f"seat-shake acceleration: amplitude x cos({blades} psi + phase) + harmonics"),
             (22, "amplitude_g", "g", "seat-shake amplitude, ramped over one hop"),
-            (23, "window_time_s", "s", "centre time of the window pvv_g belongs to (NaN before the first)")):
+            (23, "window_time_s", "s", "centre time of the window pvv_g belongs to (NaN before the first)"),
+            *((24 + i, f"pvv_{a}_g", "g", f"{blades}/rev amplitude of the latest window, seat axis {a} ({word}; 0 "
+               "where the element does not predict it)") for i, (a, word) in enumerate(SEAT_AXES)),
+            *((27 + i, f"shake_{a}_g", "g", f"seat-shake acceleration along {a} ({word}): {blades}/rev at its "
+               "amplitude and phase, plus the 1/rev of track and balance") for i, (a, word) in enumerate(SEAT_AXES))):
         add(_var(name, vr, "Real", "output", "continuous", text, unit), True)
     for vr, name, text in ((30, "ready", "a window has been predicted"),
                            (31, "out_of_envelope", "an input of the latest window lay outside the training envelope"),

@@ -60,7 +60,8 @@ def write_npz(path, params: dict, meta: dict):
 
 
 class NumpyNet:
-    """An MLP or RBF network evaluated with NumPy (float64).
+    """An MLP or RBF network evaluated with NumPy (float64). An MLP of several outputs
+    (`n_out`, e.g. one per pilot-floor axis) returns one value per output.
 
     Args:
         params: parameter dict (as saved by pvvjax).
@@ -75,10 +76,11 @@ class NumpyNet:
         self.n_in = int(in_mask.sum())
         shift = np.asarray(p["x_shift"], np.float64)[in_mask]
         scale = np.asarray(p["x_scale"], np.float64)[in_mask]
-        self.y_shift, self.y_scale = float(p["y_shift"]), float(p["y_scale"])
+        self.y_shift, self.y_scale = np.asarray(p["y_shift"], np.float64), np.asarray(p["y_scale"], np.float64)
+        self.n_out = int(self.y_shift.size) if self.y_shift.ndim else 1
         if "layers" in p:
             self.kind = "mlp"
-            masks = [np.asarray(m) > 0 for m in p["masks"]] + [np.ones(1, bool)]
+            masks = [np.asarray(m) > 0 for m in p["masks"]] + [np.ones(self.n_out, bool)]
             keep_in = in_mask
             self.w, self.b = [], []
             for layer, keep_out in zip(p["layers"], masks):
@@ -88,34 +90,41 @@ class NumpyNet:
             # fold input standardisation into the first layer, output scaling into the last
             self.b[0] = self.b[0] - (shift / scale) @ self.w[0]
             self.w[0] = self.w[0] / scale[:, None]
-            self.w[-1] = self.w[-1][:, 0] * self.y_scale
-            self.b[-1] = float(self.b[-1][0] * self.y_scale + self.y_shift)
+            if self.y_shift.ndim:  # several outputs: (h, A) and (A,)
+                self.w[-1] = self.w[-1] * self.y_scale
+                self.b[-1] = self.b[-1] * self.y_scale + self.y_shift
+            else:
+                self.w[-1] = self.w[-1][:, 0] * float(self.y_scale)
+                self.b[-1] = float(self.b[-1][0] * self.y_scale + self.y_shift)
             self._buf = [np.empty(w.shape[1]) for w in self.w[:-1]]  # single-sample scratch
         else:
             self.kind = "rbf"
             self.centers = np.asarray(p["centers"], np.float64)[:, in_mask]
             self.inv2w2 = 0.5 / np.exp(2 * np.asarray(p["log_width"], np.float64))
             self.shift, self.scale = shift, scale
-            self.wo = np.asarray(p["w"], np.float64) * self.y_scale
-            self.bo = float(p["b"]) * self.y_scale + self.y_shift
+            self.wo = np.asarray(p["w"], np.float64) * float(self.y_scale)
+            self.bo = float(p["b"]) * float(self.y_scale) + float(self.y_shift)
 
     @classmethod
     def load(cls, path) -> "NumpyNet":
         return cls(*read_npz(path))
 
-    def predict1(self, x: np.ndarray) -> float:
+    def predict1(self, x: np.ndarray):
         """One prediction from a float64 (n_in,) array, with no allocation (the simulator
-        frame path; MLP only)."""
+        frame path; MLP only): a float, or (n_out,) for several outputs."""
         h = x
         for w, b, buf in zip(self.w[:-1], self.b[:-1], self._buf):
             np.dot(h, w, out=buf)
             np.add(buf, b, out=buf)
             np.tanh(buf, out=buf)
             h = buf
+        if self.n_out > 1:
+            return h @ self.w[-1] + self.b[-1]
         return float(np.dot(h, self.w[-1])) + self.b[-1]
 
     def __call__(self, x):
-        """Peak PVV (g) for inputs x: (n_in,) or (n, n_in), physical units, database order."""
+        """Peak PVV (g) for inputs x: (n_in,) or (n, n_in), physical units, database order
+        (with several outputs, a last axis of n_out)."""
         x = np.asarray(x, np.float64)
         if self.kind == "mlp" and x.ndim == 1:
             return self.predict1(x)

@@ -49,11 +49,12 @@ typedef struct {
 #endif
 
 /* ------------------------------------------------------------------ value references */
-/* Real: 0..9 the channels (enum pvv_channel), 10 azimuth_deg; 20..23 outputs; 40..43 parameters.
+/* Real: 0..9 the channels (enum pvv_channel), 10 azimuth_deg; 20..29 outputs; 40..43 parameters.
  * Boolean: 30..33 output flags; 44 azimuth_input, 45 clip. */
 enum {
     VR_AZIMUTH = 10,
     VR_PVV = 20, VR_SHAKE = 21, VR_AMPLITUDE = 22, VR_WINDOW_TIME = 23,
+    VR_PVV_X = 24, VR_PVV_Y = 25, VR_PVV_Z = 26, VR_SHAKE_X = 27, VR_SHAKE_Y = 28, VR_SHAKE_Z = 29,
     VR_READY = 30, VR_OUT_OF_ENVELOPE = 31, VR_REJECTED = 32, VR_OVERFLOW = 33,
     VR_OFFSET = 40, VR_STICK_OFFSET = 41, VR_WINDOW = 42, VR_HOP = 43,
     VR_AZIMUTH_INPUT = 44, VR_CLIP = 45
@@ -90,6 +91,7 @@ static void defaults(instance *c)
     c->running = 0;
     pvv_init(&c->el, &c->s);
     c->out.pvv_g = c->out.shake_g = c->out.amplitude_g = 0.0;
+    c->out.pvv_x_g = c->out.pvv_y_g = c->out.pvv_z_g = c->out.shake_x_g = c->out.shake_y_g = c->out.shake_z_g = 0.0;
     c->out.window_time_s = NAN;
     c->out.ready = c->out.out_of_envelope = c->out.rejected = c->out.overflow = 0;
 }
@@ -189,6 +191,12 @@ FMI2_EXPORT fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[
         else if (v == VR_SHAKE) value[k] = i->out.shake_g;
         else if (v == VR_AMPLITUDE) value[k] = i->out.amplitude_g;
         else if (v == VR_WINDOW_TIME) value[k] = i->out.window_time_s;
+        else if (v == VR_PVV_X) value[k] = i->out.pvv_x_g;
+        else if (v == VR_PVV_Y) value[k] = i->out.pvv_y_g;
+        else if (v == VR_PVV_Z) value[k] = i->out.pvv_z_g;
+        else if (v == VR_SHAKE_X) value[k] = i->out.shake_x_g;
+        else if (v == VR_SHAKE_Y) value[k] = i->out.shake_y_g;
+        else if (v == VR_SHAKE_Z) value[k] = i->out.shake_z_g;
         else if (v == VR_OFFSET) value[k] = i->s.offset_s;
         else if (v == VR_STICK_OFFSET) value[k] = i->s.stick_offset_s;
         else if (v == VR_WINDOW) value[k] = i->s.window_revs;

@@ -66,30 +66,49 @@ static void drop_before(pvv_element *e, int keep_from)
     if (keep_from > 2) shift_left(e, keep_from - 1);
 }
 
+/* Output i's shake amplitude now, ramped over one hop from the previous window's value. */
+static double ramped(const pvv_element *e, int i)
+{
+    double frac = (e->r[e->n - 1] - e->ramp_rev) / e->s.hop_revs;
+    frac = frac < 0.0 ? 0.0 : (frac > 1.0 ? 1.0 : frac);
+    return e->prev[i] + (e->pvv[i] - e->prev[i]) * frac;
+}
+
 static pvv_output output(const pvv_element *e, int rejected)
 {
     pvv_output o;
-    double r, frac, amp, psi, shake;
-    int k;
+    double psi, pvv_axis[3] = {0.0, 0.0, 0.0}, shake_axis[3] = {0.0, 0.0, 0.0};
+    int i, k;
     o.rejected = rejected;
     o.overflow = e->overflow;
     if (e->n == 0) {
         o.pvv_g = o.shake_g = o.amplitude_g = 0.0;
+        o.pvv_x_g = o.pvv_y_g = o.pvv_z_g = o.shake_x_g = o.shake_y_g = o.shake_z_g = 0.0;
         o.window_time_s = NAN;
         o.ready = o.out_of_envelope = 0;
         return o;
     }
-    r = e->r[e->n - 1];
-    frac = (r - e->ramp_rev) / e->s.hop_revs;
-    frac = frac < 0.0 ? 0.0 : (frac > 1.0 ? 1.0 : frac);
-    amp = e->prev + (e->pvv - e->prev) * frac;
-    psi = 2.0 * PVV_PI * r;
-    shake = amp * cos(PVV_BLADES * psi + PVV_PHASE_RAD);
-    for (k = 0; k < PVV_N_HARMONICS; k++)
-        shake += PVV_HARMONIC_RATIO[k] * amp * cos(PVV_HARMONIC_K[k] * psi + PVV_HARMONIC_PHASE[k]);
-    o.pvv_g = e->pvv;
-    o.shake_g = shake;
-    o.amplitude_g = amp;
+    psi = 2.0 * PVV_PI * e->r[e->n - 1];
+    for (i = 0; i < PVV_N_OUT; i++) {
+        double amp = ramped(e, i);
+        double shake = amp * cos(PVV_BLADES * psi + PVV_PHASE[i]) + PVV_ONCE_G[i] * cos(psi + PVV_ONCE_PHASE[i]);
+        for (k = 0; k < PVV_N_HARMONICS; k++)
+            if (PVV_HARMONIC_OUT[k] == i)
+                shake += PVV_HARMONIC_RATIO[k] * amp * cos(PVV_HARMONIC_K[k] * psi + PVV_HARMONIC_PHASE[k]);
+        pvv_axis[PVV_OUT_AXIS[i]] = e->pvv[i];
+        shake_axis[PVV_OUT_AXIS[i]] = shake;
+        if (i == 0) {
+            o.pvv_g = e->pvv[0];
+            o.shake_g = shake;
+            o.amplitude_g = amp;
+        }
+    }
+    o.pvv_x_g = pvv_axis[0];
+    o.pvv_y_g = pvv_axis[1];
+    o.pvv_z_g = pvv_axis[2];
+    o.shake_x_g = shake_axis[0];
+    o.shake_y_g = shake_axis[1];
+    o.shake_z_g = shake_axis[2];
     o.ready = e->ready;
     o.window_time_s = e->wtime;
     o.out_of_envelope = e->flag;
@@ -116,62 +135,76 @@ static int net_inputs(const pvv_element *e, const double *x, double *z)
     return flag;
 }
 
-static double median_prediction(const double *z)
+/* The nets' median, output by output. */
+static void median_prediction(const double *z, double *pred)
 {
-    double p[PVV_N_NETS];
-    int i, k;
-    for (k = 0; k < PVV_N_NETS; k++) {  /* insertion sort as they come */
-        double v = PVV_NETS[k](z);
-        for (i = k; i > 0 && p[i - 1] > v; i--) p[i] = p[i - 1];
-        p[i] = v;
+    double outs[PVV_N_NETS][PVV_N_OUT], p[PVV_N_NETS];
+    int i, k, o;
+    for (k = 0; k < PVV_N_NETS; k++) PVV_NETS[k](z, outs[k]);
+    for (o = 0; o < PVV_N_OUT; o++) {
+        for (k = 0; k < PVV_N_NETS; k++) {  /* insertion sort as they come */
+            double v = outs[k][o];
+            for (i = k; i > 0 && p[i - 1] > v; i--) p[i] = p[i - 1];
+            p[i] = v;
+        }
+        pred[o] = PVV_N_NETS % 2 ? p[PVV_N_NETS / 2] : 0.5 * (p[PVV_N_NETS / 2 - 1] + p[PVV_N_NETS / 2]);
     }
-    return PVV_N_NETS % 2 ? p[PVV_N_NETS / 2] : 0.5 * (p[PVV_N_NETS / 2 - 1] + p[PVV_N_NETS / 2]);
 }
 
 #if PVV_RESPONSE
-/* The response's output at window time tc from the static value u: the delayed input
- * interpolated among recent windows (the first value held before it), then one trapezoidal
- * (Tustin) step of y'' + 2 zeta wn y' + wn^2 y = wn^2 u, from rest at the first window. */
-static double respond(pvv_element *e, double u, double tc)
+/* Drop the oldest window of the response's history. */
+static void drop_oldest(pvv_element *e)
+{
+    int i, o;
+    for (i = 1; i < e->nh; i++) {
+        e->hist_t[i - 1] = e->hist_t[i];
+        for (o = 0; o < PVV_N_OUT; o++) e->hist_u[i - 1][o] = e->hist_u[i][o];
+    }
+    e->nh -= 1;
+}
+
+/* The response's outputs at window time tc from the static values u (one per output, replaced
+ * in place): the delayed input interpolated among recent windows (the first value held before
+ * it), then one trapezoidal (Tustin) step of y'' + 2 zeta wn y' + wn^2 y = wn^2 u, from rest at
+ * the first window. */
+static void respond(pvv_element *e, double *u, double tc)
 {
     const double w2 = PVV_OMEGA_N * PVV_OMEGA_N, c = 2.0 * PVV_ZETA * PVV_OMEGA_N;
-    double td = tc - PVV_DELAY_S, ud, a, r0, r1, det, y, v;
-    int i;
+    double td = tc - PVV_DELAY_S, a, det;
+    int o, j;
     if (e->nh == 0) {
         e->first_t = tc;
-        e->first_u = u;
+        for (o = 0; o < PVV_N_OUT; o++) e->first_u[o] = u[o];
     }
     if (e->nh == PVV_HIST) {  /* windows faster than sized for: lose the oldest, say so */
-        for (i = 1; i < e->nh; i++) { e->hist_t[i - 1] = e->hist_t[i]; e->hist_u[i - 1] = e->hist_u[i]; }
-        e->nh -= 1;
+        drop_oldest(e);
         e->overflow = 1;
     }
     e->hist_t[e->nh] = tc;
-    e->hist_u[e->nh] = u;
+    for (o = 0; o < PVV_N_OUT; o++) e->hist_u[e->nh][o] = u[o];
     e->nh += 1;
-    while (e->nh > 2 && e->hist_t[1] <= td) {  /* older windows lie before every future delay */
-        for (i = 1; i < e->nh; i++) { e->hist_t[i - 1] = e->hist_t[i]; e->hist_u[i - 1] = e->hist_u[i]; }
-        e->nh -= 1;
-    }
-    ud = td <= e->first_t ? e->first_u : interp(td, e->hist_t, e->hist_u, e->nh);
-    if (!e->has_dyn) {
-        e->has_dyn = 1;
-        e->dyn_t = tc;
-        e->dyn_ud = e->dyn_y = ud;
-        e->dyn_v = 0.0;
-        return ud;
-    }
+    while (e->nh > 2 && e->hist_t[1] <= td) drop_oldest(e);  /* older windows lie before every future delay */
+    j = search_left(e->hist_t, e->nh, td);  /* as interp(): the segment [j - 1, j], end segments extended */
+    j = j < 1 ? 1 : (j > e->nh - 1 ? e->nh - 1 : j);
     a = 0.5 * (tc - e->dyn_t);
-    r0 = e->dyn_y + a * e->dyn_v;
-    r1 = e->dyn_v - a * w2 * e->dyn_y - a * c * e->dyn_v + a * w2 * (e->dyn_ud + ud);
     det = 1.0 + a * c + a * a * w2;
-    y = ((1.0 + a * c) * r0 + a * r1) / det;
-    v = (-a * w2 * r0 + r1) / det;
+    for (o = 0; o < PVV_N_OUT; o++) {
+        double x0 = e->hist_t[j - 1], x1 = e->hist_t[j], f0 = e->hist_u[j - 1][o], f1 = e->hist_u[j][o];
+        double ud = td <= e->first_t ? e->first_u[o] : f0 + (td - x0) * ((f1 - f0) / (x1 - x0));
+        double r0, r1;
+        if (!e->has_dyn) {
+            e->dyn_ud[o] = e->dyn_y[o] = u[o] = ud;
+            e->dyn_v[o] = 0.0;
+            continue;
+        }
+        r0 = e->dyn_y[o] + a * e->dyn_v[o];
+        r1 = e->dyn_v[o] - a * w2 * e->dyn_y[o] - a * c * e->dyn_v[o] + a * w2 * (e->dyn_ud[o] + ud);
+        e->dyn_y[o] = u[o] = ((1.0 + a * c) * r0 + a * r1) / det;
+        e->dyn_v[o] = (-a * w2 * r0 + r1) / det;
+        e->dyn_ud[o] = ud;
+    }
+    e->has_dyn = 1;
     e->dyn_t = tc;
-    e->dyn_ud = ud;
-    e->dyn_y = y;
-    e->dyn_v = v;
-    return y;
 }
 
 /* The window [a, b)'s time weighted as its channel means (the offline analysis's centre time). */
@@ -240,12 +273,16 @@ static int try_window(pvv_element *e)
     }
     flag = net_inputs(e, mean[0], z);
     {
-        double pred = median_prediction(z);
+        double pred[PVV_N_OUT];
+        int o;
+        median_prediction(z, pred);
 #if PVV_RESPONSE
-        pred = respond(e, pred, centre_time(e, a, b));
+        respond(e, pred, centre_time(e, a, b));
 #endif
-        e->prev = e->ready ? output(e, 0).amplitude_g : pred;
-        e->pvv = pred;
+        for (o = 0; o < PVV_N_OUT; o++) {
+            e->prev[o] = e->ready ? ramped(e, o) : pred[o];
+            e->pvv[o] = pred[o];
+        }
     }
     e->flag = flag;
     e->ready = 1;
@@ -277,8 +314,10 @@ unsigned long pvv_element_size(void) { return (unsigned long)sizeof(pvv_element)
 
 void pvv_reset(pvv_element *e)
 {
+    int o;
     e->n = 0;
-    e->az = e->rpm_last = e->start = e->pvv = e->prev = e->ramp_rev = 0.0;
+    e->az = e->rpm_last = e->start = e->ramp_rev = 0.0;
+    for (o = 0; o < PVV_N_OUT; o++) e->pvv[o] = e->prev[o] = 0.0;
     e->wtime = NAN;
     e->j = 0;
     e->has_az = e->has_start = e->flag = e->ready = e->dropped = e->overflow = 0;

@@ -7,7 +7,9 @@
  * trained nets, inputs clipped to the training envelope and flagged, and a seat shake at the rotor
  * azimuth whose amplitude ramps over one hop. An element of a dynamic model (PVV_RESPONSE 1) passes
  * each window's median through a delay and a unit-gain second-order response along the window
- * times, as the NumPy element does.
+ * times, as the NumPy element does. Nets of several outputs (PVV_N_OUT, one per pilot-floor axis)
+ * give each seat axis its PVV and its shake (N/rev at the predicted amplitude and its phase, plus
+ * the 1/rev of rotor track and balance); an axis the element does not predict stays 0.
  *
  * Needs <math.h> only. The element is one struct of fixed size: declare it static or allocate it
  * once (pvv_element_size() bytes); no call allocates memory.
@@ -58,6 +60,8 @@ enum pvv_channel {
 #define PVV_CAPACITY @CAPACITY@
 /* Windows the dynamic response keeps for its delay (1 where the element has no response). */
 #define PVV_HIST @HIST@
+/* Outputs of every net: the pilot-floor axes the element predicts (@OUTPUTS@). */
+#define PVV_N_OUT @N_OUT@
 
 #define PVV_OK 0
 #define PVV_EBADSETTINGS (-1)
@@ -77,6 +81,8 @@ typedef struct pvv_output {
     double shake_g;         /* seat-shake sample: amplitude x cos(N psi + phase) + harmonics, g */
     double amplitude_g;     /* the shake's amplitude, ramped over one hop from the previous value, g */
     double window_time_s;   /* centre time of the window pvv_g belongs to, s (NAN before the first) */
+    double pvv_x_g, pvv_y_g, pvv_z_g;        /* each seat axis's N/rev amplitude (0: not predicted), g */
+    double shake_x_g, shake_y_g, shake_z_g;  /* each seat axis's shake: x forward, y right, z vertical, g */
     int ready;              /* a window has been predicted since the last reset */
     int out_of_envelope;    /* an input of that window lay outside the training envelope */
     int rejected;           /* this frame was ignored: a non-finite value or a time not advancing */
@@ -88,11 +94,12 @@ typedef struct pvv_element {
     pvv_settings s;
     int n;                  /* frames stored */
     double t[PVV_CAPACITY], r[PVV_CAPACITY], x[PVV_CAPACITY][PVV_N_CHANNELS];
-    double az, rpm_last, start, pvv, prev, ramp_rev, wtime;
+    double az, rpm_last, start, pvv[PVV_N_OUT], prev[PVV_N_OUT], ramp_rev, wtime;
     long j;
     int has_az, has_start, flag, ready, dropped, overflow;
     /* the dynamic response: recent windows' static values, the first, and the state */
-    double hist_t[PVV_HIST], hist_u[PVV_HIST], first_t, first_u, dyn_t, dyn_ud, dyn_y, dyn_v;
+    double hist_t[PVV_HIST], hist_u[PVV_HIST][PVV_N_OUT], first_t, first_u[PVV_N_OUT], dyn_t;
+    double dyn_ud[PVV_N_OUT], dyn_y[PVV_N_OUT], dyn_v[PVV_N_OUT];
     int nh, has_dyn;
 } pvv_element;
 

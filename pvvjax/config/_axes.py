@@ -1,0 +1,43 @@
+"""The `[axes]` section: the three-axis study (`pvvjax axes`): which inputs each pilot-floor
+axis needs, judged by FAA Part 60 test 3.f.1."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from ._sections import _bounds, _check_databases
+
+
+@dataclass(frozen=True)
+class AxesConfig:
+    """Nets of one output per pilot-floor axis (`analysis.axes_database`), trained k-fold by
+    condition on each database's inputs and judged per axis on held-out conditions.
+
+    Attributes:
+        databases: input sets compared (db1, db2, db3), in the order a smaller set is
+            preferred: an axis needs the first one that passes.
+        hidden: hidden-layer widths of the nets (one net predicts every axis).
+        seeds: initialisation seeds per fold (predictions are their mean).
+        folds: k of the k-fold split by condition.
+        cruise_advance_ratio: [lo, hi] advance ratio of the level flights whose median
+            measured peak is an axis's nominal cruise level (the FAA tolerance's 10 %).
+        pass_share: the share of held-out conditions that must pass test 3.f.1 for a
+            database's inputs to suffice for an axis.
+    """
+
+    databases: tuple[str, ...] = ("db1", "db2", "db3")
+    hidden: tuple[int, ...] = field(default=(10, 5), metadata={"repeats": True})  # layer widths
+    seeds: int = 4
+    folds: int = 5
+    cruise_advance_ratio: tuple[float, float] = field(default=(0.25, 0.35), metadata={"repeats": True})
+    pass_share: float = 0.9
+
+    def __post_init__(self):
+        _check_databases("axes", self.databases)
+        if not self.hidden or min(self.hidden) < 1:
+            raise ValueError("axes.hidden needs widths >= 1")
+        if self.seeds < 1 or self.folds < 3:
+            raise ValueError("axes.seeds must be >= 1 and axes.folds >= 3")
+        if not 0 < self.pass_share <= 1:
+            raise ValueError(f"axes.pass_share must lie in (0, 1], got {self.pass_share}")
+        _bounds("axes.cruise_advance_ratio", self.cruise_advance_ratio)
