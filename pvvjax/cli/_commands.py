@@ -208,6 +208,32 @@ def _export_dynamic_element(args, folder: Path) -> int:
     return 0
 
 
+def _export_axes_element(args, folder: Path) -> int:
+    """The nets of one database of a `pvvjax axes` study (every fold and seed: their median)
+    as a three-axis real-time element: each axis's N/rev phase and 1/rev of track and balance
+    from the campaign, the envelope of the rows the nets trained on."""
+    from ..analysis.databases import DB_INPUTS, axes_database
+    from ..config import load_config
+    from ..realtime.export import axis_shake, element_spec
+    from ..seat import study_nets
+
+    cfg = load_config(folder / "config.toml")
+    campaign, _ = resolve_campaign(cfg)
+    nets = study_nets(folder, args.database)
+    outputs = list(nets[0][1]["outputs"])
+    inputs = list(DB_INPUTS[args.database])
+    rows = axes_database(campaign, cfg.analysis)[inputs]
+    spec = element_spec([f"net_{i}.npz" for i in range(len(nets))], inputs, (rows.min(), rows.max()), campaign,
+                        cfg.analysis.window_revs, window_revs=args.window, hop_revs=args.hop, offset_s=args.offset,
+                        stick_offset_s=args.stick_offset)
+    spec.update(outputs=outputs, shake=axis_shake(campaign, outputs, cfg.analysis.window_revs))
+    source = f"{len(nets)} nets of {len(outputs)} outputs ({args.database}: {', '.join(outputs)}) of {folder}"
+    out = _write_element_format(args, spec, nets, source)
+    print(f"exported a three-axis real-time element ({args.format}): {source}, window {args.window:g} revs, hop "
+          f"{args.hop:g} revs, offset {args.offset:g} s, to {out}")
+    return 0
+
+
 def _write_element_format(args, spec: dict, nets: list, source: str) -> Path:
     """The element in the format asked for: the NumPy folder, the C source, or the FMU."""
     import json
@@ -243,6 +269,13 @@ def cmd_export(args) -> int:
             raise ValueError(f"{sweep}: a comparison of `pvvjax dynamic`; export its models with --element")
         own_folder(args.out, "pvvjax export")
         return _export_dynamic_element(args, sweep)
+    if (sweep / "axes.parquet").is_file():  # the folder of `pvvjax axes`
+        if not args.element or args.model is not None:
+            raise ValueError(f"{sweep}: a study of `pvvjax axes`; export its three-axis nets with --element (and "
+                             "--database), without --model")
+        _check_element_settings(args)
+        own_folder(args.out, "pvvjax export")
+        return _export_axes_element(args, sweep)
     if args.model is not None:
         raise ValueError(f"--model {args.model}: names a model of a `pvvjax dynamic` folder; {sweep} is a sweep")
     if args.element:

@@ -14,12 +14,13 @@ from pathlib import Path
 
 import numpy as np
 
+from ..analysis.axes import analyze_axes, resolved_harmonics
 from ..analysis.harmonics import analyze
 from ..data.batch import to_batch
 from ..data.campaign import Campaign
 from . import element, npnet
 
-__all__ = ["element_spec", "seat_shake_content", "write_element"]
+__all__ = ["axis_shake", "element_spec", "seat_shake_content", "write_element"]
 
 
 def seat_shake_content(campaign: Campaign, window_revs: float, harmonic: int | None = None) -> tuple[float, dict]:
@@ -44,6 +45,38 @@ def seat_shake_content(campaign: Campaign, window_revs: float, harmonic: int | N
         ak, pk = np.asarray(wk.amplitude)[valid], np.asarray(wk.phase)[valid]
         content[k] = [float(np.median(ak / an)), float(np.angle(np.sum(ak * np.exp(1j * pk))))]
     return phase, content
+
+
+def axis_shake(campaign: Campaign, outputs, window_revs: float) -> list[dict]:
+    """Each axis's seat shake as the element synthesises it (`VibrationElement(shake=...)`),
+    from one windowed pass over the flight test (`analysis.analyze_axes`): its N/rev phase
+    (rad, amplitude-weighted over every valid window), its 1/rev of rotor track and balance
+    (median amplitude, g, and weighted phase: constant, as track and balance is), and its
+    2N/rev as a median ratio to the N/rev with its weighted phase, where the sampling
+    resolves it.
+
+    Args:
+        campaign: the flight test. outputs: the axes, e.g. ("az_g", "ax_g", "ay_g").
+        window_revs: analysis window, revolutions.
+    """
+    n = campaign.aircraft.blades
+    batch = to_batch(campaign, [], axis=tuple(outputs))
+    ks = resolved_harmonics(batch, sorted({1, n, 2 * n}), window_revs)
+    win = analyze_axes(batch, ks, window_revs)
+    valid = np.asarray(win.valid)
+    amp, ph = np.asarray(win.amplitude), np.asarray(win.phase)  # (B, A, H, W)
+    weighted = lambda a, p: float(np.angle(np.sum(a * np.exp(1j * p))))  # noqa: E731
+    out = []
+    for i in range(len(outputs)):
+        at = {k: (amp[:, i, h][valid], ph[:, i, h][valid]) for h, k in enumerate(ks)}
+        an = at[n][0]
+        s = dict(phase_rad=weighted(*at[n]), harmonics={})
+        if 1 in at and n != 1:
+            s.update(once_g=float(np.median(at[1][0])), once_phase_rad=weighted(*at[1]))
+        if 2 * n in at:
+            s["harmonics"][2 * n] = [float(np.median(at[2 * n][0] / an)), weighted(*at[2 * n])]
+        out.append(s)
+    return out
 
 
 def element_spec(nets: list[str], inputs: list[str], envelope: tuple, campaign: Campaign, analysis_window_revs: float,

@@ -1,0 +1,80 @@
+"""The three-axis study (`pvvjax axes`): which inputs each pilot-floor axis needs, judged per
+axis by FAA 3.f.1; its files, its resume, and its nets exported as a three-axis element."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from pvvjax.cli import main
+from pvvjax.data.campaign import load_campaign
+from pvvjax.realtime.element import CHANNELS, VibrationElement
+from pvvjax.seat import axis_needs, axis_scores
+
+CONFIG = """
+[axes]
+databases = ["db1", "db2"]
+seeds = 2
+folds = 3
+hidden = [6]
+[train]
+max_steps = 300
+eval_every = 50
+"""
+
+
+def test_an_axis_needs_the_first_database_that_passes_and_one_none_serves_is_named():
+    table = pd.DataFrame([
+        dict(axis="az_g", database="db1", faa_pass_share=0.95, fails="turn 1/10"),
+        dict(axis="az_g", database="db2", faa_pass_share=0.97, fails=""),
+        dict(axis="ay_g", database="db1", faa_pass_share=0.70, fails="turn 6/10, flare 3/7"),
+        dict(axis="ay_g", database="db2", faa_pass_share=0.75, fails="flare 4/7"),
+    ])
+    needs = axis_needs(table, ("db1", "db2"), 0.9).set_index("axis")
+    assert needs.database.to_dict() == {"az_g": "db1", "ay_g": ""}
+    assert "db1's inputs suffice" in needs.text["az_g"]
+    assert "no database suffices; the best, db2, passes FAA 3.f.1 on 75%" in needs.text["ay_g"]
+    assert 'flare 4/7' in needs.text["ay_g"] and '[analysis] axis = "ay_g"' in needs.text["ay_g"]
+
+
+def test_each_axis_is_scored_on_its_own_peaks_against_its_own_cruise_level():
+    rows = pd.DataFrame(dict(
+        peak_axis=["az_g"] * 4 + ["ay_g"] * 4, maneuver=["level", "level", "turn", "flare"] * 2,
+        advance_ratio=[0.3, 0.3, 0.2, 0.1] * 2,
+        az_g=[0.10, 0.12, 0.20, 0.30, 0.0, 0.0, 0.0, 0.0], ay_g=[0.0] * 4 + [0.05, 0.05, 0.30, 0.20]))
+    pred = np.zeros((8, 2))
+    pred[:4, 0] = [0.10, 0.12, 0.20, 0.60]  # the flare 2x too high: +6 dB, and 0.3 g off a 0.11 g cruise
+    pred[4:, 1] = [0.05, 0.055, 0.10, 0.20]  # the turn 1/3: -9.5 dB and 0.2 g off; the rest pass
+    z, y = axis_scores(rows, pred, ("az_g", "ay_g"), (0.25, 0.35))
+    assert z["nominal_cruise_g"] == pytest.approx(0.11) and y["nominal_cruise_g"] == pytest.approx(0.05)
+    assert (z["faa_pass_share"], y["faa_pass_share"]) == (0.75, 0.75)
+    assert z["fails"] == "flare 1/1" and y["fails"] == "turn 1/1"
+    assert y["rms_g"] == pytest.approx(np.sqrt((0.005**2 + 0.2**2) / 4))
+
+
+def test_the_axes_command_writes_its_tables_resumes_and_exports_a_three_axis_element(small_campaign_dir, tmp_path,
+                                                                                     capsys):
+    (tmp_path / "cfg.toml").write_text(CONFIG)
+    args = ["axes", "--campaign", str(small_campaign_dir), "--config", str(tmp_path / "cfg.toml"), "--out",
+            str(tmp_path / "ax"), "--no-discovery"]
+    assert main(args) == 0
+    text = capsys.readouterr().out
+    table = pd.read_csv(tmp_path / "ax" / "axes.csv")
+    assert [tuple(r) for r in table[["axis", "database"]].to_numpy()] == [
+        (a, d) for a in ("az_g", "ax_g", "ay_g") for d in ("db1", "db2")]
+    assert table.faa_pass_share.between(0, 1).all() and (table.rms_g > 0).all()
+    assert "ay_g (lateral)" in text and (tmp_path / "ax" / "report.md").exists()
+    pred = pd.read_parquet(tmp_path / "ax" / "predictions.parquet")
+    assert {"pred_db1_ay_g", "pred_db2_az_g"} <= set(pred.columns) and not pred.pred_db1_ay_g.isna().any()
+    assert main(args) == 0  # resumed from its saved parts: the same table
+    assert "saved part" in capsys.readouterr().out
+    pd.testing.assert_frame_equal(pd.read_csv(tmp_path / "ax" / "axes.csv"), table)
+
+    assert main(["export", str(tmp_path / "ax"), "--element", "--database", "db2", "--out", str(tmp_path / "el")]) == 0
+    el = VibrationElement.load(tmp_path / "el")
+    assert el.outputs == ("az_g", "ax_g", "ay_g") and len(el.nets) == 6
+    assert el.shake[2]["once_g"] > 0.02  # the lateral 1/rev of track and balance (0.035 g in the generator)
+    camp = load_campaign(small_campaign_dir)
+    rec = camp.records[camp.counters.index[camp.counters.maneuver == "turn"][0]]
+    for t, az, x in zip(rec.time_s, rec.azimuth_deg, rec[list(CHANNELS)].to_numpy(float)):
+        o = el.step(t, az, x)
+    assert o.ready and min(o.pvv_x_g, o.pvv_y_g, o.pvv_z_g) > 0 and o.pvv_z_g == o.pvv_g
