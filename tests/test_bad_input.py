@@ -348,6 +348,17 @@ def _cli_dynamic_without_cruise(tmp_path):
             "--out", str(tmp_path / "d")], "no level flight with an advance ratio in [0.25, 0.35]"
 
 
+def _cli_axis_the_campaign_lacks(tmp_path):
+    (tmp_path / "cfg.toml").write_text('[analysis]\naxis = "ay_g"\n')
+    return ["build-db", "--campaign", str(write_tiny(tmp_path / "c")), "--config", str(tmp_path / "cfg.toml"),
+            "--out", str(tmp_path / "d")], "analysis.axis = 'ay_g': campaign"
+
+
+def _cli_export_study_without_element(tmp_path):
+    (tmp_path / "axes.parquet").write_text("")
+    return ["export", str(tmp_path), "--out", str(tmp_path / "e")], "export its three-axis nets with --element"
+
+
 def _cli_export_comparison_without_element(tmp_path):
     (tmp_path / "comparison.parquet").write_text("")
     return ["export", str(tmp_path), "--out", str(tmp_path / "e")], "export its models with --element"
@@ -364,6 +375,8 @@ CLI_KINDS = {
     "dynamic seeds of zero": lambda tmp_path: (["dynamic", "--out", str(tmp_path / "d"), "--seeds", "0"], "--seeds"),
     "dynamic on a campaign without cruise flights": _cli_dynamic_without_cruise,
     "export of a dynamic comparison without --element": _cli_export_comparison_without_element,
+    "an analysis axis the campaign does not carry": _cli_axis_the_campaign_lacks,
+    "export of a three-axis study without --element": _cli_export_study_without_element,
     "--out on a file": _cli_out_is_a_file,
     "--out under a file": _cli_unwritable_out,
     "a campaign folder that is not there": _cli_missing_campaign,
@@ -420,6 +433,8 @@ CONFIG = {
     "dynamic hop above one revolution": ("[dynamic]\nhop_revs = 2.0\n", "dynamic.hop_revs must lie in (0, 1]"),
     "dynamic cruise band reversed": ("[dynamic]\ncruise_advance_ratio = [0.3, 0.2]\n",
                                      "dynamic.cruise_advance_ratio must be [lo, hi]"),
+    "an analysis axis not in the data contract": ('[analysis]\naxis = "a_lat"\n', "analysis.axis"),
+    "axes pass share above 1": ("[axes]\npass_share = 1.5\n", "axes.pass_share must lie in (0, 1]"),
 }
 
 
