@@ -7,7 +7,8 @@ sit at the edges.
 
 The subpackages follow the pipeline: `data` (campaigns, batches, features), `analysis`
 (harmonics, databases), `nets` (networks, training, sweeps), `replay` (replay, calibration),
-`realtime` (the simulator element), `discovery`, `paper` and `synth` (the generator); the
+`dynamics` (PVV through time), `seat` (the three pilot-floor axes), `realtime` (the
+simulator element), `discovery`, `paper` and `synth` (the generator); the
 shell is `config`, `experiment`, `io`, `plots` and `cli`. Names are imported lazily, so
 `pvvjax.realtime` (the NumPy element for a simulator host) can be used without importing JAX.
 """
@@ -15,8 +16,8 @@ shell is `config`, `experiment`, `io`, `plots` and `cli`. Names are imported laz
 import importlib
 
 _EXPORTS = {
-    "analysis": ["DB_INPUTS", "OUTPUT", "Windows", "analyze", "build_databases", "condition_peaks", "harmonic_windows",
-                 "peak_table", "plan_windows"],
+    "analysis": ["AXES", "DB_INPUTS", "OUTPUT", "Windows", "analyze", "analyze_axes", "axis_peak_tables",
+                 "build_databases", "condition_peaks", "harmonic_windows", "peak_table", "plan_windows"],
     "config": ["AnalysisConfig", "CalibrationConfig", "CampaignConfig", "ColumnMap", "ConfigError", "DiscoveryConfig",
                "ExperimentConfig", "ReplayConfig", "SweepConfig", "TrainConfig", "load_config"],
     "data": ["MANEUVERS", "REQUIRED_CHANNELS", "UH60A", "Aircraft", "Campaign", "CampaignError", "Problem",

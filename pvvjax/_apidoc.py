@@ -42,6 +42,8 @@ MODULES = [
     "dynamics.compare",
     "dynamics.scores",
     "dynamics.study",
+    "seat.study",
+    "seat.report",
     "realtime.element",
     "realtime.npnet",
     "realtime.jax_element",
