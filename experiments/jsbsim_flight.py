@@ -7,16 +7,19 @@
    a stand-in until measured data exist) trains the config's nets (`pvvjax sweep`), exported as
    the element (`pvvjax export --element`: NumPy; and C, `--format c`, where a C compiler is).
    With `model = "dynamic"` the nets are `pvvjax dynamic`'s physics-shaped model instead (the
-   config's [dynamic] and [train]), its delay and second-order response in the element.
+   config's [dynamic] and [train]), its delay and second-order response in the element; with
+   `model = "axes"` they are `pvvjax axes`'s nets of three outputs (the config's [axes]), and the
+   element shakes the seat in three axes (its 2/rev N/rev on the AH-1S's two blades, with each
+   axis's 1/rev of track and balance).
 3. Each flight of the config runs JSBSim's `ah1s_flight_test.xml` script frame by frame; each
    frame is mapped to the data contract's channels (`realtime.JSBSIM_CHANNELS`) and fed to the
    element, the rotor azimuth integrated from the rotor speed. A flight may add a pitch-attitude
    pulse through the AFCS trim (`ap/afcs/manual/theta-trim-rad`).
 
-Writes, under OUT_DIR/NAME: per flight `FLIGHT.parquet` (every frame: the channels, PVV, seat
-shake, flags, per-frame latency), `flights.csv` (one row per flight) and `flights.png` (airspeed,
-pitch rate and rotor speed over PVV and seat shake); with --docs the figure also goes to
-docs/figures/jsbsim_ah1s.png.
+Writes, under OUT_DIR/NAME: per flight `FLIGHT.parquet` (every frame: the channels, PVV and seat
+shake of each seat axis x, y, z, flags, per-frame latency), `flights.csv` (one row per flight) and
+`flights.png` (airspeed, pitch rate and rotor speed over each axis's PVV and seat shake); with
+--docs the figure also goes to docs/figures/jsbsim_ah1s.png.
 """
 
 from __future__ import annotations
@@ -33,11 +36,21 @@ from typing import Literal
 import numpy as np
 import pandas as pd
 
-from pvvjax.config import CampaignConfig, DynamicConfig, ExperimentConfig, SweepConfig, TrainConfig, load_config
+from pvvjax.config import (
+    AxesConfig,
+    CampaignConfig,
+    DynamicConfig,
+    ExperimentConfig,
+    SweepConfig,
+    TrainConfig,
+    load_config,
+)
 from pvvjax.realtime import CElement, VibrationElement, c_compiler, compile_shared
 from pvvjax.realtime.jsbsim import JSBSIM_CHANNELS, frame_channels, jsbsim_aircraft, quiet_stdout
 
 THETA_TRIM = "ap/afcs/manual/theta-trim-rad"
+# The element's outputs each frame writes: PVV and shake of the first output, then of each seat axis.
+OUTPUTS = ("pvv_g", "shake_g", "pvv_x_g", "pvv_y_g", "pvv_z_g", "shake_x_g", "shake_y_g", "shake_z_g")
 
 
 @dataclass(frozen=True)
@@ -70,9 +83,10 @@ class JSBSimFlightConfig:
         counts: the campaign's random conditions per maneuver kind (empty: the default campaign).
         database, offset_s, window_revs, hop_revs: the quasi-static element (`pvvjax export
             --element`).
-        model: "quasi_static" (the sweep's nets, replayed) or "dynamic" (`pvvjax dynamic`'s
-            dynamic model of `database`, with its own windows and response).
-        sweep, train, dynamic: the nets (as an experiment config's sections).
+        model: "quasi_static" (the sweep's nets, replayed), "dynamic" (`pvvjax dynamic`'s
+            dynamic model of `database`, with its own windows and response) or "axes" (`pvvjax
+            axes`'s nets of `database`, one output per pilot-floor axis: a three-axis shake).
+        sweep, train, dynamic, axes: the nets (as an experiment config's sections).
         flights: name -> `Flight`.
     """
 
@@ -86,10 +100,11 @@ class JSBSimFlightConfig:
     offset_s: float = 0.5
     window_revs: float = 8.0
     hop_revs: float = 1.0
-    model: Literal["quasi_static", "dynamic"] = "quasi_static"
+    model: Literal["quasi_static", "dynamic", "axes"] = "quasi_static"
     sweep: SweepConfig = field(default_factory=SweepConfig)
     train: TrainConfig = field(default_factory=TrainConfig)
     dynamic: DynamicConfig = field(default_factory=DynamicConfig)
+    axes: AxesConfig = field(default_factory=AxesConfig)
     flights: dict[str, Flight] = field(default_factory=dict)
 
 
@@ -108,8 +123,17 @@ def train_element(cfg: JSBSimFlightConfig, out: Path) -> tuple[Path, Path | None
     print(f"synthetic {cfg.aircraft} campaign (UH-60A-like physics scaled to its rotor): {campaign}")
     ecfg = ExperimentConfig(name=cfg.name, out_dir=cfg.out_dir, campaign=CampaignConfig(path=str(campaign)),
                             sweep=dataclasses.replace(cfg.sweep, databases=(cfg.database,)), train=cfg.train,
-                            dynamic=dataclasses.replace(cfg.dynamic, databases=(cfg.database,)))
-    if cfg.model == "dynamic":
+                            dynamic=dataclasses.replace(cfg.dynamic, databases=(cfg.database,)),
+                            axes=dataclasses.replace(cfg.axes, databases=(cfg.database,)))
+    if cfg.model == "axes":
+        from pvvjax.experiment import resolve_campaign
+        from pvvjax.seat import run_study
+
+        folder, study, _ = run_study(ecfg, resolve_campaign(ecfg)[0], campaign, out / "axes", discover_unmet=False)
+        print(study.table.drop(columns="fails").round(4).to_string(index=False))
+        export = [sys.executable, "-m", "pvvjax", "export", str(folder), "--element", "--database", cfg.database,
+                  "--offset", repr(cfg.offset_s), "--window", repr(cfg.window_revs), "--hop", repr(cfg.hop_revs)]
+    elif cfg.model == "dynamic":
         from pvvjax.dynamics.study import run_dynamic
         from pvvjax.experiment import resolve_campaign
 
@@ -153,14 +177,15 @@ def fly(cfg: JSBSimFlightConfig, flight: Flight, element: Path, c_library: Path 
             s = clock()
             o = el.step(t, None, x)  # no azimuth in JSBSim's rotor model: the rotor speed is integrated
             lat = (clock() - s) / 1e3
-            row = [t, *x, o.pvv_g, o.shake_g, o.amplitude_g, o.ready, o.out_of_envelope, o.rejected, lat]
+            row = [t, *x, *(getattr(o, k) for k in OUTPUTS), o.amplitude_g, o.ready, o.out_of_envelope, o.rejected,
+                   lat]
             if cel is not None:
                 s = clock()
                 c = cel.step(t, None, x)
-                row += [c["pvv_g"], c["shake_g"], (clock() - s) / 1e3]
+                row += [*(c[k] for k in OUTPUTS), (clock() - s) / 1e3]
             rows.append(row)
-    cols = ["time_s", *JSBSIM_CHANNELS, "pvv_g", "shake_g", "amplitude_g", "ready", "out_of_envelope", "rejected",
-            "latency_us"] + (["c_pvv_g", "c_shake_g", "c_latency_us"] if cel is not None else [])
+    cols = ["time_s", *JSBSIM_CHANNELS, *OUTPUTS, "amplitude_g", "ready", "out_of_envelope", "rejected",
+            "latency_us"] + ([f"c_{k}" for k in OUTPUTS] + ["c_latency_us"] if cel is not None else [])
     df = pd.DataFrame(rows, columns=cols)
     return df.astype({k: bool for k in ("ready", "out_of_envelope", "rejected")})
 
@@ -175,41 +200,46 @@ def summarize(name: str, df: pd.DataFrame) -> dict:
     if "c_pvv_g" in df:
         row.update(c_latency_median_us=float(df.c_latency_us.median()),
                    c_latency_p99_us=float(df.c_latency_us.quantile(0.99)),
-                   c_minus_numpy_g=float(np.abs(df[["c_pvv_g", "c_shake_g"]].to_numpy()
-                                                - df[["pvv_g", "shake_g"]].to_numpy()).max()))
+                   c_minus_numpy_g=float(np.abs(df[[f"c_{k}" for k in OUTPUTS]].to_numpy()
+                                                - df[list(OUTPUTS)].to_numpy()).max()))
     return row
 
 
 def figure(flights: dict[str, pd.DataFrame], plans: dict[str, Flight], path: Path):
-    """Airspeed, pitch rate and rotor speed over PVV and seat shake, a column per flight (a
-    flight with a pitch pulse from 20 s before it)."""
+    """Airspeed, pitch rate and rotor speed over each seat axis's PVV and seat shake, a column
+    per flight (a flight with a pitch pulse from 20 s before it); an element of one axis shows
+    its vertical only."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     rows = [("airspeed_kt", "airspeed, kt"), ("pitch_rate_dps", "pitch rate, deg/s"), ("rotor_rpm", "rotor, rpm")]
-    fig, axes = plt.subplots(4, len(flights), figsize=(4.2 * len(flights), 8), sharex="col", squeeze=False)
+    fig, axes = plt.subplots(5, len(flights), figsize=(4.2 * len(flights), 10), sharex="col", squeeze=False)
     for col, (name, df) in enumerate(flights.items()):
         if plans[name].pulse_s:
             df = df[df.time_s >= plans[name].pulse_at_s - 20.0]
         for r, (k, label) in enumerate(rows):
             axes[r, col].plot(df.time_s, df[k], "k-", lw=0.8)
             axes[r, col].set_ylabel(label if col == 0 else "")
-        ax = axes[3, col]
-        flagged = df.ready & df.out_of_envelope
-        ax.fill_between(df.time_s, 0, 1, where=flagged, transform=ax.get_xaxis_transform(), color="0.85", lw=0,
-                        label="out of envelope", zorder=0)
-        ax.plot(df.time_s, df.shake_g, color="C3", lw=0.15, alpha=0.35, label="seat shake")
-        ax.plot(df.time_s, df.pvv_g, "C0-", lw=1.4, label="PVV")
-        ax.set_ylabel("g" if col == 0 else "")
-        ax.set_xlabel("simulation time, s")
+        seat = [a for a in "zxy" if df[f"pvv_{a}_g"].abs().max() > 0]
+        words = dict(z="vertical", x="longitudinal", y="lateral")
+        for ax in axes[3:, col]:
+            ax.fill_between(df.time_s, 0, 1, where=df.ready & df.out_of_envelope, transform=ax.get_xaxis_transform(),
+                            color="0.9", lw=0, label="out of envelope", zorder=0)
+        for i, a in enumerate(seat):
+            axes[3, col].plot(df.time_s, df[f"pvv_{a}_g"], f"C{i}-", lw=1.4, label=f"{words[a]} ({a})")
+            axes[4, col].plot(df.time_s, df[f"shake_{a}_g"], color=f"C{i}", lw=0.15, alpha=0.4)
+        axes[3, col].set_ylabel("N/rev PVV, g" if col == 0 else "")
+        axes[4, col].set_ylabel("seat shake, g" if col == 0 else "")
+        axes[4, col].set_xlabel("simulation time, s")
         axes[0, col].set_title(name)
         if col == 0:
-            ax.legend(fontsize=7, loc="upper left")
+            axes[3, col].legend(fontsize=7, loc="upper left")
         for a in axes[:, col]:
             a.grid(alpha=0.3)
-    fig.suptitle("JSBSim AH-1S with the vibration element in the loop (2/rev, synthetic training campaign)")
+    fig.suptitle("JSBSim AH-1S with the vibration element in the loop (2/rev per seat axis, synthetic training "
+                 "campaign)")
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)

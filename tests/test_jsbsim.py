@@ -67,13 +67,14 @@ def test_rotor_constants_read_from_the_model(tmp_path):
 
 @pytest.mark.heavy
 def test_the_example_flies_the_ah1s_with_the_element_in_the_loop(tmp_path, monkeypatch, small_campaign_dir):
+    """`model = "axes"` (the shipped config's): `pvvjax axes` on the AH-1S campaign, its nets of three
+    outputs as the element, three flights; every seat axis written, the C element equal on each."""
     import tomli_w
 
     monkeypatch.chdir(tmp_path)
     monkeypatch.setenv("PVVJAX_CACHE", str(small_campaign_dir.parents[1]))
-    cfg = dict(name="ah1s", out_dir="runs", counts=SMALL_COUNTS, sweep=dict(hidden=[[4]], seeds=1, folds=3,
-                                                                           test_folds=[0], cpu_devices=1),
-               train=dict(max_steps=200),
+    cfg = dict(name="ah1s", out_dir="runs", counts=SMALL_COUNTS, model="axes",
+               axes=dict(hidden=[4], seeds=1, folds=3), train=dict(max_steps=200),
                flights={"flight-test": dict(variant=1, end_s=200.0),
                         "pitch-pulse": dict(variant=1, end_s=200.0, pulse_at_s=180.0, pulse_s=3.0, pulse_rad=0.3),
                         "autorotation": dict(variant=3, end_s=300.0)})
@@ -93,6 +94,10 @@ def test_the_example_flies_the_ah1s_with_the_element_in_the_loop(tmp_path, monke
     assert late(pulse).pitch_rate_dps.max() > 4.0 > late(plain).pitch_rate_dps.abs().max()
     auto = pd.read_parquet(out / "autorotation.parquet")
     assert auto.ready.any() and np.isfinite(auto.shake_g).all()
+    ready = auto[auto.ready]
+    assert (ready[["pvv_x_g", "pvv_y_g", "pvv_z_g"]] > 0).all().all() and (ready.pvv_z_g == ready.pvv_g).all()
+    shake_y = ready.shake_y_g.to_numpy()
+    assert np.isfinite(shake_y).all() and shake_y.std() > 0
     governed, free = auto[auto.time_s.between(200, 235)], auto[auto.time_s > 245]  # power lost at 240 s
     assert governed.rotor_rpm.std() < 1.0 < free.rotor_rpm.std()
     assert (out / "flights.png").is_file()
