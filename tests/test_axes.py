@@ -131,3 +131,19 @@ def test_the_axes_database_has_each_axis_peak_row_with_every_axis_in_that_window
             peak.advance_ratio, rel=1e-6)
         # an axis's value in another axis's peak window is no more than its own peak
         assert (rows[axis] <= row[axis] + 1e-7).all()
+
+
+def test_the_dynamic_models_sequences_and_the_replay_records_analyse_the_configured_axis():
+    from pvvjax.analysis import STATE_CHANNELS
+    from pvvjax.dynamics import window_sequences
+    from pvvjax.replay.quasistatic import prepare
+
+    campaign, _ = _three_axis_campaign()
+    seq = window_sequences(campaign, ["advance_ratio"], window_revs=2.0, hop_revs=1.0, axis="ay_g")
+    one = analyze(to_batch(campaign, STATE_CHANNELS, axis="ay_g"), 2.0, 1.0)
+    valid = np.asarray(one.valid)[0]
+    np.testing.assert_allclose(seq.amplitude[0][seq.mask[0]], np.asarray(one.amplitude)[0][valid], rtol=1e-6)
+    assert seq.amplitude[0][seq.mask[0]].mean() == pytest.approx(0.2, abs=0.02)  # the lateral 4/rev, not the vertical
+    batch = to_batch(campaign, STATE_CHANNELS, axis="ay_g")
+    cols = np.asarray(prepare(batch).columns.cols)  # (B, T, n): acceleration x cos, x sin, cos, sin, the acceleration
+    np.testing.assert_array_equal(cols[0, :, 4], np.asarray(batch.accel)[0])
