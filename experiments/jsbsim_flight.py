@@ -129,7 +129,8 @@ def train_element(cfg: JSBSimFlightConfig, out: Path) -> tuple[Path, Path | None
         from pvvjax.experiment import resolve_campaign
         from pvvjax.seat import run_study
 
-        folder, study, _ = run_study(ecfg, resolve_campaign(ecfg)[0], campaign, out / "axes", discover_unmet=False)
+        folder, study, _ = run_study(ecfg.with_(axes=dataclasses.replace(ecfg.axes, discovery=False)),
+                                     resolve_campaign(ecfg)[0], campaign, out / "axes")
         print(study.table.drop(columns="fails").round(4).to_string(index=False))
         export = [sys.executable, "-m", "pvvjax", "export", str(folder), "--element", "--database", cfg.database,
                   "--offset", repr(cfg.offset_s), "--window", repr(cfg.window_revs), "--hop", repr(cfg.hop_revs)]

@@ -30,7 +30,8 @@ def _small(data: dict, campaign: Path) -> dict:
     def merge(a, b):
         return {**a, **{k: merge(a.get(k, {}), v) if isinstance(v, dict) else v for k, v in b.items()}}
     small = {"sweep": {"hidden": [[4]], "seeds": 1, "folds": 3, "test_folds": [0], "cpu_devices": 1},
-             "train": {"max_steps": 300, "learning_rate": 0.01}, "run": {"networks": False, "discovery_scenario": ""}}
+             "train": {"max_steps": 300, "learning_rate": 0.01}, "run": {"networks": False, "discovery_scenario": ""},
+             "axes": {"databases": ["db1"], "hidden": [4], "seeds": 1, "folds": 3, "discovery": False}}
     if not data.get("campaign", {}).get("path"):
         small["campaign"] = {"path": str(campaign)}
     if "sweep" in data and "databases" in data["sweep"]:

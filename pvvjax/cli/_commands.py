@@ -495,9 +495,11 @@ def cmd_axes(args) -> int:
 
     t0 = time.perf_counter()
     cfg = _experiment(args)
+    if args.no_discovery:
+        cfg = cfg.with_(axes=dataclasses.replace(cfg.axes, discovery=False))
     enable_compilation_cache()
     campaign, folder = resolve_campaign(cfg, args.campaign)
-    out, study, _ = run_study(cfg, campaign, folder, args.out, discover_unmet=not args.no_discovery)
+    out, study, _ = run_study(cfg, campaign, folder, args.out)
     print(study.table.drop(columns="fails").round(4).to_string(index=False))
     print("\n".join(study.needs.text))
     print(f"wrote axes.csv, needs.csv, predictions.parquet and report.md to {out} ({time.perf_counter() - t0:.1f} s)")

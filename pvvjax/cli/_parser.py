@@ -249,7 +249,7 @@ def _replay_commands(sub):
     s.add_argument("--config", default=None, help="experiment config ([axes], [train], [analysis], [discovery] "
                                                   "sections; default: none, the defaults)")
     s.add_argument("--no-discovery", action="store_true",
-                   help="skip the discovery on the axes no database serves (default: run it)")
+                   help="skip the discovery on the axes no database serves (default: [axes] discovery)")
     s.set_defaults(fn=C.cmd_axes)
 
     s = sub.add_parser("run", help="run an experiment config end to end (the main job)",

@@ -23,6 +23,8 @@ class AxesConfig:
             measured peak is an axis's nominal cruise level (the FAA tolerance's 10 %).
         pass_share: the share of held-out conditions that must pass test 3.f.1 for a
             database's inputs to suffice for an axis.
+        discovery: run the discovery (`[discovery]`) on every axis no database suffices
+            for, to name the input it lacks (minutes on a full campaign).
     """
 
     databases: tuple[str, ...] = ("db1", "db2", "db3")
@@ -31,6 +33,7 @@ class AxesConfig:
     folds: int = 5
     cruise_advance_ratio: tuple[float, float] = field(default=(0.25, 0.35), metadata={"repeats": True})
     pass_share: float = 0.9
+    discovery: bool = True
 
     def __post_init__(self):
         _check_databases("axes", self.databases)

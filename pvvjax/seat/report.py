@@ -42,10 +42,10 @@ def axis_summary(tables: dict) -> str:
     return "\n".join(lines)
 
 
-def run_study(cfg, campaign, campaign_dir, out, *, discover_unmet: bool = True, log=print) -> tuple:
+def run_study(cfg, campaign, campaign_dir, out, *, log=print) -> tuple:
     """`pvvjax axes`: claim `out` for the config's `[axes]`, `[train]`, `[analysis]` and seed
     on this campaign, record the config (`config.toml`, with the campaign's folder: what
-    `export --element` reads), run the study (`seat.run_axes`) and, with `discover_unmet`,
+    `export --element` reads), run the study (`seat.run_axes`) and, with `[axes] discovery`,
     the discovery on every axis no database suffices for (`discovery-<axis>/`).
 
     Returns:
@@ -64,7 +64,7 @@ def run_study(cfg, campaign, campaign_dir, out, *, discover_unmet: bool = True, 
     write_table(study.needs, out / "needs", cfg)
     study.predictions.to_parquet(out / "predictions.parquet", index=False)
     found = {}
-    if discover_unmet:
+    if cfg.axes.discovery:
         from ..discovery import discover, summary
         from ..discovery.report import write_discovery
 
