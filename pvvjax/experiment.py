@@ -300,18 +300,7 @@ def run_main_job(cfg, source: str | Path = "") -> Path:
     if cfg.run.discovery_scenario:
         step("discovery", f"discovery on the hidden-effect scenario {cfg.run.discovery_scenario}")
         disc = _run_discovery(cfg, out / "discovery")
-    dyn = None
-    if cfg.run.dynamic:
-        step("dynamic", f"PVV through time: {', '.join(cfg.dynamic.models)} on {', '.join(cfg.dynamic.databases)}, "
-                        f"{cfg.dynamic.seeds} seeds x {cfg.dynamic.folds} folds")
-        dyn = _run_dynamic(cfg, campaign, campaign_dir, out / "dynamic")
-    axes = None
-    if cfg.run.axes:
-        from .seat import report_section, run_study
-
-        step("axes", f"three axes: {', '.join(cfg.axes.databases)} per pilot-floor axis, {cfg.axes.seeds} seeds x "
-                     f"{cfg.axes.folds} folds; discovery on the axes none serves")
-        axes = report_section(*run_study(cfg, campaign, campaign_dir, out / "axes")[1:], cfg)
+    dyn, axes = _through_time_and_axes(cfg, campaign, campaign_dir, out, step)
     checks = pd.concat([c for c in checks if c is not None and len(c)], ignore_index=True)
     write_table(checks, out / "paper_comparison", cfg)
     report = _write_report(cfg, out, summary, figures, paper_figs, checks, nets, reps, sections, disc,
@@ -321,12 +310,25 @@ def run_main_job(cfg, source: str | Path = "") -> Path:
     return report
 
 
-def _run_dynamic(cfg, campaign, campaign_dir, out: Path):
-    """`pvvjax dynamic` as a stage (`dynamics.study.run_dynamic`): its comparison table."""
-    from .dynamics.study import run_dynamic
+def _through_time_and_axes(cfg, campaign, campaign_dir, out: Path, step) -> tuple:
+    """The stages `[run] dynamic` (`pvvjax dynamic` into `out/dynamic`: its comparison table)
+    and `[run] axes` (`pvvjax axes` into `out/axes`: its report section); None where off."""
+    dyn = axes = None
+    if cfg.run.dynamic or cfg.run.axes:
+        enable_compilation_cache()
+    if cfg.run.dynamic:
+        from .dynamics.study import run_dynamic
 
-    enable_compilation_cache()
-    return run_dynamic(cfg, campaign, campaign_dir, out)[1]
+        step("dynamic", f"PVV through time: {', '.join(cfg.dynamic.models)} on {', '.join(cfg.dynamic.databases)}, "
+                        f"{cfg.dynamic.seeds} seeds x {cfg.dynamic.folds} folds")
+        dyn = run_dynamic(cfg, campaign, campaign_dir, out / "dynamic")[1]
+    if cfg.run.axes:
+        from .seat import report_section, run_study
+
+        step("axes", f"three axes: {', '.join(cfg.axes.databases)} per pilot-floor axis, {cfg.axes.seeds} seeds x "
+                     f"{cfg.axes.folds} folds" + ("; discovery on the axes none serves" if cfg.axes.discovery else ""))
+        axes = report_section(*run_study(cfg, campaign, campaign_dir, out / "axes")[1:], cfg)
+    return dyn, axes
 
 
 def _run_networks(cfg, dbs, out: Path, source) -> tuple:
@@ -466,23 +468,9 @@ def _write_report(cfg, out: Path, summary: str, figures, paper_figs, checks, net
     for s in sections:
         lines += ["#" + s.markdown, ""]  # one level down
     if disc is not None:
-        from .discovery import summary as disc_summary
+        from .discovery.report import report_section
 
-        res, hidden = disc
-        js = disc_summary(res)
-        lines += ["## Discovery on a hidden-effect scenario", "",
-                  f"Scenario `{cfg.run.discovery_scenario}`; generator settings that differ from the default "
-                  f"physics (its ground truth, read after the run): {', '.join(hidden) or 'none'}.", "",
-                  "| rank | named effect | operator | channels | p-value | region |", "|---|---|---|---|---|---|"]
-        for e in js["effects"]:
-            lines.append(f"| {e['rank']} | {e['name']} | {e['operator']} | {', '.join(e['channels'])} | "
-                         f"{e['p_value']:.3g} | {e['region']['where']} |")
-        lines += ["", f"Held-out RMS {js['baseline']['metrics']['rms_g']:.4f} g before, "
-                      f"{js['augmented']['metrics']['rms_g']:.4f} g after (gap shrink {js['gap_shrink']:.1%}). "
-                      "Full report: [discovery/report.md](discovery/report.md).", "",
-                  "![residual map](discovery/figures/residual_map.png)", ""]
-        for e in js["effects"]:
-            lines += [f"![effect {e['rank']}](discovery/figures/effect_{e['rank']}.png)", ""]
+        lines += report_section(disc[0], cfg.run.discovery_scenario, disc[1])
     if dyn is not None:
         from .dynamics.study import report_section
 

@@ -7,6 +7,7 @@ import math
 import os
 
 from . import _commands as C
+from ._export import cmd_export
 
 _CAMPAIGN = "campaign folder (default: the embedded synthetic campaign, generated once into the cache)"
 _CONFIG = "experiment config (default: none, the defaults)"
@@ -168,7 +169,7 @@ def _net_commands(sub):
     s.add_argument("--max-rate", type=_number(0.0, 1e5, above=True), default=1000.0,
                    help="element, c and fmu: highest frame rate the fixed buffers are sized for, Hz, above 0 and at "
                         "most 100000 (default: 1000)")
-    s.set_defaults(fn=C.cmd_export)
+    s.set_defaults(fn=cmd_export)
 
     s = sub.add_parser("realtime", help="feed a recorded counter to a real-time element frame by frame",
                        description="An example simulator host: resample a record to a frame rate, step the "

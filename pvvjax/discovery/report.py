@@ -13,7 +13,7 @@ from .. import plots
 from ..io import markdown_table, write_config, write_table
 from . import Discovery, summary
 
-__all__ = ["write_discovery"]
+__all__ = ["report_section", "write_discovery"]
 
 
 def _md(df: pd.DataFrame) -> str:
@@ -211,4 +211,25 @@ def _round_lines(res: Discovery) -> list[str]:
         lines += ["Refinements of the model's own inputs that joined each round's floor covariates before the "
                   "candidates were asked (`FLOOR_REFINEMENTS`; held-out gain): the map's floor, not effects.", ""]
         lines += [f"- round {rnd}: {terms}" for rnd, terms in floor] + [""]
+    return lines
+
+
+def report_section(res: Discovery, scenario: str, hidden: list[str], folder: str = "discovery/") -> list[str]:
+    """The main job's report section of a discovery on a hidden-effect scenario written to
+    `folder` (relative to the report): what the generator hid (`hidden`, read after the
+    run), the named effects, the gap it closed and its figures."""
+    js = summary(res)
+    lines = ["## Discovery on a hidden-effect scenario", "",
+             f"Scenario `{scenario}`; generator settings that differ from the default physics (its ground truth, "
+             f"read after the run): {', '.join(hidden) or 'none'}.", "",
+             "| rank | named effect | operator | channels | p-value | region |", "|---|---|---|---|---|---|"]
+    for e in js["effects"]:
+        lines.append(f"| {e['rank']} | {e['name']} | {e['operator']} | {', '.join(e['channels'])} | "
+                     f"{e['p_value']:.3g} | {e['region']['where']} |")
+    lines += ["", f"Held-out RMS {js['baseline']['metrics']['rms_g']:.4f} g before, "
+                  f"{js['augmented']['metrics']['rms_g']:.4f} g after (gap shrink {js['gap_shrink']:.1%}). "
+                  f"Full report: [{folder}report.md]({folder}report.md).", "",
+              f"![residual map]({folder}figures/residual_map.png)", ""]
+    for e in js["effects"]:
+        lines += [f"![effect {e['rank']}]({folder}figures/effect_{e['rank']}.png)", ""]
     return lines
