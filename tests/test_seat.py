@@ -78,3 +78,21 @@ def test_the_axes_command_writes_its_tables_resumes_and_exports_a_three_axis_ele
     for t, az, x in zip(rec.time_s, rec.azimuth_deg, rec[list(CHANNELS)].to_numpy(float)):
         o = el.step(t, az, x)
     assert o.ready and min(o.pvv_x_g, o.pvv_y_g, o.pvv_z_g) > 0 and o.pvv_z_g == o.pvv_g
+
+
+@pytest.mark.slow
+def test_the_discovery_on_the_lateral_axis_names_sideslip(default_campaign):
+    """Kottapalli's finding on the embedded campaign: db1's inputs fail the lateral axis, and the
+    discovery run on it names sideslip first (the generator's lateral_sideslip effect). About two
+    minutes on 2 cores (`-m slow`)."""
+    import dataclasses
+
+    from pvvjax.config import ExperimentConfig
+    from pvvjax.discovery import discover
+
+    cfg = ExperimentConfig()
+    cfg = cfg.with_(analysis=dataclasses.replace(cfg.analysis, axis="ay_g"),
+                    discovery=dataclasses.replace(cfg.discovery, max_effects=1))
+    res = discover(default_campaign, cfg, log=lambda *a: None)
+    assert res.effects and "sideslip_deg" in res.effects[0]["channels"]
+    assert res.after["rms_g"] < 0.7 * res.before["rms_g"]
