@@ -26,7 +26,7 @@ demo: venv
 # import on 2 cores) where PYTHONDONTWRITEBYTECODE is set. Their bytecode goes to one tree
 # inside the venv instead, never beside the sources.
 test: venv
-	PYTHONDONTWRITEBYTECODE= PYTHONPYCACHEPREFIX=$(abspath $(VENV))/pycache $(PY) -m pytest -q -n 2 -m "not slow" --durations=25
+	PYTHONDONTWRITEBYTECODE= PYTHONPYCACHEPREFIX=$(abspath $(VENV))/pycache $(PY) -m pytest -q -n 2 --dist worksteal -m "not slow" --durations=25
 
 # pip, not uv, for the bench extra: pip finds torch's CPU build on these machines' disk.
 bench: venv
