@@ -83,8 +83,8 @@ def test_the_axes_command_writes_its_tables_resumes_and_exports_a_three_axis_ele
 @pytest.mark.slow
 def test_the_discovery_on_the_lateral_axis_names_sideslip(default_campaign):
     """Kottapalli's finding on the embedded campaign: db1's inputs fail the lateral axis, and the
-    discovery run on it names sideslip first (the generator's lateral_sideslip effect). About two
-    minutes on 2 cores (`-m slow`)."""
+    discovery run on it names sideslip first (the generator's lateral_sideslip effect). About a
+    minute on 2 cores (`-m slow`); the main job's report shows the same on every `make demo`."""
     import dataclasses
 
     from pvvjax.config import ExperimentConfig
