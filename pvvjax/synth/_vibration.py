@@ -255,23 +255,11 @@ def amplitude_4p(state: dict, settings: dict, dt: float) -> tuple[np.ndarray, di
     Returns:
         (A4 after gain and lag, per-effect additive contributions before the lag).
     """
-    parts = {}
-    total = np.zeros_like(state["mu"])
-    for name, eff in EFFECTS.items():
-        on, scale, params = settings[name]
-        if eff.kind == "additive" and eff.axis == "z" and on:
-            parts[name] = scale * eff.fn(state, **params)
-            total = total + parts[name]
+    total, parts = _additive(state, settings, "z")
     gain_on, gain_scale, gain_params = settings["rotor_resonance"]
     if gain_on:
         total = total * (1.0 + gain_scale * (EFFECTS["rotor_resonance"].fn(state, **gain_params) - 1.0))
-    lag_on, lag_scale, lag_params = settings["dynamic_lag"]
-    if lag_on:
-        total = first_order_lag(total, lag_scale * lag_params["tau_s"], dt)
-    mode_on, _, mode = settings["second_order"]
-    if mode_on:
-        total = second_order_response(total, dt, 2.0 * np.pi * mode["f_n_hz"], mode["zeta"])
-    return total, parts
+    return _settle(total, settings, dt), parts
 
 
 def amplitude_axis(state: dict, settings: dict, dt: float, axis: str) -> np.ndarray:
@@ -279,11 +267,23 @@ def amplitude_axis(state: dict, settings: dict, dt: float, axis: str) -> np.ndar
     axis's switched-on additive effects, through the same lag and mode as the vertical (the
     rotor's inflow and wake settle the same way; the airframe's 4Ω resonance is the
     vertical's own and is left out)."""
+    return _settle(_additive(state, settings, axis)[0], settings, dt)
+
+
+def _additive(state: dict, settings: dict, axis: str) -> tuple[np.ndarray, dict]:
+    """The sum of one axis's switched-on additive effects, and each one's contribution."""
+    parts = {}
     total = np.zeros_like(state["mu"])
     for name, eff in EFFECTS.items():
         on, scale, params = settings[name]
         if eff.kind == "additive" and eff.axis == axis and on:
-            total = total + scale * eff.fn(state, **params)
+            parts[name] = scale * eff.fn(state, **params)
+            total = total + parts[name]
+    return total, parts
+
+
+def _settle(total: np.ndarray, settings: dict, dt: float) -> np.ndarray:
+    """An amplitude through the switched-on `dynamic_lag` and `second_order` response."""
     lag_on, lag_scale, lag_params = settings["dynamic_lag"]
     if lag_on:
         total = first_order_lag(total, lag_scale * lag_params["tau_s"], dt)
