@@ -131,7 +131,7 @@ def peak_table(campaign: Campaign, analysis: AnalysisConfig = AnalysisConfig()) 
         feature at the peak window; and the long table of all valid windows.
     """
     _check_axis(campaign, analysis.axis)
-    cond_names, counters = _counters(campaign)
+    _, counters = _counters(campaign)
     batch = to_batch(campaign, STATE_CHANNELS, counters, axis=analysis.axis)
     win = analyze(batch, analysis.window_revs, analysis.hop, harmonic=analysis.harmonic or campaign.aircraft.blades,
                   taper_revs=analysis.taper_revs)
@@ -217,7 +217,7 @@ def axis_peak_tables(campaign: Campaign, analysis: AnalysisConfig = AnalysisConf
         (axis, harmonic) -> table, axes in `AXES` order, harmonics ascending.
     """
     n = campaign.aircraft.blades
-    cond_names, counters = _counters(campaign)
+    _, counters = _counters(campaign)
     axes = campaign_axes(campaign)
     batch = to_batch(campaign, STATE_CHANNELS, counters, axis=axes)
     wanted = sorted(set(harmonics or (1, n, 2 * n)))

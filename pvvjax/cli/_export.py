@@ -98,7 +98,7 @@ def _export_axes_element(args, folder: Path) -> int:
     from the campaign, the envelope of the rows the nets trained on."""
     from ..analysis.databases import DB_INPUTS, axes_database
     from ..config import load_config
-    from ..realtime.export import axis_shake, element_spec
+    from ..realtime.export import element_spec
     from ..seat import study_nets
 
     cfg = load_config(folder / "config.toml")
@@ -109,8 +109,7 @@ def _export_axes_element(args, folder: Path) -> int:
     rows = axes_database(campaign, cfg.analysis)[inputs]
     spec = element_spec([f"net_{i}.npz" for i in range(len(nets))], inputs, (rows.min(), rows.max()), campaign,
                         cfg.analysis.window_revs, window_revs=args.window, hop_revs=args.hop, offset_s=args.offset,
-                        stick_offset_s=args.stick_offset)
-    spec.update(outputs=outputs, shake=axis_shake(campaign, outputs, cfg.analysis.window_revs))
+                        stick_offset_s=args.stick_offset, outputs=outputs)
     source = f"{len(nets)} nets of {len(outputs)} outputs ({args.database}: {', '.join(outputs)}) of {folder}"
     out = _write_element_format(args, spec, nets, source)
     print(f"exported a three-axis real-time element ({args.format}): {source}, window {args.window:g} revs, hop "

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .element import AIRCRAFT_DEFAULTS, AXIS_OUTPUTS, CHANNELS, FEATURES
+from .element import AIRCRAFT_DEFAULTS, AXIS_OUTPUTS, CHANNELS, FEATURES, shake_settings
 
 __all__ = ["CElement", "CSourceLimits", "buffer_capacity", "c_compiler", "c_sources", "compile_shared",
            "write_c_element"]
@@ -204,9 +204,7 @@ def element_outputs(spec: dict) -> tuple[list[str], list[dict]]:
     `VibrationElement` reads them from `element.json` (`outputs`, `shake`; an element of one
     output may give only `phase_rad` and `harmonics`)."""
     outputs = list(spec.get("outputs") or ["az_g"])
-    shake = spec.get("shake") or [dict(phase_rad=spec.get("phase_rad", 0.0), harmonics=spec.get("harmonics"))] + [
-        {}] * (len(outputs) - 1)
-    return outputs, [dict(s) for s in shake]
+    return outputs, shake_settings(outputs, spec.get("shake"), spec.get("phase_rad", 0.0), spec.get("harmonics"))
 
 
 def _fill(template: str, values: dict) -> str:

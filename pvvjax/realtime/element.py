@@ -42,7 +42,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["AIRCRAFT_DEFAULTS", "AXIS_OUTPUTS", "CHANNELS", "FEATURES", "ElementOutput", "VibrationElement"]
+__all__ = ["AIRCRAFT_DEFAULTS", "AXIS_OUTPUTS", "CHANNELS", "FEATURES", "ElementOutput", "VibrationElement",
+           "shake_settings"]
 
 # Frame channels, canonical units (data contract): what db1-db3 and their features need.
 CHANNELS = ("airspeed_kt", "gross_weight_lb", "rotor_rpm", "density_ratio", "pitch_rate_dps", "roll_angle_deg",
@@ -87,6 +88,14 @@ class ElementOutput(NamedTuple):
     shake_x_g: float = 0.0
     shake_y_g: float = 0.0
     shake_z_g: float = 0.0
+
+
+def shake_settings(outputs, shake=None, phase_rad=0.0, harmonics=None) -> list[dict]:
+    """Each output's shake settings (`VibrationElement`'s `shake`): as given, or by default
+    the first output's `phase_rad` and `harmonics` and nothing for the others."""
+    if shake is not None:
+        return [dict(s) for s in shake]
+    return [dict(phase_rad=phase_rad, harmonics=harmonics)] + [{} for _ in range(len(outputs) - 1)]
 
 
 def edge_weight(u):
@@ -139,8 +148,7 @@ class VibrationElement:
         bad = [o for o in self.outputs if o not in AXIS_OUTPUTS] or len(set(self.outputs)) != len(self.outputs)
         if bad or not self.outputs:
             raise ValueError(f"outputs {list(self.outputs)}: each one of {', '.join(AXIS_OUTPUTS)}, at most once")
-        if shake is None:
-            shake = [dict(phase_rad=phase_rad, harmonics=harmonics)] + [{}] * (len(self.outputs) - 1)
+        shake = shake_settings(self.outputs, shake, phase_rad, harmonics)
         if len(shake) != len(self.outputs):
             raise ValueError(f"shake: one entry per output ({len(self.outputs)}), got {len(shake)}")
         self.shake = [dict(phase_rad=float(s.get("phase_rad", 0.0)),

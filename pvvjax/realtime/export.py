@@ -80,7 +80,8 @@ def axis_shake(campaign: Campaign, outputs, window_revs: float) -> list[dict]:
 
 
 def element_spec(nets: list[str], inputs: list[str], envelope: tuple, campaign: Campaign, analysis_window_revs: float,
-                 *, window_revs: float, hop_revs: float, offset_s: float, stick_offset_s: float) -> dict:
+                 *, window_revs: float, hop_revs: float, offset_s: float, stick_offset_s: float,
+                 outputs=None) -> dict:
     """The element's settings (`element.json`).
 
     Args:
@@ -91,11 +92,18 @@ def element_spec(nets: list[str], inputs: list[str], envelope: tuple, campaign: 
         analysis_window_revs: the window of the campaign's harmonic analysis, revolutions.
         window_revs, hop_revs: the element's input window and update interval, revolutions.
         offset_s: input-to-vibration offset, s. stick_offset_s: extra offset of the sticks, s.
+        outputs: the axes the nets' outputs predict (e.g. az_g, ax_g, ay_g), each with its
+            shake measured by `axis_shake`; None: one output, the vertical, its phase and
+            harmonic content from `seat_shake_content`.
     """
-    phase, content = seat_shake_content(campaign, analysis_window_revs)
+    if outputs is None:
+        phase, content = seat_shake_content(campaign, analysis_window_revs)
+        shake = dict(phase_rad=phase, harmonics=content)
+    else:
+        shake = dict(outputs=list(outputs), shake=axis_shake(campaign, outputs, analysis_window_revs))
     lo, hi = envelope
     return dict(nets=list(nets), inputs=list(inputs), window_revs=window_revs, hop_revs=hop_revs, offset_s=offset_s,
-                stick_offset_s=stick_offset_s, phase_rad=phase, harmonics=content,
+                stick_offset_s=stick_offset_s, **shake,
                 envelope=dict(lo=[float(v) for v in lo], hi=[float(v) for v in hi]),
                 aircraft=dict(rotor_radius_ft=campaign.aircraft.rotor_radius_ft, g_ft_s2=campaign.aircraft.g_ft_s2,
                               blades=campaign.aircraft.blades, nominal_rpm=campaign.aircraft.nominal_rpm))
