@@ -48,8 +48,9 @@ def test_full_config_round_trip(tmp_path):
     ("[discovery]\ntrain_rows = 'windows'", "discovery.train_rows: unknown key; allowed: database, ensemble"),
     ("[discovery]\nseeds = 4", "discovery.seeds: unknown key"),
     ("[discovery.ensemble]\nseed = 4", "discovery.ensemble.seed: unknown key (did you mean 'seeds'?)"),
-    ("[discovery.ensemble]\nfolds = 2", "discovery.ensemble.folds must be >= 3, got 2"),
-    ("[discovery.ensemble]\nhidden = [10, 0]", "discovery.ensemble.hidden needs widths >= 1"),
+    ("[discovery.ensemble]\nfolds = 2", "discovery.ensemble.folds = 2: must lie within 3 to 50"),
+    ("[discovery.ensemble]\nhidden = [10, 0]", "discovery.ensemble.hidden = [10, 0]: give 1 to 8 layers of 1 to "
+                                               "1024 units"),
     ("[discovery.lag_test]\nenabled = 'yes'", "discovery.lag_test.enabled: expected"),
     ("[discovery.lag_test]\nslow_s = 0.0", "discovery.lag_test.slow_s must be > 0 s, got 0.0"),
     ("[discovery.selection]\nalpha = 1.5", "discovery.selection.alpha must lie in (0, 1), got 1.5"),

@@ -17,7 +17,7 @@ from ._discovery import (
     SelectionConfig,
 )
 from ._dynamic import MODELS as DYNAMIC_MODELS
-from ._dynamic import DynamicConfig
+from ._dynamic import ZETA_RANGE, DynamicConfig
 from ._experiment import ExperimentConfig, config_hash, load_config, load_toml
 from ._sections import (
     TRANSIENT_MANEUVERS,
@@ -51,6 +51,7 @@ __all__ = [
     "SweepConfig",
     "TRANSIENT_MANEUVERS",
     "TrainConfig",
+    "ZETA_RANGE",
     "config_hash",
     "from_dict",
     "load_config",

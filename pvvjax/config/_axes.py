@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from ._sections import _bounds, _check_databases
+from ._sections import _advance_ratio_band, _check_databases, _counts, _widths
 
 
 @dataclass(frozen=True)
@@ -37,10 +37,8 @@ class AxesConfig:
 
     def __post_init__(self):
         _check_databases("axes", self.databases)
-        if not self.hidden or min(self.hidden) < 1:
-            raise ValueError("axes.hidden needs widths >= 1")
-        if self.seeds < 1 or self.folds < 3:
-            raise ValueError("axes.seeds must be >= 1 and axes.folds >= 3")
+        _widths("axes.hidden", self.hidden)
+        _counts("axes", self.seeds, self.folds)
         if not 0 < self.pass_share <= 1:
             raise ValueError(f"axes.pass_share must lie in (0, 1], got {self.pass_share}")
-        _bounds("axes.cruise_advance_ratio", self.cruise_advance_ratio)
+        _advance_ratio_band("axes.cruise_advance_ratio", self.cruise_advance_ratio)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from ._sections import _bounds, _check_databases
+from ._sections import MAX_OFFSET_S, _check_databases, _counts, _grid, _offsets, _widths, _within
 
 
 @dataclass(frozen=True)
@@ -25,12 +25,9 @@ class EnsembleConfig:
     split_seed: int = 0
 
     def __post_init__(self):
-        if not self.hidden or min(self.hidden) < 1:
-            raise ValueError(f"discovery.ensemble.hidden needs widths >= 1, got {list(self.hidden)}")
-        if self.seeds < 1:
-            raise ValueError(f"discovery.ensemble.seeds must be >= 1, got {self.seeds}")
-        if self.folds < 3:
-            raise ValueError(f"discovery.ensemble.folds must be >= 3, got {self.folds}")
+        _widths("discovery.ensemble.hidden", self.hidden)
+        _counts("discovery.ensemble", self.seeds, self.folds)
+        _within("discovery.ensemble.split_seed", self.split_seed, 0, 2**63 - 1)
 
 
 @dataclass(frozen=True)
@@ -50,9 +47,11 @@ class OffsetConfig:
     step_s: float = 0.1
 
     def __post_init__(self):
-        _bounds("discovery.offset.bounds", self.bounds)
+        _offsets("discovery.offset.bounds", self.bounds)
         if not self.step_s > 0:
             raise ValueError(f"discovery.offset.step_s must be > 0, got {self.step_s}")
+        _grid("discovery.offset.bounds", self.bounds, "discovery.offset.step_s", self.step_s)
+        _within("discovery.offset.fixed_s", self.fixed_s, -MAX_OFFSET_S, MAX_OFFSET_S, " s")
 
 
 @dataclass(frozen=True)
@@ -83,6 +82,9 @@ class SelectionConfig:
             raise ValueError(f"discovery.selection.alpha must lie in (0, 1), got {self.alpha}")
         if self.source_tries < 0:
             raise ValueError(f"discovery.selection.source_tries must be >= 0, got {self.source_tries}")
+        _within("discovery.selection.proposals", self.proposals, 1, 50)
+        _within("discovery.selection.permutations", self.permutations, 1, 100_000)
+        _within("discovery.selection.source_tries", self.source_tries, 0, 50)
 
 
 @dataclass(frozen=True)
@@ -106,6 +108,7 @@ class LagTestConfig:
     def __post_init__(self):
         if not self.slow_s > 0:
             raise ValueError(f"discovery.lag_test.slow_s must be > 0 s, got {self.slow_s}")
+        _within("discovery.lag_test.slow_s", self.slow_s, 0, MAX_OFFSET_S, " s")
 
 
 @dataclass(frozen=True)
@@ -157,6 +160,7 @@ class DiscoveryConfig:
         if self.max_effects < 0:
             raise ValueError(f"discovery.max_effects must be >= 0 (0: baseline and residual map only), "
                              f"got {self.max_effects}")
+        _within("discovery.max_effects", self.max_effects, 0, 20)
         if not 0 <= self.min_shrink < 1:
             raise ValueError(f"discovery.min_shrink must lie in [0, 1), got {self.min_shrink}")
         if self.max_effects == 0:  # no rounds: what runs in a round would be skipped without a word

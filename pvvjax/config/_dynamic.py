@@ -5,9 +5,23 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from ._sections import TRANSIENT_MANEUVERS, _bounds, _check_databases
+from ._sections import (
+    MAX_WIDTH,
+    MAX_WINDOW_REVS,
+    TRANSIENT_MANEUVERS,
+    _advance_ratio_band,
+    _check_databases,
+    _counts,
+    _grid,
+    _maneuver_kinds,
+    _offsets,
+    _widths,
+)
 
 MODELS = ("quasi_static", "window_static", "window_static_rates", "dynamic", "rnn")
+# The damping ratio of a response the seat can show: below 0.01 a mode rings on through a
+# whole campaign; above 20 it is a first-order lag that ω_n and ζ no longer identify apart.
+ZETA_RANGE = (0.01, 20.0)
 
 
 @dataclass(frozen=True)
@@ -64,14 +78,22 @@ class DynamicConfig:
             raise ValueError(f"dynamic.hop_revs must lie in (0, 1] revolution, got {self.hop_revs}")
         if not self.window_revs >= 1:
             raise ValueError(f"dynamic.window_revs must be >= 1 revolution, got {self.window_revs}")
-        if not self.hidden or min(self.hidden) < 1 or self.rnn_hidden < 1:
-            raise ValueError("dynamic.hidden and dynamic.rnn_hidden need widths >= 1")
-        if self.seeds < 1 or self.folds < 3:
-            raise ValueError("dynamic.seeds must be >= 1 and dynamic.folds >= 3")
+        if not self.window_revs <= MAX_WINDOW_REVS:
+            raise ValueError(f"dynamic.window_revs must be at most {MAX_WINDOW_REVS:g} revolutions, got "
+                             f"{self.window_revs}")
+        _widths("dynamic.hidden", self.hidden)
+        if not 1 <= self.rnn_hidden <= MAX_WIDTH:
+            raise ValueError(f"dynamic.rnn_hidden = {self.rnn_hidden}: give 1 to {MAX_WIDTH} units")
+        _counts("dynamic", self.seeds, self.folds)
         for name in ("f_n_hz", "zeta", "offset_step_s"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"dynamic.{name} must be > 0, got {getattr(self, name)}")
+        if not ZETA_RANGE[0] <= self.zeta <= ZETA_RANGE[1]:
+            raise ValueError(f"dynamic.zeta = {self.zeta:g}: a damping ratio within {ZETA_RANGE[0]:g} to "
+                             f"{ZETA_RANGE[1]:g}")
         if self.delay_s < 0:
             raise ValueError(f"dynamic.delay_s must be >= 0, got {self.delay_s}")
-        _bounds("dynamic.offset_bounds", self.offset_bounds)
-        _bounds("dynamic.cruise_advance_ratio", self.cruise_advance_ratio)
+        _offsets("dynamic.offset_bounds", self.offset_bounds)
+        _grid("dynamic.offset_bounds", self.offset_bounds, "dynamic.offset_step_s", self.offset_step_s)
+        _advance_ratio_band("dynamic.cruise_advance_ratio", self.cruise_advance_ratio)
+        _maneuver_kinds("dynamic.transients", self.transients)

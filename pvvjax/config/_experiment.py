@@ -48,6 +48,11 @@ class ExperimentConfig:
     run: RunConfig = field(default_factory=RunConfig)
 
     def __post_init__(self):
+        if self.seed < 0:
+            raise ValueError(f"seed = {self.seed}: a random seed is a whole number >= 0")
+        if not self.name.strip() or any(c in self.name for c in "/\\"):
+            raise ValueError(f"name = {self.name!r}: the experiment's folder under out_dir; give a name without "
+                             "a path separator")
         if self.campaign.path and self.campaign.synthetic:
             raise ValueError(f"campaign.path = {self.campaign.path!r} and campaign.synthetic = "
                              f"{self.campaign.synthetic!r} contradict each other: give one")

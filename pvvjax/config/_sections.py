@@ -7,7 +7,62 @@ import math
 from dataclasses import dataclass, field
 from typing import Literal
 
+from ..data.campaign import MANEUVERS
 from ..data.units import CANONICAL_UNITS, ColumnMap
+
+# What a trainer can hold and a flight test can show: a setting beyond these is a mistake
+# (a seed count of 2**40 allocates that many nets; an offset of a minute leaves no window).
+MAX_SEEDS, MAX_FOLDS = 64, 50
+MAX_LAYERS, MAX_WIDTH = 8, 1024
+MAX_STEPS = 10_000_000
+MAX_OFFSET_S = 60.0
+MAX_WINDOW_REVS = 64.0
+
+
+def _within(key: str, value, lo, hi, unit: str = "") -> None:
+    """Refuse `value` outside [lo, hi], naming `key`."""
+    if not lo <= value <= hi:
+        raise ValueError(f"{key} = {value!r}: must lie within {lo:g} to {hi:g}{unit}")
+
+
+def _widths(key: str, hidden) -> None:
+    """Hidden-layer widths: 1 to `MAX_LAYERS` layers of 1 to `MAX_WIDTH` units."""
+    if not hidden or len(hidden) > MAX_LAYERS or min(hidden) < 1 or max(hidden) > MAX_WIDTH:
+        raise ValueError(f"{key} = {list(hidden)}: give 1 to {MAX_LAYERS} layers of 1 to {MAX_WIDTH} units")
+
+
+def _counts(section: str, seeds: int, folds: int) -> None:
+    """Seeds per fold (1 to `MAX_SEEDS`) and the k of a k-fold split (3 to `MAX_FOLDS`)."""
+    _within(f"{section}.seeds", seeds, 1, MAX_SEEDS)
+    _within(f"{section}.folds", folds, 3, MAX_FOLDS)
+
+
+def _offsets(key: str, bounds) -> None:
+    """[lo, hi] offsets, s, lo < hi, within ±`MAX_OFFSET_S`."""
+    _bounds(key, bounds)
+    if max(abs(bounds[0]), abs(bounds[1])) > MAX_OFFSET_S:
+        raise ValueError(f"{key} = {list(bounds)}: an input-to-vibration offset lies within ±{MAX_OFFSET_S:g} s")
+
+
+def _grid(key: str, bounds, step_key: str, step: float) -> None:
+    """A grid from `bounds` in steps of `step` holds at least two points."""
+    if step > bounds[1] - bounds[0] + 1e-12:
+        raise ValueError(f"{step_key} = {step:g} leaves one point of {key} {list(bounds)}: a grid needs at least two "
+                         f"(a step of at most {bounds[1] - bounds[0]:g})")
+
+
+def _advance_ratio_band(key: str, band) -> None:
+    _bounds(key, band)
+    if band[0] < 0 or band[1] > 1:
+        raise ValueError(f"{key} = {list(band)}: an advance ratio lies within 0 to 1")
+
+
+def _maneuver_kinds(key: str, kinds, allow_empty: bool = False) -> None:
+    """Maneuver kinds the data contract knows (a typo would select nothing)."""
+    bad = [k for k in kinds if k not in MANEUVERS]
+    if bad or (not kinds and not allow_empty):
+        raise ValueError(f"{key}: unknown maneuver kind(s) {bad}; the data contract's: {', '.join(MANEUVERS)}"
+                         if bad else f"{key} is empty: name at least one maneuver kind ({', '.join(MANEUVERS)})")
 
 
 @dataclass(frozen=True)
@@ -63,12 +118,13 @@ class AnalysisConfig:
     axis: Literal["az_g", "ax_g", "ay_g"] = "az_g"
 
     def __post_init__(self):
-        if not self.window_revs > 0:
-            raise ValueError(f"window_revs must be > 0, got {self.window_revs}")
-        if self.hop_revs < 0:
-            raise ValueError(f"hop_revs must be >= 0, got {self.hop_revs}")
-        if self.harmonic is not None and self.harmonic < 1:
-            raise ValueError(f"harmonic must be >= 1, got {self.harmonic}")
+        if not 0 < self.window_revs <= MAX_WINDOW_REVS:
+            raise ValueError(f"window_revs must be > 0 and at most {MAX_WINDOW_REVS:g} revolutions, got "
+                             f"{self.window_revs}")
+        if not 0 <= self.hop_revs <= MAX_WINDOW_REVS:
+            raise ValueError(f"hop_revs must be >= 0 and at most {MAX_WINDOW_REVS:g}, got {self.hop_revs}")
+        if self.harmonic is not None and not 1 <= self.harmonic <= 64:
+            raise ValueError(f"harmonic must be >= 1 and at most 64, got {self.harmonic}")
         if self.taper_revs < 0 or self.taper_revs >= self.window_revs:
             raise ValueError(f"taper_revs must be in [0, window_revs), got {self.taper_revs}")
 
@@ -109,6 +165,14 @@ class TrainConfig:
                 raise ValueError(f"train.{name} must be > 0, got {getattr(self, name)}")
         if self.weight_decay < 0:
             raise ValueError(f"train.weight_decay must be >= 0, got {self.weight_decay}")
+        _within("train.learning_rate", self.learning_rate, 0, 1.0)
+        _within("train.weight_decay", self.weight_decay, 0, 1.0)
+        _within("train.max_steps", self.max_steps, 1, MAX_STEPS)
+        _within("train.eval_every", self.eval_every, 1, self.max_steps, " (train.max_steps: an evaluation at least)")
+        _within("train.patience", self.patience, 1, MAX_STEPS)
+        if not self.divergence_factor > 1:
+            raise ValueError(f"train.divergence_factor = {self.divergence_factor:g}: must be above 1 (a loss above "
+                             "this multiple of the initial loss is divergence; at or below 1 every net diverges)")
 
 
 @dataclass(frozen=True)
@@ -159,6 +223,20 @@ class SweepConfig:
             raise ValueError(f"sweep.hidden: every architecture needs widths >= 1, got {self.hidden}")
         if self.seeds < 1 or self.folds < 3 or self.chunk_evals < 1:
             raise ValueError("sweep.seeds must be >= 1, sweep.folds >= 3, sweep.chunk_evals >= 1")
+        if self.family == "mlp" and not self.hidden or self.family == "rbf" and not self.centers:
+            raise ValueError(f"sweep.{'hidden' if self.family == 'mlp' else 'centers'} is empty: a {self.family} "
+                             "sweep needs at least one architecture")
+        for i, h in enumerate(self.hidden):
+            _widths(f"sweep.hidden[{i}]", h)
+        for c in self.centers:
+            _within("sweep.centers", c, 1, MAX_WIDTH)
+        _counts("sweep", self.seeds, self.folds)
+        _within("sweep.chunk_evals", self.chunk_evals, 1, 10_000)
+        _within("sweep.split_seed", self.split_seed, 0, 2**63 - 1)
+        _within("sweep.cpu_devices", self.cpu_devices, 0, 1024)
+        if any(v > 1 for v in (*self.learning_rates, *self.weight_decays)):
+            raise ValueError(f"sweep.learning_rates and sweep.weight_decays lie within 0 to 1, got "
+                             f"{list(self.learning_rates)} and {list(self.weight_decays)}")
         if not self.checkpoint_s > 0:
             raise ValueError(f"sweep.checkpoint_s must be > 0 s, got {self.checkpoint_s}")
         if any(not 0 <= f < self.folds for f in self.test_folds):
@@ -215,10 +293,12 @@ class ReplayConfig:
 
     def __post_init__(self):
         _check_databases("replay", self.databases)
+        _maneuver_kinds("replay.maneuvers", self.maneuvers, allow_empty=bool(self.counters))
+        _within("replay.offset_s", self.offset_s, -MAX_OFFSET_S, MAX_OFFSET_S, " s")
+        _within("replay.stick_offset_s", self.stick_offset_s, -MAX_OFFSET_S, MAX_OFFSET_S, " s")
         if not 1.0 <= self.window_revs <= 64.0:
             raise ValueError(f"replay.window_revs must be in [1, 64], got {self.window_revs}")
-        if self.hop_revs < 0:
-            raise ValueError(f"replay.hop_revs must be >= 0, got {self.hop_revs}")
+        _within("replay.hop_revs", self.hop_revs, 0, self.window_revs, " revolutions (replay.window_revs)")
 
 
 @dataclass(frozen=True)
@@ -270,9 +350,11 @@ class CalibrationConfig:
         bad = [f for f in self.free if f not in params]
         if bad or not self.free or len(set(self.free)) != len(self.free):
             raise ValueError(f"calibration.free: unknown or repeated {bad or list(self.free)}; use {list(params)}")
-        _bounds("calibration.offset_bounds", self.offset_bounds)
+        _offsets("calibration.offset_bounds", self.offset_bounds)
         _bounds("calibration.window_bounds", self.window_bounds)
-        _bounds("calibration.stick_offset_bounds", self.stick_offset_bounds)
+        _offsets("calibration.stick_offset_bounds", self.stick_offset_bounds)
+        _within("calibration.window_bounds[1]", self.window_bounds[1], 1, MAX_WINDOW_REVS, " revolutions")
+        _within("calibration.max_steps", self.max_steps, 1, 10_000)
         if self.window_bounds[0] < 1.0:
             raise ValueError(f"calibration.window_bounds must start at >= 1 revolution, got {self.window_bounds[0]}")
         for name in ("hop_revs", "coarse_offset_step_s", "coarse_window_step_revs", "coarse_stick_step_s",
@@ -283,6 +365,14 @@ class CalibrationConfig:
                      "phase_cap_s", "reference_revs"):
             if getattr(self, name) < 0:
                 raise ValueError(f"calibration.{name} must be >= 0, got {getattr(self, name)}")
+        if not self.peak_weight + self.phase_weight + self.rms_weight > 0:
+            raise ValueError("calibration.peak_weight, phase_weight and rms_weight are all 0: the cost would be 0 "
+                             "everywhere; give one of them a weight")
+        for bounds, step in (("offset_bounds", "coarse_offset_step_s"), ("window_bounds", "coarse_window_step_revs"),
+                             ("stick_offset_bounds", "coarse_stick_step_s"), ("offset_bounds", "grid_offset_step_s"),
+                             ("window_bounds", "grid_window_step_revs")):
+            if getattr(self, step) > 0:
+                _grid(f"calibration.{bounds}", getattr(self, bounds), f"calibration.{step}", getattr(self, step))
 
 
 @dataclass(frozen=True)
