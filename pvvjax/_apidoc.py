@@ -37,6 +37,7 @@ MODULES = [
     "discovery.selection",
     "discovery.report",
     "dynamics.response",
+    "dynamics.checks",
     "dynamics.sequences",
     "dynamics.models",
     "dynamics.compare",

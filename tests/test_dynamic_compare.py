@@ -205,6 +205,44 @@ def test_export_takes_the_best_model_or_a_named_one_into_the_element(dynamic_run
     assert main(["export", str(out), "--out", str(tmp_path / "plain")]) == 2  # a comparison exports elements only
 
 
+def test_a_degenerate_model_is_flagged_never_best_and_exported_only_by_name(dynamic_run, small_campaign_dir,
+                                                                           tmp_path):
+    import shutil
+
+    from pvvjax.cli import main
+    from pvvjax.config import load_config
+    from pvvjax.data.campaign import load_campaign
+    from pvvjax.dynamics.study import comparison_table, result_notes, run_parts
+
+    _, out, _ = dynamic_run
+    cfg = load_config(out / "config.toml")
+    parts = run_parts(load_campaign(small_campaign_dir), cfg, out / "parts", log=lambda m: None)
+    d, by_split = parts["db1"]
+    seq = d.seq
+    t, arrays = by_split["condition"]["dynamic"]
+    # Each condition's measured mean throughout: the lowest RMS the element could take, constant through every
+    # maneuver.
+    mean = (seq.amplitude * seq.mask).sum(1) / seq.mask.sum(1)
+    arrays = {**arrays, "heldout": np.where(seq.mask, mean[:, None], np.nan)}
+    response = {**t.params["response"], "delay_raw": np.full_like(t.params["response"]["delay_raw"], 1e3)}
+    t = t._replace(params={**t.params, "response": response})  # a delay of 1000 s: beyond every record
+    by_split["condition"]["dynamic"] = (t, arrays)
+    table = comparison_table(parts, cfg).set_index("model")
+    exportable = ["quasi_static", "window_static", "dynamic"]
+    assert table.rms_g["dynamic"] == table.rms_g[exportable].min() and not table.best["dynamic"]
+    assert "a constant prediction through" in table.degenerate["dynamic"]
+    assert "identified delay_s 1000 outside its range" in table.degenerate["dynamic"]
+    assert table.best.sum() == 1 and (table.degenerate[table.best] == "").all()
+    assert any("**dynamic** (db1) is degenerate" in ln for ln in result_notes(table.reset_index()))
+
+    folder = tmp_path / "dyn"
+    shutil.copytree(out, folder)
+    table.reset_index().assign(best=False).to_parquet(folder / "comparison.parquet")
+    assert main(["export", str(folder), "--element", "--out", str(tmp_path / "none")]) == 2  # nothing fit to export
+    with pytest.warns(UserWarning, match=r"exporting dynamic \(db1\), a degenerate model: a constant prediction"):
+        assert main(["export", str(folder), "--element", "--model", "dynamic", "--out", str(tmp_path / "named")]) == 0
+
+
 def test_main_job_reports_the_dynamic_stage(tmp_path, small_campaign_dir, capsys):
     from pvvjax.cli import main
 

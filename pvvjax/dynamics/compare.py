@@ -24,7 +24,7 @@ from .sequences import Sequences
 
 __all__ = ["APPLY", "Split", "Trained", "condition_split", "dynamic_model_init", "fit_peak_map", "fit_sequence_model",
            "heldout", "identified_table", "kind_split", "model_inputs", "offset_replay", "recurrent_init",
-           "static_init"]
+           "split_problem", "static_init"]
 
 
 class Split(NamedTuple):
@@ -42,10 +42,10 @@ class Split(NamedTuple):
     val: np.ndarray
 
 
-def condition_split(conditions, k: int, seed: int) -> Split:
+def condition_split(conditions, k: int, seed: int, key: str = "dynamic.folds") -> Split:
     """k folds by condition (`nets.condition_folds`): fold f holds out its conditions and
-    stops early on fold f+1's."""
-    folds = train.condition_folds(conditions, k, seed, name="dynamic.folds")
+    stops early on fold f+1's (`key`: the setting k came from, for the error)."""
+    folds = train.condition_folds(conditions, k, seed, name=key)
     test = np.stack([folds == f for f in range(k)])
     return Split("condition", tuple(str(f) for f in range(k)), test, np.roll(test, -1, axis=0))
 
@@ -58,6 +58,19 @@ def kind_split(conditions, maneuvers, k: int, seed: int) -> Split:
     kinds = tuple(sorted(set(maneuvers)))
     test = np.stack([maneuvers == m for m in kinds])
     return Split("maneuver", kinds, test, ~test & (folds == 0)[None, :])
+
+
+def split_problem(split: Split) -> str:
+    """Why a split cannot be trained and scored ("" when it can): a fold with no held-out,
+    no training or no early-stopping row (a kind split of a campaign of one maneuver kind,
+    or one whose early-stopping fold holds only the held-out kind)."""
+    for label, test, val in zip(split.labels, split.test, split.val):
+        train_rows = ~test & ~val
+        for what, rows in (("held-out", test), ("training", train_rows), ("early-stopping", val)):
+            if not rows.any():
+                return (f"fold {str(label)!r} has no {what} condition ({len(split.labels)} fold(s) over "
+                        f"{split.test.shape[1]} conditions)")
+    return ""
 
 
 class Trained(NamedTuple):

@@ -24,14 +24,15 @@ def faa_pass(pred, measured, nominal_g: float) -> np.ndarray:
     return ((ratio >= FAA_RATIO[0]) & (ratio <= FAA_RATIO[1])) | (np.abs(pred - measured) <= 0.1 * nominal_g)
 
 
-def nominal_cruise(peaks, maneuvers, advance_ratio, band) -> float:
+def nominal_cruise(peaks, maneuvers, advance_ratio, band, key: str = "dynamic.cruise_advance_ratio") -> float:
     """The nominal vibration level in cruise, g: the median measured peak of the level
-    flights whose advance ratio lies in `band` ([lo, hi])."""
+    flights whose advance ratio lies in `band` ([lo, hi]; `key`: the setting it came from,
+    for the error)."""
     peaks, mu = np.asarray(peaks, float), np.asarray(advance_ratio, float)
     pick = (np.asarray(maneuvers) == "level") & (mu >= band[0]) & (mu <= band[1])
     if not pick.any():
         raise ValueError(f"no level flight with an advance ratio in {list(band)}: the nominal cruise level of the FAA "
-                         "tolerance is taken from them (set dynamic.cruise_advance_ratio)")
+                         f"tolerance is taken from them (set {key})")
     return float(np.median(peaks[pick]))
 
 
@@ -56,22 +57,34 @@ def heldout_scores(pred, measured, mask, time, maneuvers, transients, nominal_g:
         rms_g and rms_transient_g (per-window time-history RMS), peak_err_rms_g,
         peak_err_median_pct, within_10pct_share (peaks), time_of_peak_err_median_s
         (transients), faa_pass_share and faa_pass_share_transient (per condition),
-        kendall_tau (peaks over conditions) and n_conditions.
+        kendall_tau (peaks over conditions), n_conditions, and notes: why a score is NaN
+        (a score over no window or no condition is NaN, never 0).
     """
     pred, measured, mask = np.asarray(pred, float), np.asarray(measured, float), np.asarray(mask, bool)
     keep = ~np.isnan(pred).any(axis=1)
     pred, measured, mask, time = pred[keep], measured[keep], mask[keep], np.asarray(time)[keep]
     trans = np.isin(np.asarray(maneuvers)[keep], list(transients))
     err2 = np.where(mask, (pred - measured) ** 2, 0.0)
-    rms = lambda rows: float(np.sqrt(err2[rows].sum() / max(mask[rows].sum(), 1)))  # noqa: E731
+
+    def rms(rows):  # over the rows' real windows; NaN over none
+        return float(np.sqrt(err2[rows].sum() / mask[rows].sum())) if mask[rows].any() else float("nan")
+
+    nan_if_empty = lambda a, f: float(f(a)) if len(a) else float("nan")  # noqa: E731
+    notes = []
+    if not len(pred):
+        notes.append("no held-out prediction: every score is NaN")
+    elif not trans.any():
+        notes.append(f"no condition of the transient kinds ({', '.join(transients) or 'none named'}): "
+                     "rms_transient_g, time_of_peak_err_median_s and faa_pass_share_transient are NaN")
     pp, tp = row_peaks(pred, mask, time)
     pm, tm = row_peaks(measured, mask, time)
     rel = np.abs(pp - pm) / pm
     ok = faa_pass(pp, pm, nominal_g)
-    nan_if_empty = lambda a, f: float(f(a)) if len(a) else float("nan")  # noqa: E731
+    tau = float(kendalltau(pp, pm).statistic) if len(pp) > 1 else float("nan")
     return dict(rms_g=rms(np.ones(len(pred), bool)), rms_transient_g=rms(trans),
-                peak_err_rms_g=float(np.sqrt(np.mean((pp - pm) ** 2))),
-                peak_err_median_pct=float(100 * np.median(rel)), within_10pct_share=float(np.mean(rel <= 0.1)),
+                peak_err_rms_g=nan_if_empty((pp - pm) ** 2, lambda a: np.sqrt(np.mean(a))),
+                peak_err_median_pct=nan_if_empty(100 * rel, np.median),
+                within_10pct_share=nan_if_empty(rel <= 0.1, np.mean),
                 time_of_peak_err_median_s=nan_if_empty(np.abs(tp - tm)[trans], np.median),
-                faa_pass_share=float(ok.mean()), faa_pass_share_transient=nan_if_empty(ok[trans], np.mean),
-                kendall_tau=float(kendalltau(pp, pm).statistic), n_conditions=int(len(pred)))
+                faa_pass_share=nan_if_empty(ok, np.mean), faa_pass_share_transient=nan_if_empty(ok[trans], np.mean),
+                kendall_tau=tau, n_conditions=int(len(pred)), notes="; ".join(notes))

@@ -21,13 +21,14 @@ from ..interrupts import check_interrupt
 from ..io import markdown_table
 from ..realtime.npnet import read_npz, write_npz
 from . import compare
+from .checks import ResponseLimits, check_dynamic, parameter_problems, prediction_problems, response_limits
 from .models import identified
 from .scores import heldout_scores, nominal_cruise, row_peaks
 from .sequences import Sequences, window_sequences
 
 __all__ = ["EXPORTABLE", "PAPER_PULLUP", "Database", "ElementModel", "comparison_table", "element_model", "figures",
-           "identified_rows", "predictions_table", "prepare_database", "report", "report_section", "run_comparison",
-           "run_dynamic", "run_parts", "shown_conditions"]
+           "identified_rows", "predictions_table", "prepare_database", "report", "report_section", "result_notes",
+           "run_comparison", "run_dynamic", "run_parts", "sequence_limits", "shown_conditions"]
 
 # Models the real-time element runs (`pvvjax export --element`): `best` is chosen among them.
 EXPORTABLE = ("quasi_static", "window_static", "dynamic")
@@ -42,8 +43,11 @@ class Database(NamedTuple):
         long: the same rows over the quasi-static map's long windows.
         peak_x: (R, C) the database's inputs at each condition's peak (the paper's rows).
         peak_y: (R,) their peak PVV, g.
-        splits: the held-out splits (by condition, then by maneuver kind).
+        splits: the held-out splits (by condition, then by maneuver kind where the campaign
+            allows one).
         nominal_g: the nominal cruise level of the FAA tolerance, g.
+        skipped: why a split asked for is not there (e.g. the kind split of a campaign of
+            one maneuver kind), for the report.
     """
 
     name: str
@@ -53,6 +57,7 @@ class Database(NamedTuple):
     peak_y: np.ndarray
     splits: tuple
     nominal_g: float
+    skipped: tuple[str, ...] = ()
 
 
 def prepare_database(campaign, cfg, db: str) -> Database:
@@ -66,11 +71,16 @@ def prepare_database(campaign, cfg, db: str) -> Database:
     peaks = build_databases(campaign, cfg.analysis)["peaks"].set_index("condition").loc[list(seq.conditions)]
     measured, _ = row_peaks(seq.amplitude, seq.mask, seq.time)
     nominal = nominal_cruise(measured, seq.maneuvers, peaks["advance_ratio"].to_numpy(), dc.cruise_advance_ratio)
-    splits = [compare.condition_split(seq.conditions, dc.folds, cfg.seed)]
+    splits, skipped = [compare.condition_split(seq.conditions, dc.folds, cfg.seed)], []
     if dc.kind_holdout:
-        splits.append(compare.kind_split(seq.conditions, seq.maneuvers, dc.folds, cfg.seed))
+        kinds = compare.kind_split(seq.conditions, seq.maneuvers, dc.folds, cfg.seed)
+        why = compare.split_problem(kinds)
+        if why:
+            skipped.append(f"{db}: the split by maneuver kind (dynamic.kind_holdout) is not scored: {why}")
+        else:
+            splits.append(kinds)
     return Database(db, seq, long, peaks[list(inputs)].to_numpy(np.float64), peaks[OUTPUT].to_numpy(np.float64),
-                    tuple(splits), nominal)
+                    tuple(splits), nominal, tuple(skipped))
 
 
 def _train(d: Database, split, model: str, cfg) -> tuple[dict, dict]:
@@ -143,32 +153,59 @@ def run_parts(campaign, cfg, folder: Path, log=print) -> dict:
 def comparison_table(parts: dict, cfg) -> pd.DataFrame:
     """One row per (database, model): the held-out scores by condition (`scores.heldout_scores`),
     the window RMS with each maneuver kind held out, the identified response (median over
-    folds and seeds, with its range), and `best`: the exportable model (`EXPORTABLE`) of the
-    lowest window RMS."""
+    folds and seeds, with its range), `degenerate` (why the model cannot be trusted:
+    `checks`; empty when it can), `notes` (why a score is NaN), and `best`: the exportable
+    model (`EXPORTABLE`) of the lowest window RMS among those not degenerate (none, when
+    every one is)."""
     rows = []
     for db, (d, by_split) in parts.items():
         seq = d.seq
+        limits = sequence_limits(seq)
         for model, (t, arrays) in by_split["condition"].items():
-            row = dict(database=db, model=model, **heldout_scores(arrays["heldout"], seq.amplitude, seq.mask, seq.time,
+            held = arrays["heldout"]
+            row = dict(database=db, model=model, **heldout_scores(held, seq.amplitude, seq.mask, seq.time,
                                                           seq.maneuvers, cfg.dynamic.transients, d.nominal_g))
+            notes = [row.pop("notes")] if row["notes"] else []
             if "maneuver" in by_split:
-                held = by_split["maneuver"][model][1]["heldout"]
-                row["rms_kind_holdout_g"] = heldout_scores(held, seq.amplitude, seq.mask, seq.time, seq.maneuvers,
+                kind = by_split["maneuver"][model][1]["heldout"]
+                row["rms_kind_holdout_g"] = heldout_scores(kind, seq.amplitude, seq.mask, seq.time, seq.maneuvers,
                                                    cfg.dynamic.transients, d.nominal_g)["rms_g"]
+            elif cfg.dynamic.kind_holdout:
+                row["rms_kind_holdout_g"] = float("nan")
+                notes += [n.split(": ", 1)[1] for n in d.skipped]
             row["nominal_cruise_g"] = d.nominal_g
             row["median_best_step"] = float(np.median(arrays["best_step"]))
-            row["failed_nets"] = int((np.asarray(arrays["failed_step"]) >= 0).sum())
+            failed = int((np.asarray(arrays["failed_step"]) >= 0).sum())
+            row["failed_nets"] = failed
             if model == "quasi_static":
                 row["offset_s"] = float(np.median(arrays["offset_s"]))
             if model == "dynamic":
                 row.update(_identified_summary(t.params))
+            problems = (prediction_problems(held, seq.amplitude, seq.mask, seq.conditions)
+                        + parameter_problems(t.params, limits if model == "dynamic" else None))
+            if 2 * failed > np.size(arrays["failed_step"]):
+                problems.append(f"{failed} of {np.size(arrays['failed_step'])} nets diverged")
+            if not np.isfinite(row["rms_g"]):
+                problems.append("no finite window RMS")
+            row["degenerate"], row["notes"] = "; ".join(problems), "; ".join(notes)
             rows.append(row)
     table = pd.DataFrame(rows)
-    ok = table[table.model.isin(EXPORTABLE)]
+    ok = table[table.model.isin(EXPORTABLE) & (table.degenerate == "") & np.isfinite(table.rms_g)]
     table["best"] = False
     if len(ok):
         table.loc[ok.rms_g.idxmin(), "best"] = True
     return table
+
+
+def sequence_limits(seq: Sequences) -> ResponseLimits:
+    """The `checks.ResponseLimits` of a sequence's rows: their median duration and window
+    spacing, s."""
+    steps, durations = [], []
+    for t, m in zip(seq.time, seq.mask):
+        t = t[m]
+        durations.append(t[-1] - t[0])
+        steps.extend(np.diff(t))
+    return response_limits(float(np.median(durations)), float(np.median(steps)) if steps else 1.0)
 
 
 def _identified_summary(params: dict) -> dict:
@@ -238,6 +275,8 @@ def figures(parts: dict, cfg, out: Path) -> list[Path]:
     paths = []
     for db, (d, by_split) in parts.items():
         shown = shown_conditions(d, cfg.dynamic.transients)
+        if not shown:  # no paper condition and no transient: `report` says so
+            continue
         fig, axes = plots.plt.subplots(len(shown), 1, figsize=(7.5, 3.2 * len(shown)), squeeze=False)
         for ax, cond in zip(axes[:, 0], shown):
             r = d.seq.conditions.index(cond)
@@ -261,7 +300,10 @@ def report(table: pd.DataFrame, ident: pd.DataFrame, figs: list[Path], out: Path
              "peak within 0.02 g, phase within about 1 s.", ""]
     for db, rows in table.groupby("database", sort=False):
         cols = [c for c in _REPORT_COLUMNS if c in rows]
-        lines += [f"## {db}", "", markdown_table(rows[cols], "{:.4g}"), ""]
+        lines += [f"## {db}", "", markdown_table(rows[cols], "{:.4g}"), "", *result_notes(rows)]
+        if not any(p.stem == f"through_time_{db}" for p in figs):
+            lines += [f"No figure of {db}: the campaign has neither the paper's conditions ({', '.join(PAPER_PULLUP)}) "
+                      "nor a transient maneuver to draw.", ""]
     if len(ident):
         cols = ["f_n_hz", "zeta", "delay_s", "tau_equivalent_s", "tau_slow_pole_s"]
         g = ident.groupby(["database", "split"], sort=False)[cols]
@@ -302,6 +344,26 @@ def run_comparison(campaign, cfg, out: Path, log=print) -> pd.DataFrame:
     return table
 
 
+def result_notes(rows: pd.DataFrame) -> list[str]:
+    """Markdown lines for a comparison's flagged rows: each degenerate model and why (it is
+    never `best`), each reason a score is NaN (once where every model of a database shares
+    it), and a missing `best`."""
+    lines = []
+    for db, group in rows.groupby("database", sort=False):
+        for r in group.itertuples():
+            if getattr(r, "degenerate", ""):
+                lines.append(f"- **{r.model}** ({db}) is degenerate and never `best`: {r.degenerate}.")
+        notes = group.notes if "notes" in group else pd.Series([], dtype=str)
+        shared = notes.iloc[0] if len(notes) and notes.nunique() == 1 else ""
+        if shared:
+            lines.append(f"- Every model of {db}: {shared}.")
+        lines += [f"- {r.model} ({db}): {r.notes}." for r in group.itertuples() if not shared and r.notes]
+        if "best" in group and not group.best.any():
+            lines.append(f"- No model of {db} is `best`: none of {', '.join(EXPORTABLE)} holds a finite RMS "
+                         "without being degenerate.")
+    return lines + [""] if lines else []
+
+
 def report_section(table: pd.DataFrame, folder: str = "") -> list[str]:
     """The main job's report section of a comparison written to `folder` (relative to the
     report, e.g. "dynamic/"): its table and figures."""
@@ -311,7 +373,7 @@ def report_section(table: pd.DataFrame, folder: str = "") -> list[str]:
              "Held out by condition; `rms_kind_holdout_g` holds out a maneuver kind at a time; FAA Part 60 test "
              "3.f.1 pass share per condition (+3/-6 dB, or 10 % of the nominal cruise level). Full tables, the "
              f"identified response and every window: [{folder}report.md]({folder}report.md).", "",
-             markdown_table(table[[c for c in cols if c in table]], "{:.4g}"), ""]
+             markdown_table(table[[c for c in cols if c in table]], "{:.4g}"), "", *result_notes(table)]
     for db in dict.fromkeys(table.database):
         lines += [f"![through time, {db}]({folder}figures/through_time_{db}.png)", ""]
     return lines
@@ -339,16 +401,37 @@ class ElementModel(NamedTuple):
 
 
 def element_model(folder: Path, cfg, model: str | None = None, database: str | None = None) -> ElementModel:
-    """A model of the comparison in `folder` for the element: the `best` row's (default),
-    or `model` of `database` (one of `EXPORTABLE`). `cfg`: the folder's config.toml."""
-    table = pd.read_parquet(Path(folder) / "comparison.parquet")
-    best = table[table.best].iloc[0]
-    model, database = model or best.model, database or best.database
+    """A model of the comparison in `folder` for the element: the `best` row's (default; of
+    `database` when given), or `model` of `database` (one of `EXPORTABLE`). `cfg`: the
+    folder's config.toml. A degenerate model (`comparison_table`) is refused unless named
+    with `model`, and then exported with a warning naming it and why."""
+    import warnings
+
+    where = Path(folder) / "comparison.parquet"
+    table = pd.read_parquet(where)
+    if "degenerate" not in table:
+        table["degenerate"] = ""
+    if model is None:
+        pick = table[table.best & ((table.database == database) if database else True)]
+        if pick.empty:
+            pool = table[table.model.isin(EXPORTABLE) & ((table.database == database) if database else True)]
+            if pool.empty:
+                raise ValueError(f"{where}: the element runs {', '.join(EXPORTABLE)}; this comparison holds "
+                                 f"{', '.join(dict.fromkeys(table.model))}{' of ' + database if database else ''}: "
+                                 "add one of them to dynamic.models and run `pvvjax dynamic` again")
+            why = "; ".join(f"{r.model} ({r.database}): {r.degenerate or 'no finite RMS'}" for r in pool.itertuples())
+            raise ValueError(f"{where}: no model is fit to export ({why}); name one with --model to export it "
+                             "anyway")
+        model, database = pick.model.iloc[0], pick.database.iloc[0]
+    elif database is None:  # a named model of the best row's database (else the first compared)
+        database = (table[table.best] if table.best.any() else table).database.iloc[0]
     if model not in EXPORTABLE:
         raise ValueError(f"--model {model}: the element runs {', '.join(EXPORTABLE)}")
     rows = table[(table.model == model) & (table.database == database)]
     if rows.empty:
-        raise KeyError(f"{Path(folder) / 'comparison.parquet'}: no {model} model of {database}")
+        raise KeyError(f"{where}: no {model} model of {database}")
+    if rows.degenerate.iloc[0]:
+        warnings.warn(f"exporting {model} ({database}), a degenerate model: {rows.degenerate.iloc[0]}", stacklevel=2)
     stacked, _ = read_npz(Path(folder) / "parts" / f"{database}-condition-{model}.params.npz")
     folds, seeds = np.shape(stacked["y_scale"])
     meta = {"inputs": list(DB_INPUTS[database]), "model": model}
@@ -374,6 +457,7 @@ def run_dynamic(cfg, campaign, campaign_dir, out, log=print) -> tuple:
     from .._strict import to_dict
     from ..io import claim_folder, write_config
 
+    check_dynamic(cfg, campaign)
     settings = dict(command="dynamic", dynamic=to_dict(cfg.dynamic), train=to_dict(cfg.train),
                     analysis=to_dict(cfg.analysis), seed=cfg.seed, columns=to_dict(cfg.campaign)["columns"])
     out = claim_folder(out, settings, campaign.fingerprint)
