@@ -75,6 +75,9 @@ def resolve_campaign(cfg, campaign_dir=None, log=print):
     campaign = load_campaign(folder, cfg.campaign.columns, cfg.analysis.window_revs, progress=progress_bar("loading"),
                              harmonic=cfg.analysis.harmonic)
     log(f"loaded {len(campaign)} counters, {len(campaign.conditions())} conditions ({time.perf_counter() - t0:.1f} s)")
+    from .analysis import require_axis
+
+    require_axis(campaign, cfg.analysis.axis)  # before any work: the axis every stage analyses
     return campaign, Path(folder)
 
 

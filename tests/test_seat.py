@@ -74,10 +74,31 @@ def test_the_axes_command_writes_its_tables_resumes_and_exports_a_three_axis_ele
     assert el.outputs == ("az_g", "ax_g", "ay_g") and len(el.nets) == 6
     assert el.shake[2]["once_g"] > 0.02  # the lateral 1/rev of track and balance (0.035 g in the generator)
     camp = load_campaign(small_campaign_dir)
-    rec = camp.records[camp.counters.index[camp.counters.maneuver == "turn"][0]]
+    turn = camp.counters.index[camp.counters.maneuver == "turn"][0]
+    rec = camp.records[turn]
     for t, az, x in zip(rec.time_s, rec.azimuth_deg, rec[list(CHANNELS)].to_numpy(float)):
         o = el.step(t, az, x)
     assert o.ready and min(o.pvv_x_g, o.pvv_y_g, o.pvv_z_g) > 0 and o.pvv_z_g == o.pvv_g
+    assert main(["realtime", "--model", str(tmp_path / "el"), "--campaign", str(small_campaign_dir), "--record",
+                 turn, "--out", str(tmp_path / "stream.csv")]) == 0
+    stream = pd.read_csv(tmp_path / "stream.csv")  # every seat axis the element gives reaches the stream
+    assert {f"{k}_{a}_g" for k in ("pvv", "shake") for a in "xyz"} <= set(stream.columns)
+    assert stream.pvv_y_g.iloc[-1] > 0 and (stream.pvv_z_g == stream.pvv_g).all()
+    assert stream.shake_y_g.abs().max() > 0
+
+
+def test_an_axis_that_carries_no_vibration_is_said_so_never_scored_as_failing():
+    rows = pd.DataFrame(dict(peak_axis=["az_g"] * 4 + ["ax_g"] * 4, maneuver=["level", "level", "turn", "flare"] * 2,
+                             advance_ratio=[0.3, 0.3, 0.2, 0.1] * 2, az_g=[0.10, 0.12, 0.20, 0.30] * 2,
+                             ax_g=[0.0] * 8))
+    pred = np.full((8, 2), 0.01)
+    z, x = axis_scores(rows, pred, ("az_g", "ax_g"), (0.25, 0.35))
+    assert z["status"] == "" and z["faa_pass_share"] == 0.0  # 0.01 g against 0.1-0.3 g: every condition fails
+    assert x["status"] == "no vibration" and np.isnan(x["faa_pass_share"]) and np.isnan(x["kendall_tau"])
+    assert x["rms_g"] == pytest.approx(0.01)
+    table = pd.DataFrame([dict(database="db1", **z), dict(database="db1", **x)])
+    needs = axis_needs(table, ("db1",), 0.9).set_index("axis")
+    assert "carries no vibration" in needs.text["ax_g"] and "no database suffices" in needs.text["az_g"]
 
 
 @pytest.mark.slow

@@ -20,6 +20,7 @@ from .databases import (
     condition_peaks,
     peak_table,
     peaks_from_windows,
+    require_axis,
     window_table,
 )
 from .harmonics import (
@@ -70,6 +71,7 @@ __all__ = [
     "means_from_sums",
     "peak_table",
     "peaks_from_windows",
+    "require_axis",
     "plan_windows",
     "record_bounds",
     "record_columns",

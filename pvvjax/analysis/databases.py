@@ -40,6 +40,7 @@ __all__ = [
     "condition_peaks",
     "peak_table",
     "peaks_from_windows",
+    "require_axis",
     "window_table",
 ]
 
@@ -113,14 +114,38 @@ def _counters(campaign: Campaign):
 
 def campaign_axes(campaign: Campaign) -> tuple[str, ...]:
     """The pilot-floor axes every record of a campaign carries (`az_g` always; `ax_g`,
-    `ay_g` where given)."""
-    return tuple(a for a in AXES if all(a in r.columns for r in campaign.records.values()))
+    `ay_g` where given). An axis that some records carry and others lack is left out of
+    every per-axis table and study, said once as a `CampaignWarning` naming it and the
+    records that lack it."""
+    import warnings
+
+    from ..data.campaign import CampaignWarning
+
+    out = []
+    for axis in AXES:
+        lacking = [c for c, r in campaign.records.items() if axis not in r.columns]
+        if not lacking:
+            out.append(axis)
+        elif len(lacking) < len(campaign.records):
+            warnings.warn(f"campaign {campaign.source}: {axis} is in {len(campaign.records) - len(lacking)} of "
+                          f"{len(campaign.records)} records and missing from {_listed(lacking)}: left out of the "
+                          "per-axis tables and the three-axis study (give it in every record, or in none)",
+                          CampaignWarning, stacklevel=2)
+    return tuple(out)
 
 
-def _check_axis(campaign: Campaign, axis: str) -> None:
-    if axis not in campaign_axes(campaign):
-        raise ValueError(f"analysis.axis = {axis!r}: campaign {campaign.source} has no {axis} channel in every record "
-                         f"(its axes: {', '.join(campaign_axes(campaign))})")
+def _listed(items, most: int = 6) -> str:
+    items = list(items)
+    return ", ".join(items[:most]) + (f" and {len(items) - most} more" if len(items) > most else "")
+
+
+def require_axis(campaign: Campaign, axis: str, key: str = "analysis.axis") -> None:
+    """Refuse, naming `key` and the records, an analysis of an axis some record lacks."""
+    lacking = [c for c, r in campaign.records.items() if axis not in r.columns]
+    if lacking:
+        raise ValueError(f"{key} = {axis!r}: campaign {campaign.source} has no {axis} channel in "
+                         f"{len(lacking)} of {len(campaign.records)} records ({_listed(lacking)}); its axes in every "
+                         f"record: {', '.join(campaign_axes(campaign))}")
 
 
 def peak_table(campaign: Campaign, analysis: AnalysisConfig = AnalysisConfig()) -> tuple[pd.DataFrame, pd.DataFrame]:
@@ -130,7 +155,7 @@ def peak_table(campaign: Campaign, analysis: AnalysisConfig = AnalysisConfig()) 
         (peaks, windows): one row per condition with every state channel and derived
         feature at the peak window; and the long table of all valid windows.
     """
-    _check_axis(campaign, analysis.axis)
+    require_axis(campaign, analysis.axis)
     _, counters = _counters(campaign)
     batch = to_batch(campaign, STATE_CHANNELS, counters, axis=analysis.axis)
     win = analyze(batch, analysis.window_revs, analysis.hop, harmonic=analysis.harmonic or campaign.aircraft.blades,

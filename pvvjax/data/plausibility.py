@@ -38,8 +38,9 @@ LIMITS: dict[str, tuple[tuple, tuple, str]] = {
     "azimuth advance / rotor speed": ((0.8, 1.25), (0.95, 1.05),
                                       "median over samples of azimuth_deg's advance (wrapped to ±180°) over "
                                       "rotor_rpm × 6 × the step: degrees, forwards, at the rotor's rate"),
-    "az_g vibration": ((1e-3, None), (None, None), "standard deviation of az_g about its one-revolution moving "
-                                                   "mean, g: a vibration channel carries vibration"),
+    "az_g vibration": ((1e-3, None), (None, None), "standard deviation of az_g (and of ax_g, ay_g where given) "
+                                                   "about its one-revolution moving mean, g: a vibration channel "
+                                                   "carries vibration"),
     "ax_g, ay_g median": ((-0.5, 0.5), (None, None), "the record's median, g (about 0: the 1 g is the vertical's)"),
     "ax_g, ay_g vibration / az_g's": ((None, 4.0), (None, None),
                                       "its standard deviation about its one-revolution moving mean over az_g's: "
@@ -180,6 +181,8 @@ def _horizontal_rule(axis, t, x, az, rpm, file, problems):
         problems.append(Problem(file, axis, None, f"median {med:.4g} g on the {name} axis ({sign}), outside "
                                 f"{_span(err)} g: the vertical's 1 g? axes swapped (az_g is the vertical)?"))
         return
+    if _vibration_rule(t, x, rpm, file, problems, axis):
+        return
     own, vertical = _spread(t, x, rpm), _spread(t, az, rpm)
     hi = LIMITS["ax_g, ay_g vibration / az_g's"][0][1]
     if own is not None and vertical and own / vertical > hi:
@@ -187,16 +190,23 @@ def _horizontal_rule(axis, t, x, az, rpm, file, problems):
                                 f"{own / vertical:.3g}x az_g's (above {hi:g}x): in m/s² (9.81x g)?"))
 
 
-def _vibration_rule(t, az, rpm, file, problems):
-    """`az_g` must vary within a revolution: a constant, or a smooth channel (the load
-    factor in the vibration's place), carries no N/rev vibration to analyse."""
-    spread = _spread(t, az, rpm)
+def _vibration_rule(t, x, rpm, file, problems, column: str = "az_g") -> bool:
+    """A pilot-floor axis (`az_g`, and `ax_g`/`ay_g` where given) must vary within a
+    revolution: a constant, or a smooth channel (the load factor in the vibration's place),
+    carries no N/rev vibration to analyse. True when it does not."""
+    spread = _spread(t, x, rpm)
     if spread is None:
-        return
+        return False
     lo = LIMITS["az_g vibration"][0][0]
     if spread < lo:
-        problems.append(Problem(file, "az_g", None, f"carries no vibration: {spread:.2g} g about its one-revolution "
-                                f"mean, below {lo:g} g (a constant, or the load factor in its place?)"))
+        hint = "the load factor in its place" if column == "az_g" else "an accelerometer that was not recording"
+        text = (f"carries no vibration: {spread:.2g} g about its one-revolution mean, below {lo:g} g (a constant, or "
+                f"{hint}?)")
+        if column != "az_g":
+            text += "; leave the column out where the axis was not measured"
+        problems.append(Problem(file, column, None, text))
+        return True
+    return False
 
 
 def _azimuth_rule(t, azimuth, rpm, file, problems):

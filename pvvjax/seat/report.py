@@ -54,6 +54,10 @@ def run_study(cfg, campaign, campaign_dir, out, *, log=print) -> tuple:
     from .._strict import to_dict
     from ..io import claim_folder, write_config
 
+    n_cond = len(campaign.conditions())
+    if cfg.axes.folds > n_cond:  # refused before the folder is claimed
+        raise ValueError(f"axes.folds = {cfg.axes.folds}: campaign {campaign.source} has {n_cond} condition(s); a "
+                         "k-fold split by condition needs at least k")
     settings = dict(command="axes", axes=to_dict(cfg.axes), train=to_dict(cfg.train), analysis=to_dict(cfg.analysis),
                     seed=cfg.seed, columns=to_dict(cfg.campaign)["columns"])
     out = claim_folder(out, settings, campaign.fingerprint)
@@ -68,7 +72,8 @@ def run_study(cfg, campaign, campaign_dir, out, *, log=print) -> tuple:
         from ..discovery import discover, summary
         from ..discovery.report import write_discovery
 
-        for axis in study.needs.axis[study.needs.database == ""]:
+        quiet = set(study.table.axis[study.table.status == "no vibration"])
+        for axis in [a for a in study.needs.axis[study.needs.database == ""] if a not in quiet]:
             log(f"axes: no database suffices for {axis}: discovery on it")
             acfg = cfg.with_(analysis=dataclasses.replace(cfg.analysis, axis=axis))
             res = discover(campaign, acfg, name=str(campaign_dir), log=log)

@@ -30,6 +30,9 @@ from ..realtime.npnet import read_npz, write_npz
 __all__ = ["AxesStudy", "axis_needs", "axis_scores", "fit_axes", "run_axes", "study_nets"]
 
 AXIS_WORDS = {"az_g": "vertical", "ax_g": "longitudinal", "ay_g": "lateral"}
+# An axis whose measured peaks all lie below this (the data contract's vibration floor, g)
+# carries no vibration: it is said so, never scored as failing test 3.f.1.
+NO_VIBRATION_G = 1e-3
 
 
 class AxesStudy(NamedTuple):
@@ -37,7 +40,8 @@ class AxesStudy(NamedTuple):
 
     Attributes:
         table: one row per (axis, database): rms_g, faa_pass_share, kendall_tau,
-            nominal_cruise_g, fails (held-out FAA failures by maneuver kind), n_conditions.
+            nominal_cruise_g, fails (held-out FAA failures by maneuver kind), n_conditions,
+            status ("no vibration", or "").
         needs: one row per axis: the database it needs ("" where none suffices), its pass
             share, and a sentence saying so.
         predictions: the axes database with each database's held-out predictions
@@ -63,21 +67,30 @@ def axis_scores(rows: pd.DataFrame, pred: np.ndarray, axes, band) -> list[dict]:
 
     Returns:
         One dict per axis: rms_g, faa_pass_share, kendall_tau, nominal_cruise_g, fails
-        ("kind failed/total, ..." for the kinds with a failure), n_conditions.
+        ("kind failed/total, ..." for the kinds with a failure), n_conditions and status:
+        "no vibration" for an axis whose measured peaks all lie below `NO_VIBRATION_G`
+        (its FAA share and τ are NaN: nothing to match), else "".
     """
     out = []
     for a, axis in enumerate(axes):
         sel = (rows.peak_axis == axis).to_numpy()
         measured, p = rows[axis].to_numpy(float)[sel], pred[sel, a]
         kinds = rows.maneuver.to_numpy()[sel]
-        nominal = nominal_cruise(measured, kinds, rows.advance_ratio.to_numpy()[sel], band)
+        rms = float(np.sqrt(np.mean((p - measured) ** 2)))
+        if not (measured >= NO_VIBRATION_G).any():
+            out.append(dict(axis=axis, rms_g=rms, faa_pass_share=float("nan"), kendall_tau=float("nan"),
+                            nominal_cruise_g=float("nan"), fails="", n_conditions=int(sel.sum()),
+                            status="no vibration"))
+            continue
+        nominal = nominal_cruise(measured, kinds, rows.advance_ratio.to_numpy()[sel], band,
+                                 key="axes.cruise_advance_ratio")
         ok = faa_pass(p, measured, nominal)
         per_kind = pd.Series(~ok).groupby(kinds).agg(["sum", "size"])
         fails = ", ".join(f"{k} {int(r['sum'])}/{int(r['size'])}" for k, r in
                           per_kind[per_kind["sum"] > 0].sort_values("sum", ascending=False).iterrows())
-        out.append(dict(axis=axis, rms_g=float(np.sqrt(np.mean((p - measured) ** 2))),
-                        faa_pass_share=float(ok.mean()), kendall_tau=float(kendalltau(p, measured).statistic),
-                        nominal_cruise_g=nominal, fails=fails, n_conditions=int(sel.sum())))
+        out.append(dict(axis=axis, rms_g=rms, faa_pass_share=float(ok.mean()),
+                        kendall_tau=float(kendalltau(p, measured).statistic), nominal_cruise_g=nominal, fails=fails,
+                        n_conditions=int(sel.sum()), status=""))
     return out
 
 
@@ -89,6 +102,11 @@ def axis_needs(table: pd.DataFrame, databases, pass_share: float) -> pd.DataFram
         t = t.set_index("database").loc[list(databases)]
         good = t[t.faa_pass_share >= pass_share]
         word = AXIS_WORDS.get(axis, axis)
+        if "status" in t and (t.status == "no vibration").all():
+            rows.append(dict(axis=axis, database="", faa_pass_share=float("nan"),
+                             text=f"{axis} ({word}): carries no vibration (every measured peak below "
+                                  f"{NO_VIBRATION_G:g} g): nothing to predict, no input needed"))
+            continue
         if len(good):
             db = good.index[0]
             text = (f"{axis} ({word}): {db}'s inputs suffice ({', '.join(DB_INPUTS[db])}): FAA 3.f.1 passes on "
@@ -115,7 +133,7 @@ def run_axes(campaign, cfg, out, log=print) -> AxesStudy:
     ac = cfg.axes
     axes = campaign_axes(campaign)
     rows = axes_database(campaign, cfg.analysis)
-    split = condition_split(rows.condition.to_numpy(), ac.folds, cfg.seed)
+    split = condition_split(rows.condition.to_numpy(), ac.folds, cfg.seed, key="axes.folds")
     predictions, table = rows.copy(), []
     for db in ac.databases:
         part = _part(Path(out), db)
@@ -134,7 +152,7 @@ def run_axes(campaign, cfg, out, log=print) -> AxesStudy:
             predictions[f"pred_{db}_{axis}"] = held[:, a]
         table += [dict(database=db, **s) for s in axis_scores(rows, held, axes, ac.cruise_advance_ratio)]
     table = pd.DataFrame(table)[["axis", "database", "rms_g", "faa_pass_share", "kendall_tau", "nominal_cruise_g",
-                                 "fails", "n_conditions"]]
+                                 "fails", "n_conditions", "status"]]
     table = table.sort_values("axis", key=lambda s: s.map(list(axes).index), kind="stable").reset_index(drop=True)
     return AxesStudy(table, axis_needs(table, ac.databases, ac.pass_share), predictions)
 
