@@ -49,6 +49,9 @@ def main(argv=None) -> int:
     except SystemExit as e:
         return e.code if isinstance(e.code, int) else 2
     use_deterministic_gpu()  # before any command starts JAX
+    import warnings
+
+    plain, warnings.formatwarning = warnings.formatwarning, _warning_line
     try:
         with interruptible():
             code = args.fn(args)
@@ -74,6 +77,14 @@ def main(argv=None) -> int:
             raise
         _error(_message(e))
         return 2
+    finally:
+        warnings.formatwarning = plain
+
+
+def _warning_line(message, category, filename, lineno, line=None) -> str:
+    """A warning as the user reads it: `warning: <what and where>`, without the source line
+    (a dropped channel, a degenerate model exported on request)."""
+    return f"warning: {message}\n"
 
 
 if __name__ == "__main__":

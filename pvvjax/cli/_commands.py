@@ -239,7 +239,7 @@ def cmd_realtime(args) -> int:
     import pandas as pd
 
     from ..config import ExperimentConfig
-    from ..realtime.element import CHANNELS, VibrationElement
+    from ..realtime.element import AXIS_OUTPUTS, CHANNELS, VibrationElement
 
     if args.out:
         new_file(args.out)
@@ -264,21 +264,24 @@ def cmd_realtime(args) -> int:
         t = np.sort(np.clip(t + rng.uniform(-args.jitter, args.jitter, t.size) / rate, t0[0], t0[-1]))
     az = np.mod(np.interp(t, t0, rev), 360.0)
     x = np.stack([np.interp(t, t0, x0[:, c]) for c in range(x0.shape[1])], 1)
-    out = np.zeros((t.size, 4))
+    names = ["pvv_g", "shake_g", "amplitude_g", "out_of_envelope"]
+    if el.outputs != ("az_g",):  # every seat axis the element gives, as the simulator reads them
+        names += [f"{k}_{AXIS_OUTPUTS[a]}_g" for a in el.outputs for k in ("pvv", "shake")]
+    out = np.zeros((t.size, len(names)))
     lat = np.empty(t.size)
     clock = time.perf_counter_ns
     for i in range(t.size):
         s0 = clock()
         o = el.step(t[i], az[i], x[i])
         lat[i] = (clock() - s0) / 1e3
-        out[i] = (o.pvv_g, o.shake_g, o.amplitude_g, o.out_of_envelope)
+        out[i] = [getattr(o, n) for n in names]
     p50, p99, pmax = np.percentile(lat, [50, 99, 100])
     print(f"{t.size} frames at {rate:g} Hz from record {args.record} ({t[-1] - t[0]:.1f} s): latency per frame "
           f"median {p50:.1f} µs, 99th percentile {p99:.1f} µs, max {pmax:.0f} µs; "
           f"{(t[-1] - t[0]) / (lat.sum() / 1e6):.0f}x faster than real time")
     if args.out:
-        df = pd.DataFrame({"time_s": t, "azimuth_deg": az, "pvv_g": out[:, 0], "shake_g": out[:, 1],
-                           "amplitude_g": out[:, 2], "out_of_envelope": out[:, 3].astype(bool), "latency_us": lat})
+        df = pd.DataFrame({"time_s": t, "azimuth_deg": az, **{n: out[:, i] for i, n in enumerate(names)},
+                           "latency_us": lat}).astype({"out_of_envelope": bool})
         df.to_csv(args.out, index=False)
         print(f"signal: {args.out}")
     return 0

@@ -8,6 +8,46 @@ from pathlib import Path
 from ..experiment import resolve_campaign
 from ..io import own_folder
 
+# The flags a folder's export can take, their defaults, and what each kind of export honours.
+_FLAGS = {"model": "--model", "net": "--net", "database": "--database", "architecture": "--architecture",
+          "offset": "--offset", "stick_offset": "--stick-offset", "window": "--window", "hop": "--hop",
+          "max_rate": "--max-rate"}
+_DEFAULTS = dict(offset=0.0, stick_offset=0.0, window=8.0, hop=1.0, max_rate=1000.0)
+_WINDOWS = {"offset", "stick_offset", "window", "hop"}
+_HONOURED = {
+    "dynamic": ({"model", "database"}, "a model of a `pvvjax dynamic` comparison (its windows, hop and offset are "
+                                       "the comparison's)"),
+    "axes": ({"database"} | _WINDOWS, "the nets of a `pvvjax axes` study"),
+    "element": ({"net", "database", "architecture"} | _WINDOWS, "a sweep's element"),
+    "net": ({"net", "database"}, "one net of a sweep (add --element for the element's settings)"),
+}
+
+
+def _settle_flags(args, kind: str) -> None:
+    """Refuse, by name, every flag the export of `kind` would not honour and the flags that
+    contradict each other; then fill the defaults of those left unset."""
+    honoured, what = _HONOURED[kind]
+    if args.element and args.format != "numpy":
+        honoured = honoured | {"max_rate"}
+    bad = [flag for key, flag in _FLAGS.items() if getattr(args, key) is not None and key not in honoured]
+    if bad == ["--max-rate"]:
+        raise ValueError("--max-rate: sizes the buffers of the C and FMU element; give it with --element and --format "
+                         "c or fmu")
+    if bad:
+        it = "it" if len(bad) == 1 else "them"
+        raise ValueError(f"{', '.join(bad)}: not used when exporting {what}; leave {it} out")
+    if args.net is not None:
+        both = [flag for key, flag in (("database", "--database"), ("architecture", "--architecture"))
+                if getattr(args, key) is not None]
+        if both:
+            raise ValueError(f"--net {args.net} and {' and '.join(both)}: the net names its own database and "
+                             "architecture; give one or the other")
+    for key, value in _DEFAULTS.items():
+        if getattr(args, key) is None:
+            setattr(args, key, value)
+    if kind != "dynamic" and args.database is None:
+        args.database = "db1"
+
 
 def _check_element_settings(args) -> None:
     """An element's offsets and window within the calibration's bounds (a NaN or a negative
@@ -74,7 +114,7 @@ def _export_dynamic_element(args, folder: Path) -> int:
     from ..realtime.export import element_spec
 
     cfg = load_config(folder / "config.toml")
-    em = element_model(folder, cfg, args.model, args.database if args.model else None)
+    em = element_model(folder, cfg, args.model, args.database)
     campaign, _ = resolve_campaign(cfg)
     counters = sorted(set(pd.read_parquet(folder / "predictions.parquet", columns=["counter"]).counter))
     seq = window_sequences(campaign, em.nets[0][1]["inputs"], window_revs=em.window_revs, hop_revs=em.hop_revs,
@@ -150,21 +190,24 @@ def cmd_export(args) -> int:
     if (sweep / "comparison.parquet").is_file():  # the folder of `pvvjax dynamic`
         if not args.element:
             raise ValueError(f"{sweep}: a comparison of `pvvjax dynamic`; export its models with --element")
+        _settle_flags(args, "dynamic")
         own_folder(args.out, "pvvjax export")
         return _export_dynamic_element(args, sweep)
     if (sweep / "axes.parquet").is_file():  # the folder of `pvvjax axes`
-        if not args.element or args.model is not None:
+        if not args.element:
             raise ValueError(f"{sweep}: a study of `pvvjax axes`; export its three-axis nets with --element (and "
-                             "--database), without --model")
+                             "--database)")
+        _settle_flags(args, "axes")
         _check_element_settings(args)
         own_folder(args.out, "pvvjax export")
         return _export_axes_element(args, sweep)
-    if args.model is not None:
-        raise ValueError(f"--model {args.model}: names a model of a `pvvjax dynamic` folder; {sweep} is a sweep")
     if args.element:
+        _settle_flags(args, "element")
         _check_element_settings(args)
     elif args.format != "numpy":
         raise ValueError(f"--format {args.format}: a format of the real-time element; add --element")
+    else:
+        _settle_flags(args, "net")
     res = finished_sweep(sweep)
     own_folder(args.out, "pvvjax export")
     if args.element:

@@ -146,27 +146,31 @@ def _net_commands(sub):
                         "best; its window, hop and offset are the comparison's)")
     s.add_argument("--out", required=True, help="output folder")
     s.add_argument("--net", default=None, help="net id (default: the best held-out net of --database); with "
-                                               "--element, the nets of its architecture")
-    s.add_argument("--database", default="db1", choices=["db1", "db2", "db3"], help="database (default: db1)")
+                                               "--element, the nets of its architecture (not with --database or "
+                                               "--architecture: the net names both)")
+    s.add_argument("--database", default=None, choices=["db1", "db2", "db3"],
+                   help="database (default: db1; of a `pvvjax dynamic` folder, the best model's)")
     s.add_argument("--element", action="store_true",
                    help="export a real-time vibration element: every net of one architecture of --database, their "
                         "median (default: one net)")
     s.add_argument("--architecture", default=None,
-                   help="element: the architecture, e.g. 6-10-5-1 (default: the best median held-out RMS)")
-    s.add_argument("--offset", type=_number(), default=0.0, help="element: input-to-vibration offset, s, within "
-                                                             "-1 to 3 (default: 0)")
-    s.add_argument("--stick-offset", type=_number(), default=0.0, help="element: extra offset of the sticks, s, within "
-                                                                   "-2 to 2 (default: 0)")
-    s.add_argument("--window", type=_number(), default=8.0, help="element: window length, revolutions, within 4 to 16 "
-                                                             "(default: 8)")
-    s.add_argument("--hop", type=_number(0.0, above=True), default=1.0,
-                   help="element: window spacing (update interval), revolutions, above 0 and at most the window "
-                        "(default: 1)")
+                   help="element of a sweep: the architecture, e.g. 6-10-5-1 (default: the best median held-out RMS)")
+    s.add_argument("--offset", type=_number(), default=None, help="element of a sweep or an axes study: "
+                                                              "input-to-vibration offset, s, within -1 to 3 (default: "
+                                                              "0)")
+    s.add_argument("--stick-offset", type=_number(), default=None, help="element of a sweep or an axes study: extra "
+                                                                    "offset of the sticks, s, within -2 to 2 "
+                                                                    "(default: 0)")
+    s.add_argument("--window", type=_number(), default=None, help="element of a sweep or an axes study: window "
+                                                              "length, revolutions, within 4 to 16 (default: 8)")
+    s.add_argument("--hop", type=_number(0.0, above=True), default=None,
+                   help="element of a sweep or an axes study: window spacing (update interval), revolutions, above 0 "
+                        "and at most the window (default: 1)")
     s.add_argument("--format", default="numpy", choices=["numpy", "c", "fmu"],
                    help="element: numpy (element.json, the nets and the NumPy modules), c (pvv_element.h and "
                         "pvv_element.c, C99, <math.h> only) or fmu (pvv_element.fmu, FMI 2.0 co-simulation, built "
                         "with the machine's C compiler) (default: numpy)")
-    s.add_argument("--max-rate", type=_number(0.0, 1e5, above=True), default=1000.0,
+    s.add_argument("--max-rate", type=_number(0.0, 1e5, above=True), default=None,
                    help="element, c and fmu: highest frame rate the fixed buffers are sized for, Hz, above 0 and at "
                         "most 100000 (default: 1000)")
     s.set_defaults(fn=cmd_export)
