@@ -161,6 +161,8 @@ CAMPAIGN = {
     "axes swapped: the lateral carrying the vertical's 1 g": (_records(_swapped_axes), 1, "C1.csv", "ay_g",
                                                               "axes swapped"),
     "a horizontal axis in m/s²": (_records(_horizontal_in_m_s2), 1, "C1.csv", "ax_g", "m/s²"),
+    "a horizontal axis that carries no vibration": (_records(_set("ax_g", 0.0)), 1, "C1.csv", "ax_g",
+                                                    "carries no vibration"),
     "one stick a fraction, the others in % (a warning)": (_records(_one_stick_fraction), 0, "C1.csv", "lateral_pct",
                                                           "the other sticks are not"),
     "negative airspeed": (_records(_set("airspeed_kt", -5.0, row=2)), 1, "C1.csv", "airspeed_kt", "row 2"),
@@ -295,6 +297,57 @@ def _cli_unfinished_sweep(tmp_path):
     return ["export", str(tmp_path / "sweep"), "--out", str(tmp_path / "e")], "an unfinished sweep (0 nets finished"
 
 
+def _dynamic(setting, needle):
+    """`pvvjax dynamic` on the tiny campaign (3 conditions of 12 s) with one `[dynamic]`
+    setting it cannot support: refused by its key before any folder is claimed."""
+    def case(tmp_path):
+        settings = {"folds": "3", "seeds": "1", **dict([setting.split(" = ")])}
+        (tmp_path / "cfg.toml").write_text("[dynamic]\n" + "".join(f"{k} = {v}\n" for k, v in settings.items()))
+        camp = write_tiny(tmp_path / "c", *tiny_records(n_counters=3))
+        return ["dynamic", "--campaign", str(camp), "--config", str(tmp_path / "cfg.toml"), "--out",
+                str(tmp_path / "d")], needle
+    return case
+
+
+def _axes_folds(tmp_path):
+    (tmp_path / "cfg.toml").write_text("[axes]\nfolds = 5\n")
+    return ["axes", "--campaign", str(write_tiny(tmp_path / "c", *tiny_records(n_counters=3))), "--config",
+            str(tmp_path / "cfg.toml"), "--out", str(tmp_path / "a")], "axes.folds = 5: campaign"
+
+
+def _cli_axis_the_campaign_lacks(tmp_path):
+    (tmp_path / "cfg.toml").write_text('[analysis]\naxis = "ay_g"\n')
+    return ["dynamic", "--campaign", str(write_tiny(tmp_path / "c")), "--config", str(tmp_path / "cfg.toml"), "--out",
+            str(tmp_path / "d")], "analysis.axis = 'ay_g': campaign"
+
+
+def _export_flags(kind, flags, needle):
+    """`pvvjax export` of a folder of `kind` (its marker file only: the flags are refused
+    before anything is read) with flags that kind does not honour, or that contradict."""
+    def case(tmp_path):
+        folder = tmp_path / kind
+        folder.mkdir()
+        marker = {"dynamic": "comparison.parquet", "axes": "axes.parquet", "sweep": "results.parquet"}[kind]
+        (folder / marker).write_bytes(b"")
+        return ["export", str(folder), *flags, "--out", str(tmp_path / "e")], needle
+    return case
+
+
+def _comparison_of(models, degenerate, needle):
+    """A `pvvjax dynamic` folder whose comparison holds `models` of db1 (each `degenerate`
+    as given, none `best`): its default export is refused, naming why."""
+    def case(tmp_path):
+        import pandas as pd
+
+        folder = tmp_path / "dyn"
+        folder.mkdir()
+        pd.DataFrame(dict(database="db1", model=models, rms_g=0.05, degenerate=degenerate,
+                          best=False)).to_parquet(folder / "comparison.parquet")
+        (folder / "config.toml").write_text("")
+        return ["export", str(folder), "--element", "--out", str(tmp_path / "e")], needle
+    return case
+
+
 def _cli_replay_unknown_counter(tmp_path):
     (tmp_path / "cfg.toml").write_text("")
     return ["replay", str(tmp_path / "cfg.toml"), "--campaign", str(write_tiny(tmp_path / "c")), "--counters", "C1",
@@ -343,9 +396,10 @@ def _cli_out_in_a_campaign(tmp_path):
 
 
 def _cli_dynamic_without_cruise(tmp_path):
-    (tmp_path / "cfg.toml").write_text("[dynamic]\nfolds = 3\nseeds = 1\n[train]\nmax_steps = 10\n")
-    return ["dynamic", "--campaign", str(write_tiny(tmp_path / "c")), "--config", str(tmp_path / "cfg.toml"),
-            "--out", str(tmp_path / "d")], "no level flight with an advance ratio in [0.25, 0.35]"
+    (tmp_path / "cfg.toml").write_text("[dynamic]\nfolds = 3\nseeds = 1\n[train]\nmax_steps = 10\neval_every = 5\n")
+    return ["dynamic", "--campaign", str(write_tiny(tmp_path / "c", *tiny_records(n_counters=3))), "--config",
+            str(tmp_path / "cfg.toml"), "--out", str(tmp_path / "d")], \
+        "no level flight with an advance ratio in [0.25, 0.35]"
 
 
 def _cli_axis_the_campaign_lacks(tmp_path):
@@ -409,6 +463,31 @@ CLI_KINDS = {
     "realtime element of another rotor": _cli_element_of_another_rotor,
     "replay of a counter not in the campaign": _cli_replay_unknown_counter,
     "--out inside a campaign folder": _cli_out_in_a_campaign,
+    "dynamic delay longer than the records": _dynamic("delay_s = 1e6", "dynamic.delay_s = 1e+06 s: outside 0 to"),
+    "dynamic natural frequency above the window rate": _dynamic("f_n_hz = 50.0", "dynamic.f_n_hz = 50 Hz: outside"),
+    "dynamic windows longer than a condition": _dynamic("window_revs = 60.0", "dynamic.window_revs = 60:"),
+    "dynamic more folds than conditions": _dynamic("folds = 5", "dynamic.folds = 5: campaign"),
+    "axes more folds than conditions": _axes_folds,
+    "an analysis axis the campaign lacks": _cli_axis_the_campaign_lacks,
+    "export a comparison's model with window flags": _export_flags(
+        "dynamic", ["--element", "--window", "4", "--hop", "0.5", "--offset", "2"],
+        "--offset, --window, --hop: not used when exporting a model of a `pvvjax dynamic` comparison"),
+    "export --net with --architecture": _export_flags("sweep", ["--element", "--net", "3", "--architecture", "x"],
+                                                      "--net 3 and --architecture"),
+    "export --net with --database": _export_flags("sweep", ["--net", "3", "--database", "db2"],
+                                                  "--net 3 and --database"),
+    "export an element setting without --element": _export_flags("sweep", ["--window", "6"],
+                                                                 "--window: not used when exporting one net"),
+    "export --max-rate with the NumPy element": _export_flags("sweep", ["--element", "--max-rate", "500"],
+                                                              "--max-rate: sizes the buffers of the C and FMU"),
+    "export an axes study's nets with --net": _export_flags("axes", ["--element", "--net", "3"],
+                                                            "--net: not used when exporting the nets of a `pvvjax "
+                                                            "axes` study"),
+    "export a comparison holding no model the element runs": _comparison_of(["rnn", "window_static_rates"], "",
+                                                                             "the element runs quasi_static"),
+    "export a comparison whose every model is degenerate": _comparison_of(
+        ["quasi_static", "dynamic"], "a constant prediction", "no model is fit to export (quasi_static (db1): a "
+                                                              "constant prediction"),
 }
 
 CONFIG = {
@@ -435,6 +514,24 @@ CONFIG = {
                                      "dynamic.cruise_advance_ratio must be [lo, hi]"),
     "an analysis axis not in the data contract": ('[analysis]\naxis = "a_lat"\n', "analysis.axis"),
     "axes pass share above 1": ("[axes]\npass_share = 1.5\n", "axes.pass_share must lie in (0, 1]"),
+    "dynamic transient kind unknown": ('[dynamic]\ntransients = ["nope"]\n',
+                                       "dynamic.transients: unknown maneuver kind(s) ['nope']"),
+    "dynamic damping beyond a physical range": ("[dynamic]\nzeta = 50.0\n", "dynamic.zeta = 50: a damping ratio"),
+    "dynamic offset grid of one point": ("[dynamic]\noffset_bounds = [0.0, 0.05]\n",
+                                         "dynamic.offset_step_s = 0.1 leaves one point of dynamic.offset_bounds"),
+    "dynamic seeds beyond what a trainer holds": ("[dynamic]\nseeds = 1000000\n", "dynamic.seeds = 1000000"),
+    "dynamic transients empty": ("[dynamic]\ntransients = []\n", "dynamic.transients is empty"),
+    "axes hidden layer of a million units": ("[axes]\nhidden = [1000000]\n", "axes.hidden = [1000000]"),
+    "axes cruise band beyond advance ratio 1": ("[axes]\ncruise_advance_ratio = [0.2, 5.0]\n",
+                                                "axes.cruise_advance_ratio = [0.2, 5.0]"),
+    "replay maneuver kind unknown": ('[replay]\nmaneuvers = ["pullupp"]\n', "replay.maneuvers: unknown"),
+    "calibration coarse grid of one point": ("[calibration]\ncoarse_window_step_revs = 20.0\n",
+                                             "calibration.coarse_window_step_revs = 20 leaves one point"),
+    "train evaluation after the last step": ("[train]\nmax_steps = 10\n", "train.eval_every = 50"),
+    "train divergence factor not above 1": ("[train]\ndivergence_factor = 0.5\n", "train.divergence_factor = 0.5"),
+    "sweep without an architecture": ("[sweep]\nhidden = []\n", "sweep.hidden is empty"),
+    "seed negative": ("seed = -1\n", "seed = -1"),
+    "experiment name with a path separator": ('name = "a/b"\n', "name = 'a/b'"),
 }
 
 
@@ -520,11 +617,44 @@ def test_a_utf8_byte_order_mark_is_read(tmp_path, capsys):
     assert code == 0 and "valid" in text, text
 
 
+def _partial_axis(tmp_path):
+    c, r = tiny_records(n_counters=3)
+    for name in ("C1", "C2"):
+        r[name]["ay_g"] = 0.5 * (r[name].az_g - 1.0)
+    return ["build-db", "--campaign", str(write_tiny(tmp_path / "c", c, r)), "--out", str(tmp_path / "o")]
+
+
+def _transients_not_flown(tmp_path):
+    from pvvjax.config import ExperimentConfig
+    from pvvjax.data import load_campaign
+    from pvvjax.dynamics.checks import check_dynamic
+
+    cfg = ExperimentConfig().with_(dynamic=ExperimentConfig().dynamic.__class__(folds=3, seeds=1))
+    check_dynamic(cfg, load_campaign(write_tiny(tmp_path / "c", *tiny_records(n_counters=3))))
+
+
+# Kinds that are said as a warning while the command goes on: (run it, the warning's words).
+WARNINGS = {
+    "a horizontal axis in some records only (a warning; the axis is left out)": (
+        lambda tmp_path: main(_partial_axis(tmp_path)), "ay_g is in 2 of 3 records and missing from C3"),
+    "dynamic transient kinds the campaign does not fly (a warning; their scores are NaN)": (
+        _transients_not_flown, "flies no pullup, pushover, roll, autorotation, flare"),
+}
+
+
+@pytest.mark.parametrize("kind", list(WARNINGS))
+def test_what_is_left_out_is_said_naming_it(kind, tmp_path, capsys):
+    run, needle = WARNINGS[kind]
+    with pytest.warns(UserWarning, match=re.escape(needle)):
+        assert run(tmp_path) in (0, None)
+    assert "Traceback" not in capsys.readouterr().err
+
+
 def test_the_docs_list_every_kind():
     text = DOCS.read_text()
     table = text[text.index("| kind | verdict |"):].split("\n\n")[0]
     listed = set(re.findall(r"^\| (.+?) \|", table, flags=re.M)) - {"kind"}
-    kinds = set(CAMPAIGN) | set(MAPPING) | set(CONFIG) | set(CLI_KINDS)
+    kinds = set(CAMPAIGN) | set(MAPPING) | set(CONFIG) | set(CLI_KINDS) | set(WARNINGS)
     assert kinds == listed, (kinds - listed, listed - kinds)
     assert len(kinds) >= 40
 

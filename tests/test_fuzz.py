@@ -3,8 +3,10 @@ units ×1000 or ÷1000, swapped or renamed columns, truncated or reordered rows,
 another format) and configs of random types and values. Every outcome is either a valid
 result with finite numbers or a clear error (status 1 or 2) naming the file or the key;
 never a traceback (an unexpected exception fails the test) and never exit 0 with a NaN or
-infinite number in the output. Derandomized, so that CI runs the same examples each time;
-bounded to about half a minute."""
+infinite number in the output. `pvvjax dynamic` and `pvvjax axes` under random sections on a
+mutated three-axis campaign: a result whose `best` is never degenerate, or a clear error,
+and no user file changed. Derandomized, so that CI runs the same examples each time;
+bounded to about a minute."""
 
 from __future__ import annotations
 
@@ -98,7 +100,7 @@ def _finite_tables(folder) -> bool:
     return True
 
 
-@settings(FUZZ, max_examples=40)
+@settings(FUZZ, max_examples=6)
 @given(mutations=st.lists(_mutation(), min_size=1, max_size=3))
 @pytest.mark.parametrize("_", [0])
 def test_a_mutated_campaign_is_a_result_or_a_clear_error(_, mutations, tmp_path_factory, capsys):
@@ -246,4 +248,88 @@ def test_build_db_under_a_random_analysis_section_is_finite_or_a_clear_error(_, 
         assert _finite_tables(tmp / "db"), analysis
     else:
         assert code == 2 and ("cfg.toml" in err or str(folder) in err), (analysis, err)
+    shutil.rmtree(tmp)
+
+
+def _three_axis_campaign(folder, mutations):
+    """A micro campaign of four conditions (two level flights in the cruise band, a pull-up
+    and a turn) with both horizontal axes, each changed by `mutations`: (axis, kind, record)."""
+    from conftest import tiny_records
+
+    counters, records = tiny_records(n_counters=4)
+    counters["maneuver"] = ["level", "level", "pullup", "turn"]
+    for i, (name, df) in enumerate(records.items()):
+        df["airspeed_kt"] = 125.0 + 3 * i  # advance ratio about 0.29: within the cruise band
+        df["ax_g"] = 0.4 * (df.az_g - 1.0)
+        df["ay_g"] = 0.6 * (df.az_g - 1.0) + 0.01 * np.cos(np.arange(len(df)) / 64 * 2 * np.pi)
+    for axis, kind, record in mutations:
+        df = records[record]
+        if axis not in df:  # an earlier mutation dropped it
+            continue
+        if kind == "drop":
+            records[record] = df.drop(columns=axis)
+        elif kind == "zero":
+            df[axis] = 0.0
+        elif kind == "m/s2":
+            df[axis] = 9.80665 * df[axis]
+        elif kind == "swap":
+            df[[axis, "az_g"]] = df[["az_g", axis]].to_numpy()
+        elif kind == "nan":
+            df.loc[5, axis] = np.nan
+    return write_tiny(folder, counters, records)
+
+
+def _snapshot(*folders) -> dict:
+    import hashlib
+
+    return {str(p): hashlib.sha256(p.read_bytes()).hexdigest() for f in folders for p in sorted(f.rglob("*"))
+            if p.is_file()}
+
+
+@st.composite
+def _study_config(draw):
+    """A `[dynamic]` or `[axes]` section of small settings with one or two keys drawn from the
+    section's own type, extremes included, and the axis analysed drawn too."""
+    section = draw(st.sampled_from(["dynamic", "axes"]))
+    base = (dict(models=["window_static", "dynamic"], seeds=1, folds=3, kind_holdout=False, hidden=[3])
+            if section == "dynamic" else dict(databases=["db1"], seeds=1, folds=3, hidden=[3], discovery=False))
+    for key in draw(st.lists(st.sampled_from(SECTIONS[section]), max_size=2, unique=True)):
+        base[key] = draw(_typed(section, key))
+    data = {section: base, "train": dict(max_steps=20, eval_every=10, patience=1)}
+    if draw(st.booleans()):
+        data["analysis"] = dict(axis=draw(st.sampled_from(["az_g", "ax_g", "ay_g"])))
+    return section, data
+
+
+@settings(FUZZ, max_examples=8)
+@given(study=_study_config(), mutations=st.lists(st.tuples(st.sampled_from(["ax_g", "ay_g"]),
+                                                           st.sampled_from(["drop", "zero", "m/s2", "swap", "nan"]),
+                                                           st.sampled_from(["C1", "C2", "C3", "C4"])), max_size=2))
+@pytest.mark.parametrize("_", [0])
+def test_a_random_study_on_a_mutated_three_axis_campaign_is_a_sound_result_or_a_clear_error(_, study, mutations,
+                                                                                          tmp_path_factory, capsys):
+    tmp = tmp_path_factory.mktemp("study")
+    section, data = study
+    folder = _three_axis_campaign(tmp / "c", mutations)
+    try:
+        (tmp / "cfg.toml").write_text(tomli_w.dumps(data))
+    except (TypeError, ValueError):  # not TOML-able: a user cannot write it
+        return
+    before = _snapshot(folder, tmp / "cfg.toml")
+    code = main([section, "--campaign", str(folder), "--config", str(tmp / "cfg.toml"), "--out", str(tmp / "o")])
+    err = capsys.readouterr().err
+    event(f"{section} exit {code}")
+    assert "Traceback" not in err and code in (0, 2), err
+    assert _snapshot(folder, tmp / "cfg.toml") == before  # no user file changed, moved or added
+    if code == 2:
+        assert "cfg.toml" in err or str(folder) in err or "." in err.split("error: ")[-1].split(" ")[0], err
+    elif section == "dynamic":
+        table = pd.read_csv(tmp / "o" / "comparison.csv", keep_default_na=False, na_values=[""])
+        best = table[table.best]
+        assert len(best) <= 1 and (best.degenerate.isna() | (best.degenerate == "")).all(), table
+        assert np.isfinite(best.rms_g).all()
+    else:
+        table = pd.read_csv(tmp / "o" / "axes.csv", keep_default_na=False)
+        sound = table.status.eq("no vibration") | table.faa_pass_share.astype(float).between(0, 1)
+        assert sound.all() and np.isfinite(table.rms_g.astype(float)).all(), table
     shutil.rmtree(tmp)
