@@ -85,6 +85,33 @@ def test_batched_training_equals_each_net_trained_alone():
         assert got.best_step[f, s] == int(alone.best_step)
 
 
+def test_training_in_chunks_that_drop_stopped_nets_and_on_real_windows_alone_gives_the_same_nets():
+    """The chunked training (progress between chunks; stopped nets leave the batch) and the
+    pointwise rows of a static map (its real windows, no padding) train the same nets as
+    one uninterrupted batch over padded records."""
+    from pvvjax.nets.networks import mlp_apply
+
+    rng = np.random.default_rng(0)
+    x = rng.standard_normal((15, 30, 3)).astype(np.float32)
+    y = (0.2 + 0.1 * np.tanh(x[..., 0]) + 0.02 * rng.standard_normal((15, 30))).astype(np.float32)
+    mask = np.ones((15, 30), bool)
+    mask[3, 20:] = mask[8, 4:] = False
+    split = compare.condition_split([f"c{i}" for i in range(15)], 5, 0)
+    cfg = TrainConfig(max_steps=3000, eval_every=10, patience=3, learning_rate=0.01)
+    init = compare.static_init(3, (4,))
+    seen = []
+    chunked = compare.fit_sequence_model(init, mlp_apply, x, y, mask, split, 3, cfg, chunk_evals=1,
+                                         progress=lambda *a: seen.append(a))
+    whole = compare.fit_sequence_model(init, mlp_apply, x, y, mask, split, 3, cfg, chunk_evals=10**6)
+    windows = compare.fit_sequence_model(init, mlp_apply, x, y, mask, split, 3, cfg, pointwise=True)
+    assert len(set(whole.best_step.ravel())) > 5  # the nets stop at many steps: the batch shrinks as they do
+    assert [n for _, _, n in seen][0] == 15 and seen[-1][2] == 0 and len(seen) > 10
+    np.testing.assert_array_equal(chunked.best_step, whole.best_step)
+    np.testing.assert_array_equal(chunked.pred, whole.pred)
+    np.testing.assert_array_equal(windows.best_step, whole.best_step)
+    np.testing.assert_allclose(windows.pred, whole.pred, atol=1e-6)
+
+
 def test_the_recurrent_model_is_causal():
     from pvvjax.dynamics import rnn_apply, rnn_init
 

@@ -105,7 +105,9 @@ def _stack(trees):
     return jax.tree.map(lambda *a: jnp.stack(a), *trees)
 
 
-def fit_sequence_model(init: Callable, apply: Callable, x, y, mask, split: Split, seeds: int, cfg) -> Trained:
+def fit_sequence_model(init: Callable, apply: Callable, x, y, mask, split: Split, seeds: int, cfg,
+                       batch_rows: int = 0, pointwise: bool = False, progress: Callable | None = None,
+                       chunk_evals: int = 10) -> Trained:
     """Train one net per (fold, seed) on window sequences, all in one vmapped program.
 
     Args:
@@ -115,24 +117,90 @@ def fit_sequence_model(init: Callable, apply: Callable, x, y, mask, split: Split
         x: (R, W, C) inputs. y: (R, W) measured PVV, g. mask: (R, W) real windows.
         split: the folds. seeds: initialisation seeds per fold.
         cfg: `TrainConfig`.
+        batch_rows: rows (records) per gradient step, drawn anew each step from the fold's
+            training rows (`nets.train.minibatch`); 0, or at least a fold's training rows:
+            every row, every step.
+        pointwise: `apply` maps each window on its own (a static map): train on the real
+            windows alone, each a row of one window, instead of on padded records (the same
+            loss; a record's padding is about half its windows).
+        progress: called as `progress(step, best validation RMS (median over nets), nets
+            still training)` after every `chunk_evals` evaluations (the training runs in
+            chunks between these looks; the result is the same as in one).
     """
     x, y, mask = np.asarray(x, np.float32), np.asarray(y, np.float32), np.asarray(mask, bool)
     trains = [~split.test[f] & ~split.val[f] for f in range(len(split.labels))]
-    n_train, n_val = max(int(r.sum()) for r in trains), max(int(v.sum()) for v in split.val)
-    params, data = [], []
-    for f, rows in enumerate(trains):
-        sc = scaling(x[rows][mask[rows]], y[rows][mask[rows]])
-        d = _rows(x, y, mask, rows, n_train) + _rows(x, y, mask, split.val[f], n_val)
+    if pointwise:  # rows: the real windows of each row set
+        select = lambda rows: mask & rows[:, None]  # noqa: E731
+        n_train = max(int(select(r).sum()) for r in trains)
+        n_val = max(int(select(v).sum()) for v in split.val)
+        rows_of = lambda rows, n: _windows(x, y, select(rows), n)  # noqa: E731
+    else:
+        n_train, n_val = max(int(r.sum()) for r in trains), max(int(v.sum()) for v in split.val)
+        rows_of = lambda rows, n: _rows(x, y, mask, rows, n)  # noqa: E731
+    rows = batch_rows if 0 < batch_rows < min(int(r.sum()) for r in trains) and not pointwise else 0
+    params, data, keys = [], [], []
+    for f, train_rows in enumerate(trains):
+        sc = scaling(x[train_rows][mask[train_rows]], y[train_rows][mask[train_rows]])
+        d = rows_of(train_rows, n_train) + rows_of(split.val[f], n_val)
         for s in range(seeds):
             params.append(init(jax.random.key(s), sc, (f, s)))
             data.append(train.Data(*d))
-    fit = jax.jit(jax.vmap(lambda p, d: train.fit(p, d, cfg, apply=apply)))
-    res = fit(_stack(params), _stack(data))
+            keys.append(jax.random.fold_in(jax.random.key(s), f + 1))  # the minibatches' draws
+    res = _train_chunked(_stack(params), _stack(data), jnp.stack(keys), cfg, apply, rows, progress, chunk_evals)
     pred = jax.jit(jax.vmap(apply, in_axes=(0, None)))(res.params, x)
     shape = (len(split.labels), seeds)
     reshape = lambda a: np.asarray(a).reshape(shape + np.shape(a)[1:])  # noqa: E731
     return Trained(jax.tree.map(reshape, res.params), reshape(pred), reshape(res.best_step),
                    reshape(res.failed_step))
+
+
+def _train_chunked(params, data, keys, cfg, apply, batch_rows: int, progress, chunk_evals: int) -> train.Fit:
+    """Every net to completion (`nets.train.run`, vmapped), `chunk_evals` evaluations at a
+    time, looking in between: `progress` sees the step and the best validation RMS, and
+    once half the nets still in the batch have stopped, they leave it (the rest continue in
+    a batch of the next power of two, padded with copies whose results are dropped), so
+    that the work follows the nets still training. A net trains to the same numbers in any
+    batch (`nets.train`: its sums do not depend on the batch)."""
+    hp = train.hyper(cfg)
+    consts = {k: v for k, v in params.items() if k not in train.TRAINABLE}
+    init = jax.jit(jax.vmap(lambda p, d: train.init_state(p, d, hp, apply)))
+    chunk = jax.jit(jax.vmap(lambda st, c, d, k: train.run(st, c, d, cfg.eval_every, chunk_evals, apply, batch_rows,
+                                                          k)))
+    n = len(keys)
+    state, live = init(params, data), np.arange(n)  # live: which net each batch slot trains
+    finished: dict = {}
+    while len(live):
+        state = chunk(state, consts, data, keys)
+        done = np.asarray(jax.vmap(train.done)(state))[: len(live)]
+        if progress is not None:
+            progress(int(np.max(state.step)), float(np.median(np.asarray(state.best_val)[: len(live)])),
+                     int((~done).sum()))
+        if 2 * done.sum() < len(live) and not done.all():
+            continue
+        out = jax.vmap(train.result)(state, consts)
+        for slot in np.flatnonzero(done):
+            finished[int(live[slot])] = jax.tree.map(lambda a, i=slot: a[i], out)
+        keep = np.flatnonzero(~done)
+        live = live[keep]
+        if len(live):
+            slots = np.concatenate([keep, np.full(_bucket(len(keep)) - len(keep), keep[0])])
+            state, consts, data, keys = jax.tree.map(lambda a: a[slots], (state, consts, data, keys))
+    return jax.tree.map(lambda *a: jnp.stack(a), *(finished[i] for i in range(n)))
+
+
+def _bucket(n: int) -> int:
+    """The batch size of `n` nets still training: the next power of two, at least 2 (XLA
+    compiles a batch of one to other arithmetic)."""
+    return max(2, 1 << max(0, (n - 1).bit_length()))
+
+
+def _windows(x, y, select, n: int) -> tuple:
+    """The selected windows as rows of one window each: (x (n, 1, C), y (n, 1), weights (n,
+    1)), padded to n rows of weight 0."""
+    r, w = np.nonzero(select)
+    pad = n - len(r)
+    r, w = np.concatenate([r, np.full(pad, r[0])]), np.concatenate([w, np.full(pad, w[0])])
+    return x[r, w][:, None], y[r, w][:, None], (np.arange(n) < n - pad).astype(np.float32)[:, None]
 
 
 def _rows(x, y, mask, rows, n: int) -> tuple:
