@@ -50,6 +50,10 @@ class DynamicConfig:
         cruise_advance_ratio: [lo, hi] advance ratio of the level flights whose median
             measured peak is the nominal cruise level of the FAA tolerance.
         transients: maneuver kinds whose time of peak is scored.
+        learning_rate: Adam step size of the models trained on window sequences (every
+            model but quasi_static, which trains as the paper's map with `[train]`); their
+            other training settings are `[train]`'s. Tens of thousands of windows give a
+            smooth loss that takes a larger step than a database of peaks.
     """
 
     databases: tuple[str, ...] = ("db1",)
@@ -68,6 +72,7 @@ class DynamicConfig:
     offset_step_s: float = 0.1
     cruise_advance_ratio: tuple[float, float] = field(default=(0.25, 0.35), metadata={"repeats": True})
     transients: tuple[str, ...] = TRANSIENT_MANEUVERS
+    learning_rate: float = 0.01
 
     def __post_init__(self):
         _check_databases("dynamic", self.databases)
@@ -97,3 +102,5 @@ class DynamicConfig:
         _grid("dynamic.offset_bounds", self.offset_bounds, "dynamic.offset_step_s", self.offset_step_s)
         _advance_ratio_band("dynamic.cruise_advance_ratio", self.cruise_advance_ratio)
         _maneuver_kinds("dynamic.transients", self.transients)
+        if not 0 < self.learning_rate <= 1:
+            raise ValueError(f"dynamic.learning_rate = {self.learning_rate!r}: must lie within 0 (excluded) to 1")

@@ -8,6 +8,7 @@ resumes where it stopped; the tables and the report are written from the parts a
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from pathlib import Path
 from typing import NamedTuple
@@ -32,6 +33,25 @@ __all__ = ["EXPORTABLE", "PAPER_PULLUP", "Database", "ElementModel", "comparison
 
 # Models the real-time element runs (`pvvjax export --element`): `best` is chosen among them.
 EXPORTABLE = ("quasi_static", "window_static", "dynamic")
+# Models that map each window on its own: they train on the real windows alone.
+POINTWISE = ("window_static", "window_static_rates")
+
+
+def _terminal_progress(label: str):
+    """On a terminal, a line that training rewrites as it goes: the model, the step, the
+    best validation RMS and the nets still training (None elsewhere: logs keep the
+    one line per part that `run_parts` writes)."""
+    import sys
+
+    if not sys.stderr.isatty():
+        return None
+
+    def show(step, best_val, running):
+        end = "\n" if running == 0 else ""
+        sys.stderr.write(f"\r{label}: step {step}, best validation RMS {best_val:.4f} g, {running} nets "
+                         f"training{end}")
+        sys.stderr.flush()
+    return show
 
 
 class Database(NamedTuple):
@@ -83,7 +103,7 @@ def prepare_database(campaign, cfg, db: str) -> Database:
                     tuple(splits), nominal, tuple(skipped))
 
 
-def _train(d: Database, split, model: str, cfg) -> tuple[dict, dict]:
+def _train(d: Database, split, model: str, cfg, progress=None) -> tuple[dict, dict]:
     """Train one model of one split: (stacked params, arrays: heldout (R, W) and per-net
     best_step, failed_step, and the quasi-static offsets)."""
     dc, seq = cfg.dynamic, d.seq
@@ -102,8 +122,9 @@ def _train(d: Database, split, model: str, cfg) -> tuple[dict, dict]:
             init = compare.recurrent_init(x.shape[-1], dc.rnn_hidden)
         else:
             init = compare.static_init(x.shape[-1], dc.hidden)
+        train_cfg = dataclasses.replace(cfg.train, learning_rate=dc.learning_rate)
         t = compare.fit_sequence_model(init, compare.APPLY[model], x, seq.amplitude, seq.mask, split, dc.seeds,
-                                       cfg.train)
+                                       train_cfg, pointwise=model in POINTWISE, progress=progress)
         held, extra = compare.heldout(t.pred, split), {}
     return t.params, dict(heldout=held, best_step=t.best_step, failed_step=t.failed_step, **extra)
 
@@ -119,7 +140,7 @@ def _part(folder: Path, d: Database, split, model: str, cfg, log) -> tuple:
         log(f"  {d.name} {split.name} {model}: saved part")
     else:
         t0 = time.perf_counter()
-        params, arrays = _train(d, split, model, cfg)
+        params, arrays = _train(d, split, model, cfg, _terminal_progress(f"  {d.name} {split.name} {model}"))
         folder.mkdir(parents=True, exist_ok=True)
         tmp = stem.with_suffix(".arrays.tmp.npz")
         np.savez(tmp, **arrays)
@@ -452,8 +473,6 @@ def run_dynamic(cfg, campaign, campaign_dir, out, log=print) -> tuple:
     seed on this campaign, record the config there (`config.toml`, with the campaign's
     folder: what `export --element` reads) and train, resume and compare every model
     (`dynamics.run_comparison`). Returns (the folder, the comparison table)."""
-    import dataclasses
-
     from .._strict import to_dict
     from ..io import claim_folder, write_config
 
