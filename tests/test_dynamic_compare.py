@@ -246,27 +246,27 @@ def test_a_degenerate_model_is_flagged_never_best_and_exported_only_by_name(dyna
     parts = run_parts(load_campaign(small_campaign_dir), cfg, out / "parts", log=lambda m: None)
     d, by_split = parts["db1"]
     seq = d.seq
-    t, arrays = by_split["condition"]["dynamic"]
-    # Each condition's measured mean throughout: the lowest RMS the element could take, constant through every
-    # maneuver.
+    # window_static: each condition's measured mean throughout, constant through every maneuver;
+    # dynamic: the measured windows themselves (no error at all), with a delay of 1000 s, beyond every record.
     mean = (seq.amplitude * seq.mask).sum(1) / seq.mask.sum(1)
-    arrays = {**arrays, "heldout": np.where(seq.mask, mean[:, None], np.nan)}
+    t, arrays = by_split["condition"]["window_static"]
+    by_split["condition"]["window_static"] = (t, {**arrays, "heldout": np.where(seq.mask, mean[:, None], np.nan)})
+    t, arrays = by_split["condition"]["dynamic"]
     response = {**t.params["response"], "delay_raw": np.full_like(t.params["response"]["delay_raw"], 1e3)}
-    t = t._replace(params={**t.params, "response": response})  # a delay of 1000 s: beyond every record
-    by_split["condition"]["dynamic"] = (t, arrays)
+    by_split["condition"]["dynamic"] = (t._replace(params={**t.params, "response": response}),
+                                        {**arrays, "heldout": np.where(seq.mask, seq.amplitude, np.nan)})
     table = comparison_table(parts, cfg).set_index("model")
-    exportable = ["quasi_static", "window_static", "dynamic"]
-    assert table.rms_g["dynamic"] == table.rms_g[exportable].min() and not table.best["dynamic"]
-    assert "a constant prediction through" in table.degenerate["dynamic"]
+    assert table.rms_g["dynamic"] == 0.0 and not table.best["dynamic"]
     assert "identified delay_s 1000 outside its range" in table.degenerate["dynamic"]
-    assert table.best.sum() == 1 and (table.degenerate[table.best] == "").all()
+    assert "a constant prediction through" in table.degenerate["window_static"] and not table.best["window_static"]
+    assert table.best["quasi_static"] and table.degenerate["quasi_static"] == ""
     assert any("**dynamic** (db1) is degenerate" in ln for ln in result_notes(table.reset_index()))
 
     folder = tmp_path / "dyn"
     shutil.copytree(out, folder)
     table.reset_index().assign(best=False).to_parquet(folder / "comparison.parquet")
     assert main(["export", str(folder), "--element", "--out", str(tmp_path / "none")]) == 2  # nothing fit to export
-    with pytest.warns(UserWarning, match=r"exporting dynamic \(db1\), a degenerate model: a constant prediction"):
+    with pytest.warns(UserWarning, match=r"exporting dynamic \(db1\), a degenerate model: identified delay_s"):
         assert main(["export", str(folder), "--element", "--model", "dynamic", "--out", str(tmp_path / "named")]) == 0
 
 

@@ -106,8 +106,7 @@ def _stack(trees):
 
 
 def fit_sequence_model(init: Callable, apply: Callable, x, y, mask, split: Split, seeds: int, cfg,
-                       batch_rows: int = 0, pointwise: bool = False, progress: Callable | None = None,
-                       chunk_evals: int = 10) -> Trained:
+                       pointwise: bool = False, progress: Callable | None = None, chunk_evals: int = 10) -> Trained:
     """Train one net per (fold, seed) on window sequences, all in one vmapped program.
 
     Args:
@@ -117,9 +116,6 @@ def fit_sequence_model(init: Callable, apply: Callable, x, y, mask, split: Split
         x: (R, W, C) inputs. y: (R, W) measured PVV, g. mask: (R, W) real windows.
         split: the folds. seeds: initialisation seeds per fold.
         cfg: `TrainConfig`.
-        batch_rows: rows (records) per gradient step, drawn anew each step from the fold's
-            training rows (`nets.train.minibatch`); 0, or at least a fold's training rows:
-            every row, every step.
         pointwise: `apply` maps each window on its own (a static map): train on the real
             windows alone, each a row of one window, instead of on padded records (the same
             loss; a record's padding is about half its windows).
@@ -137,16 +133,14 @@ def fit_sequence_model(init: Callable, apply: Callable, x, y, mask, split: Split
     else:
         n_train, n_val = max(int(r.sum()) for r in trains), max(int(v.sum()) for v in split.val)
         rows_of = lambda rows, n: _rows(x, y, mask, rows, n)  # noqa: E731
-    rows = batch_rows if 0 < batch_rows < min(int(r.sum()) for r in trains) and not pointwise else 0
-    params, data, keys = [], [], []
+    params, data = [], []
     for f, train_rows in enumerate(trains):
         sc = scaling(x[train_rows][mask[train_rows]], y[train_rows][mask[train_rows]])
         d = rows_of(train_rows, n_train) + rows_of(split.val[f], n_val)
         for s in range(seeds):
             params.append(init(jax.random.key(s), sc, (f, s)))
             data.append(train.Data(*d))
-            keys.append(jax.random.fold_in(jax.random.key(s), f + 1))  # the minibatches' draws
-    res = _train_chunked(_stack(params), _stack(data), jnp.stack(keys), cfg, apply, rows, progress, chunk_evals)
+    res = _train_chunked(_stack(params), _stack(data), cfg, apply, progress, chunk_evals)
     pred = jax.jit(jax.vmap(apply, in_axes=(0, None)))(res.params, x)
     shape = (len(split.labels), seeds)
     reshape = lambda a: np.asarray(a).reshape(shape + np.shape(a)[1:])  # noqa: E731
@@ -154,7 +148,7 @@ def fit_sequence_model(init: Callable, apply: Callable, x, y, mask, split: Split
                    reshape(res.failed_step))
 
 
-def _train_chunked(params, data, keys, cfg, apply, batch_rows: int, progress, chunk_evals: int) -> train.Fit:
+def _train_chunked(params, data, cfg, apply, progress, chunk_evals: int) -> train.Fit:
     """Every net to completion (`nets.train.run`, vmapped), `chunk_evals` evaluations at a
     time, looking in between: `progress` sees the step and the best validation RMS, and
     once half the nets still in the batch have stopped, they leave it (the rest continue in
@@ -164,13 +158,12 @@ def _train_chunked(params, data, keys, cfg, apply, batch_rows: int, progress, ch
     hp = train.hyper(cfg)
     consts = {k: v for k, v in params.items() if k not in train.TRAINABLE}
     init = jax.jit(jax.vmap(lambda p, d: train.init_state(p, d, hp, apply)))
-    chunk = jax.jit(jax.vmap(lambda st, c, d, k: train.run(st, c, d, cfg.eval_every, chunk_evals, apply, batch_rows,
-                                                          k)))
-    n = len(keys)
+    chunk = jax.jit(jax.vmap(lambda st, c, d: train.run(st, c, d, cfg.eval_every, chunk_evals, apply)))
+    n = len(jax.tree.leaves(data)[0])
     state, live = init(params, data), np.arange(n)  # live: which net each batch slot trains
     finished: dict = {}
     while len(live):
-        state = chunk(state, consts, data, keys)
+        state = chunk(state, consts, data)
         done = np.asarray(jax.vmap(train.done)(state))[: len(live)]
         if progress is not None:
             progress(int(np.max(state.step)), float(np.median(np.asarray(state.best_val)[: len(live)])),
@@ -184,7 +177,7 @@ def _train_chunked(params, data, keys, cfg, apply, batch_rows: int, progress, ch
         live = live[keep]
         if len(live):
             slots = np.concatenate([keep, np.full(_bucket(len(keep)) - len(keep), keep[0])])
-            state, consts, data, keys = jax.tree.map(lambda a: a[slots], (state, consts, data, keys))
+            state, consts, data = jax.tree.map(lambda a: a[slots], (state, consts, data))
     return jax.tree.map(lambda *a: jnp.stack(a), *(finished[i] for i in range(n)))
 
 

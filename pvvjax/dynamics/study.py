@@ -440,7 +440,7 @@ def element_model(folder: Path, cfg, model: str | None = None, database: str | N
                 raise ValueError(f"{where}: the element runs {', '.join(EXPORTABLE)}; this comparison holds "
                                  f"{', '.join(dict.fromkeys(table.model))}{' of ' + database if database else ''}: "
                                  "add one of them to dynamic.models and run `pvvjax dynamic` again")
-            why = "; ".join(f"{r.model} ({r.database}): {r.degenerate or 'no finite RMS'}" for r in pool.itertuples())
+            why = "; ".join(f"{r.model} ({r.database}): {r.degenerate or 'not marked best'}" for r in pool.itertuples())
             raise ValueError(f"{where}: no model is fit to export ({why}); name one with --model to export it "
                              "anyway")
         model, database = pick.model.iloc[0], pick.database.iloc[0]

@@ -27,8 +27,7 @@ from ._sums import pairwise_sum
 from .networks import mlp_apply
 
 __all__ = ["TRAINABLE", "Data", "Fit", "Hyper", "TrainState", "TrainingError", "condition_folds", "descend", "done",
-           "fit", "hyper", "init_state", "make_data", "masked_metrics", "minibatch", "optimizer", "result", "run",
-           "split_masks"]
+           "fit", "hyper", "init_state", "make_data", "masked_metrics", "optimizer", "result", "run", "split_masks"]
 
 
 class TrainingError(RuntimeError):
@@ -179,33 +178,23 @@ def make_data(x, y, w_train, w_val, n_train: int | None = None, n_val: int | Non
     return Data(*take(w_train, n_train), *take(w_val, n_val))
 
 
-def descend(loss, params, opt_state, optimizer: optax.GradientTransformation, steps: int, *args, xs=None):
-    """`steps` steps of an optax optimizer on `loss(params, *args)` (or, with `xs`, on
-    `loss(params, xs[i], *args)` at step i: a minibatch's key), as one scan: every training
-    in pvvjax takes its gradient steps here.
+def descend(loss, params, opt_state, optimizer: optax.GradientTransformation, steps: int, *args):
+    """`steps` steps of an optax optimizer on `loss(params, *args)`, as one scan: every
+    training in pvvjax takes its gradient steps here.
 
     Returns:
         (params, optimizer state, (steps,) the loss before each step).
     """
     value_and_grad = jax.value_and_grad(loss)
 
-    def step(carry, x):
+    def step(carry, _):
         p, s = carry
-        value, g = value_and_grad(p, *args) if xs is None else value_and_grad(p, x, *args)
+        value, g = value_and_grad(p, *args)
         upd, s = optimizer.update(g, s, p)
         return (optax.apply_updates(p, upd), s), value
 
-    (params, opt_state), values = jax.lax.scan(step, (params, opt_state), xs, length=steps)
+    (params, opt_state), values = jax.lax.scan(step, (params, opt_state), None, length=steps)
     return params, opt_state, values
-
-
-def minibatch(data: Data, key, rows: int) -> tuple:
-    """`rows` training rows drawn without replacement from those of weight > 0 (a padded
-    row never): (x, y, w) of one stochastic step. Rows, not windows, are drawn, so that a
-    sequence model sees whole records."""
-    w = data.w.reshape(data.w.shape[0], -1).max(axis=-1)
-    idx = jax.random.choice(key, w.shape[0], (rows,), replace=False, p=w / jnp.sum(w))
-    return data.x[idx], data.y[idx], data.w[idx]
 
 
 def init_state(params: dict, data: Data, hp: Hyper, apply=mlp_apply) -> TrainState:
@@ -226,24 +215,17 @@ def done(state: TrainState) -> jax.Array:
     return (state.step >= state.max_steps) | (state.since >= state.patience) | (state.failed >= 0)
 
 
-def run(state: TrainState, const: dict, data: Data, eval_every: int, max_evals=None, apply=mlp_apply,
-        batch_rows: int = 0, key=None) -> TrainState:
+def run(state: TrainState, const: dict, data: Data, eval_every: int, max_evals=None, apply=mlp_apply) -> TrainState:
     """Continue training one net for at most `max_evals` evaluations (None: until done).
 
     Each evaluation follows `eval_every` optimizer steps (static: the inner scan's length);
     the weights of the best validation RMS are kept, and training stops after the state's
     patience in evaluations without improvement, at its step budget, or at the first
     non-finite or diverging loss. Only weights and biases train: masks and scalings
-    (`const`) are constants. With `batch_rows` (static) each step takes the gradient on
-    that many training rows (`minibatch`), drawn by `key` folded with the step: the same
-    key, the same draws; 0 trains on every row.
+    (`const`) are constants.
     """
     full = lambda t: {**const, **t}  # noqa: E731
-    loss_of = lambda t, x, y, w: _wmse(apply(full(t), x), y, w, const["y_scale"])  # noqa: E731
-    if batch_rows:
-        loss_fn = lambda t, k: loss_of(t, *minibatch(data, k, batch_rows))  # noqa: E731
-    else:
-        loss_fn = lambda t: loss_of(t, data.x, data.y, data.w)  # noqa: E731
+    loss_fn = lambda t: _wmse(apply(full(t), data.x), data.y, data.w, const["y_scale"])  # noqa: E731
 
     def cond(c):
         st, n = c
@@ -252,9 +234,7 @@ def run(state: TrainState, const: dict, data: Data, eval_every: int, max_evals=N
 
     def body(c):
         st, n = c
-        keys = (jax.vmap(lambda i: jax.random.fold_in(key, i))(st.step + jnp.arange(eval_every))
-                if batch_rows else None)
-        t, s, losses = descend(loss_fn, *st.opt, optimizer(), eval_every, xs=keys)
+        t, s, losses = descend(loss_fn, *st.opt, optimizer(), eval_every)
         o, bad = (t, s), jnp.any(~jnp.isfinite(losses) | (losses > state.limit))
         stp = st.step + eval_every
         val = _wrms(apply(full(o[0]), data.x_val), data.y_val, data.w_val)
@@ -275,16 +255,13 @@ def result(state: TrainState, const: dict) -> Fit:
     return Fit({**const, **state.best}, state.best_step, state.best_val, state.step, state.failed)
 
 
-def fit(params: dict, data: Data, cfg, apply=mlp_apply, hp: Hyper | None = None, batch_rows: int = 0,
-        key=None) -> Fit:
+def fit(params: dict, data: Data, cfg, apply=mlp_apply, hp: Hyper | None = None) -> Fit:
     """Train one net to completion (pure; jit and vmap it): the per-net reference of
     `batched.train_nets`. `cfg`: a `TrainConfig` (its `eval_every` is static); `hp`: the
-    traced settings (default: the config's); `batch_rows` and `key`: minibatches of rows
-    (`run`; static size, 0: full batch). See `run` and `make_data`."""
+    traced settings (default: the config's). See `run` and `make_data`."""
     _, const = _split(params)
     hp = hyper(cfg) if hp is None else hp
-    state = init_state(params, data, hp, apply)
-    return result(run(state, const, data, cfg.eval_every, apply=apply, batch_rows=batch_rows, key=key), const)
+    return result(run(init_state(params, data, hp, apply), const, data, cfg.eval_every, apply=apply), const)
 
 
 def masked_metrics(pred, y, w) -> dict:
