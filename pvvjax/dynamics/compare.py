@@ -155,12 +155,11 @@ def _train_chunked(params, data, cfg, apply, progress, chunk_evals: int) -> trai
     a batch of the next power of two, padded with copies whose results are dropped), so
     that the work follows the nets still training. A net trains to the same numbers in any
     batch (`nets.train`: its sums do not depend on the batch)."""
-    hp = train.hyper(cfg)
     consts = {k: v for k, v in params.items() if k not in train.TRAINABLE}
-    init = jax.jit(jax.vmap(lambda p, d: train.init_state(p, d, hp, apply)))
+    init = jax.jit(jax.vmap(lambda p, d, h: train.init_state(p, d, h, apply), in_axes=(0, 0, None)))  # h traced
     chunk = jax.jit(jax.vmap(lambda st, c, d: train.run(st, c, d, cfg.eval_every, chunk_evals, apply)))
     n = len(jax.tree.leaves(data)[0])
-    state, live = init(params, data), np.arange(n)  # live: which net each batch slot trains
+    state, live = init(params, data, train.hyper(cfg)), np.arange(n)  # live: which net each batch slot trains
     finished: dict = {}
     while len(live):
         state = chunk(state, consts, data)
