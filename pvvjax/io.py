@@ -13,7 +13,7 @@ import pyarrow.parquet as pq
 
 from ._strict import to_dict
 
-__all__ = ["OWNER_FILE", "ResultsFolderError", "claim_folder", "markdown_table", "new_file", "own_folder",
+__all__ = ["OWNER_FILE", "ResultsFolderError", "claim_folder", "listed", "markdown_table", "new_file", "own_folder",
            "read_table", "refuse_in_campaign", "write_config", "write_table"]
 
 _META_KEY = b"pvvjax.config"
@@ -36,6 +36,13 @@ def _flat(tree, prefix=""):
 # Files by which a folder without an owner record is known as pvvjax's results.
 _RESULTS = ("report.md", "results.parquet", "discovery.json", "config.toml", "windows.parquet", "databases",
             "calibration.parquet", "summary.parquet")
+
+
+def listed(items, most: int = 5, sep: str = ", ") -> str:
+    """At most `most` items joined by `sep`, then how many more there are: a message names
+    the files, records or conditions at fault without listing hundreds."""
+    items = [str(i) for i in items]
+    return sep.join(items[:most]) + (f"{sep}and {len(items) - most} more" if len(items) > most else "")
 
 
 def refuse_in_campaign(path: str | Path, itself: bool = True) -> None:
@@ -151,7 +158,7 @@ def claim_folder(out: str | Path, settings: dict, campaign: str, log=print) -> P
                  for k in sorted(set(was) | set(now)) if was.get(k) != now.get(k)]
         if old.get("campaign") != campaign:
             diffs.append(f"campaign content: fingerprint {old.get('campaign')} there, {campaign} now")
-        shown = "; ".join(diffs[:5]) + (f"; and {len(diffs) - 5} more" if len(diffs) > 5 else "")
+        shown = listed(diffs, sep="; ")
         raise ResultsFolderError(f"{out}: holds the results of other settings ({shown}); give another output "
                                  "folder, or delete this one to start over")
     parent = next((p for p in out.resolve().parents if (p / OWNER_FILE).exists()), None)

@@ -23,6 +23,7 @@ from ..config import AnalysisConfig
 from ..data.batch import bucket_size, to_batch
 from ..data.campaign import Campaign
 from ..data.features import derive_features
+from ..io import listed
 from .axes import AXES, analyze_axes, resolved_harmonics
 from .harmonics import Windows, analyze
 
@@ -123,28 +124,28 @@ def campaign_axes(campaign: Campaign) -> tuple[str, ...]:
 
     out = []
     for axis in AXES:
-        lacking = [c for c, r in campaign.records.items() if axis not in r.columns]
+        lacking = _lacking(campaign, axis)
         if not lacking:
             out.append(axis)
         elif len(lacking) < len(campaign.records):
             warnings.warn(f"campaign {campaign.source}: {axis} is in {len(campaign.records) - len(lacking)} of "
-                          f"{len(campaign.records)} records and missing from {_listed(lacking)}: left out of the "
+                          f"{len(campaign.records)} records and missing from {listed(lacking)}: left out of the "
                           "per-axis tables and the three-axis study (give it in every record, or in none)",
                           CampaignWarning, stacklevel=2)
     return tuple(out)
 
 
-def _listed(items, most: int = 6) -> str:
-    items = list(items)
-    return ", ".join(items[:most]) + (f" and {len(items) - most} more" if len(items) > most else "")
+def _lacking(campaign: Campaign, axis: str) -> list[str]:
+    """The records of `campaign` without an `axis` column."""
+    return [c for c, r in campaign.records.items() if axis not in r.columns]
 
 
 def require_axis(campaign: Campaign, axis: str, key: str = "analysis.axis") -> None:
     """Refuse, naming `key` and the records, an analysis of an axis some record lacks."""
-    lacking = [c for c, r in campaign.records.items() if axis not in r.columns]
+    lacking = _lacking(campaign, axis)
     if lacking:
         raise ValueError(f"{key} = {axis!r}: campaign {campaign.source} has no {axis} channel in "
-                         f"{len(lacking)} of {len(campaign.records)} records ({_listed(lacking)}); its axes in every "
+                         f"{len(lacking)} of {len(campaign.records)} records ({listed(lacking)}); its axes in every "
                          f"record: {', '.join(campaign_axes(campaign))}")
 
 

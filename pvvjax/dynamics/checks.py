@@ -16,6 +16,7 @@ import jax
 import numpy as np
 
 from ..config import ZETA_RANGE
+from ..io import listed
 
 __all__ = ["ResponseLimits", "check_dynamic", "constant_rows", "parameter_problems", "prediction_problems",
            "response_limits"]
@@ -53,13 +54,14 @@ def response_limits(record_s: float, window_spacing_s: float) -> ResponseLimits:
                           float(record_s), float(rate))
 
 
-def _campaign_limits(campaign, hop_revs: float) -> tuple[ResponseLimits, float]:
-    """(the response's limits, the shortest condition's duration, s) of a campaign whose
-    conditions' records are joined in time, windows `hop_revs` apart."""
+def _campaign_limits(campaign, hop_revs: float) -> tuple[ResponseLimits, float, float]:
+    """(the response's limits, the shortest condition's duration, s, a revolution, s) of a
+    campaign whose conditions' records are joined in time, windows `hop_revs` apart."""
     dur = {c: float(r.time_s.iloc[-1] - r.time_s.iloc[0]) for c, r in campaign.records.items()}
     per_condition = [sum(dur[c] for c in cs) for cs in campaign.conditions().values()]
     rpm = float(np.median([np.median(r.rotor_rpm) for r in campaign.records.values()]))
-    return response_limits(float(np.median(per_condition)), hop_revs * 60.0 / rpm), float(min(per_condition))
+    rev_s = 60.0 / rpm
+    return response_limits(float(np.median(per_condition)), hop_revs * rev_s), float(min(per_condition)), rev_s
 
 
 def check_dynamic(cfg, campaign) -> None:
@@ -74,8 +76,7 @@ def check_dynamic(cfg, campaign) -> None:
 
     dc = cfg.dynamic
     require_axis(campaign, cfg.analysis.axis)
-    lim, shortest = _campaign_limits(campaign, dc.hop_revs)
-    rev_s = lim.window_rate_hz ** -1 / dc.hop_revs
+    lim, shortest, rev_s = _campaign_limits(campaign, dc.hop_revs)
     checks = [("f_n_hz", dc.f_n_hz, lim.f_n_hz, "Hz", "a period within 2π x the median record "
                f"({lim.record_s:.3g} s) and at most half the window rate ({lim.window_rate_hz:.3g} windows/s: "
                "dynamic.hop_revs)"),
@@ -129,11 +130,11 @@ def prediction_problems(pred, measured, mask, conditions) -> list[str]:
     missing = [c for c, p, m in zip(conditions, pred, mask) if m.any() and not np.isfinite(p[m]).all()]
     if missing:
         out.append(f"no finite prediction on {len(missing)} of {len(conditions)} conditions "
-                   f"({_names(missing)})")
+                   f"({listed(missing)})")
     flat = [c for c, bad in zip(conditions, constant_rows(pred, measured, mask)) if bad]
     if flat:
         out.append(f"a constant prediction through {len(flat)} condition(s) whose vibration varies "
-                   f"({_names(flat)})")
+                   f"({listed(flat)})")
     return out
 
 
@@ -155,6 +156,3 @@ def parameter_problems(params, limits: ResponseLimits | None = None) -> list[str
     return out
 
 
-def _names(items, most: int = 5) -> str:
-    items = list(items)
-    return ", ".join(items[:most]) + (f" and {len(items) - most} more" if len(items) > most else "")

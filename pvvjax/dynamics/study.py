@@ -96,7 +96,7 @@ def prepare_database(campaign, cfg, db: str) -> Database:
         kinds = compare.kind_split(seq.conditions, seq.maneuvers, dc.folds, cfg.seed)
         why = compare.split_problem(kinds)
         if why:
-            skipped.append(f"{db}: the split by maneuver kind (dynamic.kind_holdout) is not scored: {why}")
+            skipped.append(f"the split by maneuver kind (dynamic.kind_holdout) is not scored: {why}")
         else:
             splits.append(kinds)
     return Database(db, seq, long, peaks[list(inputs)].to_numpy(np.float64), peaks[OUTPUT].to_numpy(np.float64),
@@ -193,7 +193,7 @@ def comparison_table(parts: dict, cfg) -> pd.DataFrame:
                                                    cfg.dynamic.transients, d.nominal_g)["rms_g"]
             elif cfg.dynamic.kind_holdout:
                 row["rms_kind_holdout_g"] = float("nan")
-                notes += [n.split(": ", 1)[1] for n in d.skipped]
+                notes += list(d.skipped)
             row["nominal_cruise_g"] = d.nominal_g
             row["median_best_step"] = float(np.median(arrays["best_step"]))
             failed = int((np.asarray(arrays["failed_step"]) >= 0).sum())
