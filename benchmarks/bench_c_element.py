@@ -115,7 +115,7 @@ def main():
     if args.dynamic:
         em = element_model(Path(args.dynamic), load_config(Path(args.dynamic) / "config.toml"), args.model)
         nets = [NumpyNet(p, m) for p, m in em.nets]
-        arch, inputs = f"{em.model} ({em.database})", list(DB_INPUTS[em.database])
+        arch, inputs = f"{em.model} ({em.database})", list(em.nets[0][1]["inputs"])
         kw = dict(window_revs=em.window_revs, hop_revs=em.hop_revs, offset_s=em.offset_s, stick_offset_s=0.0)
         extra = {} if em.response is None else {"response": em.response}
     else:

@@ -6,8 +6,9 @@
 2. A synthetic campaign of that aircraft (UH-60A-like physics scaled to its 2-bladed rotor:
    a stand-in until measured data exist) trains the config's nets (`pvvjax sweep`), exported as
    the element (`pvvjax export --element`: NumPy; and C, `--format c`, where a C compiler is).
-   With `model = "dynamic"` the nets are `pvvjax dynamic`'s physics-shaped model instead (the
-   config's [dynamic] and [train]), its delay and second-order response in the element; with
+   With `model = "dynamic"` the element is `pvvjax dynamic`'s `best` model instead (the config's
+   [dynamic] and [train]: the lowest held-out RMS of its models, with the physics-shaped
+   model's delay and response, the rates or the GRU's state where the best has them); with
    `model = "axes"` they are `pvvjax axes`'s nets of three outputs (the config's [axes]), and the
    element shakes the seat in three axes (its 2/rev N/rev on the AH-1S's two blades, with each
    axis's 1/rev of track and balance).
@@ -83,8 +84,8 @@ class JSBSimFlightConfig:
         counts: the campaign's random conditions per maneuver kind (empty: the default campaign).
         database, offset_s, window_revs, hop_revs: the quasi-static element (`pvvjax export
             --element`).
-        model: "quasi_static" (the sweep's nets, replayed), "dynamic" (`pvvjax dynamic`'s
-            dynamic model of `database`, with its own windows and response) or "axes" (`pvvjax
+        model: "quasi_static" (the sweep's nets, replayed), "dynamic" (`pvvjax dynamic`'s best
+            model of `database`, with its own windows) or "axes" (`pvvjax
             axes`'s nets of `database`, one output per pilot-floor axis: a three-axis shake).
         sweep, train, dynamic, axes: the nets (as an experiment config's sections).
         flights: name -> `Flight`.
@@ -140,8 +141,7 @@ def train_element(cfg: JSBSimFlightConfig, out: Path) -> tuple[Path, Path | None
 
         folder, table = run_dynamic(ecfg, resolve_campaign(ecfg)[0], campaign, out / "dynamic")
         print(table[["model", "rms_g", "faa_pass_share", "best"]].to_string(index=False))
-        export = [sys.executable, "-m", "pvvjax", "export", str(folder), "--element", "--model", "dynamic",
-                  "--database", cfg.database]
+        export = [sys.executable, "-m", "pvvjax", "export", str(folder), "--element", "--database", cfg.database]
     else:
         _, _, res, sweep = prepare_sweep(ecfg, out / "sweep")
         print(f"{len(res)} nets in {sweep}")

@@ -333,9 +333,9 @@ def _export_flags(kind, flags, needle):
     return case
 
 
-def _comparison_of(models, degenerate, needle):
+def _comparison_of(models, degenerate, needle, flags=()):
     """A `pvvjax dynamic` folder whose comparison holds `models` of db1 (each `degenerate`
-    as given, none `best`): its default export is refused, naming why."""
+    as given, none `best`): its default export (with `flags`) is refused, naming why."""
     def case(tmp_path):
         import pandas as pd
 
@@ -344,7 +344,7 @@ def _comparison_of(models, degenerate, needle):
         pd.DataFrame(dict(database="db1", model=models, rms_g=0.05, degenerate=degenerate,
                           best=False)).to_parquet(folder / "comparison.parquet")
         (folder / "config.toml").write_text("")
-        return ["export", str(folder), "--element", "--out", str(tmp_path / "e")], needle
+        return ["export", str(folder), "--element", *flags, "--out", str(tmp_path / "e")], needle
     return case
 
 
@@ -483,8 +483,8 @@ CLI_KINDS = {
     "export an axes study's nets with --net": _export_flags("axes", ["--element", "--net", "3"],
                                                             "--net: not used when exporting the nets of a `pvvjax "
                                                             "axes` study"),
-    "export a comparison holding no model the element runs": _comparison_of(["rnn", "window_static_rates"], "",
-                                                                             "the element runs quasi_static"),
+    "export a database the comparison lacks": _comparison_of(["rnn", "window_static_rates"], "",
+                                                             "no model of db2: it compares db1", ["--database", "db2"]),
     "export a comparison whose every model is degenerate": _comparison_of(
         ["quasi_static", "dynamic"], "a constant prediction", "no model is fit to export (quasi_static (db1): a "
                                                               "constant prediction"),

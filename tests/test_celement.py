@@ -279,3 +279,66 @@ def test_a_three_axis_fmu_declares_and_computes_every_axis(element, three_axis, 
     want = np.array([[getattr(o, k) for k in AXES] for o in (ref.step(t, az, x) for t, az, x in zip(T, AZ, X))])
     got = np.stack([res[k] for k in AXES], 1)[1:]
     np.testing.assert_allclose(got, want[:len(got)], rtol=0, atol=TOL)
+
+
+@pytest.fixture(scope="module")
+def sequence_elements(element, tmp_path_factory):
+    """The elements of the `_rates` map (MLPs on db1's inputs and their rates) and of the GRU
+    (on the same inputs, its state carried from window to window), with 2-rev windows and an
+    envelope that flags some windows, compiled as C."""
+    from pvvjax.dynamics import rnn_init, window_sequences
+    from pvvjax.nets.networks import scaling
+
+    camp = element["camp"]
+    seq = window_sequences(camp, DB_INPUTS["db1"], window_revs=2.0, hop_revs=1.0, rates=True)
+    x, y = seq.inputs[seq.mask].astype(np.float32), seq.amplitude[seq.mask].astype(np.float32)
+    lo, hi = x.min(0), x.max(0)
+    env = (lo, lo + 0.7 * (hi - lo))
+    out = {}
+    for model in ("window_static_rates", "rnn"):
+        params = [mlp_init(jax.random.key(s), x.shape[1], (8, 4), scale=scaling(x, y)) if model != "rnn"
+                  else rnn_init(jax.random.key(s), x.shape[1], 5, scale=scaling(x, y)) for s in range(3)]
+        nets = [NumpyNet(jax.tree.map(np.asarray, p)) for p in params]
+        spec = {**element["spec"], **DYNAMIC, "inputs": list(seq.names),
+                "envelope": dict(lo=[float(v) for v in env[0]], hi=[float(v) for v in env[1]])}
+        limits = CSourceLimits(window_revs=(2.0, 16.0))
+        folder = write_c_element(tmp_path_factory.mktemp(model), spec, nets, limits, source="test nets")
+        lib = compile_shared([folder / "pvv_element.c"], folder / "libpvv.so",
+                             flags=("-O2", "-Wall", "-Wextra", "-pedantic", "-Werror"))
+        reference = (lambda nets=nets: VibrationElement(nets, seq.names, envelope=env, phase_rad=0.3,  # noqa: E731
+                                                        harmonics={1: (0.2, 0.5), 8: (0.1, -1.0)}, **DYNAMIC))
+        out[model] = dict(spec=spec, nets=nets, lib=lib, reference=reference, limits=limits)
+    return out
+
+
+@pytest.mark.parametrize("model, kind", [("window_static_rates", "pullup"), ("window_static_rates", "roll"),
+                                         ("rnn", "pullup"), ("rnn", "autorotation")])
+def test_a_c_element_of_rates_or_a_gru_equals_the_numpy_element(element, sequence_elements, model, kind):
+    """Frame by frame within 1e-6 g, with rejected frames and a reset part-way (the rates
+    and the GRU's state start again from the first window)."""
+    T, AZ, X = _frames(element["camp"], kind)
+    frames = list(zip(T, AZ, X))
+    frames.insert(300, (T[300], AZ[300], np.where(np.arange(X.shape[1]) == 0, np.inf, X[300])))
+    ref, c = sequence_elements[model]["reference"](), CElement(sequence_elements[model]["lib"])
+    worst, flags = _compare(ref, c, frames)
+    assert worst < TOL and any(flags)
+    ref.reset()
+    c.reset()
+    worst, _ = _compare(ref, c, frames[:400])
+    assert worst < TOL
+
+
+def test_an_fmu_of_the_gru_element_simulates_as_the_numpy_element(element, sequence_elements, tmp_path):
+    fmpy = pytest.importorskip("fmpy", reason="FMPy is in the sim extra (make test installs it)")
+    from pvvjax.realtime.fmu import build_fmu
+
+    e = sequence_elements["rnn"]
+    fmu = build_fmu(tmp_path / "pvv_element.fmu", e["spec"], e["nets"], e["limits"])
+    T, AZ, X = _frames(element["camp"], "roll")
+    dt = float(np.median(np.diff(T)))
+    res = fmpy.simulate_fmu(str(fmu), start_time=T[0], stop_time=T[-1], step_size=dt, output_interval=dt,
+                            input=_fmu_input(fmu, T, AZ, X), output=["pvv_g"])
+    ref = e["reference"]()
+    want = np.array([ref.step(t, az, x).pvv_g for t, az, x in zip(T, AZ, X)])
+    got = res["pvv_g"][1:]
+    np.testing.assert_allclose(got, want[:len(got)], rtol=0, atol=TOL)

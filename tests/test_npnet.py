@@ -30,3 +30,29 @@ def test_numpy_evaluator_imports_no_jax():
     code = "import sys, pvvjax.realtime.npnet; assert 'jax' not in sys.modules, 'jax imported'; print('ok')"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr
+
+
+def test_a_gru_evaluates_as_the_recurrent_model_and_steps_window_by_window(tmp_path):
+    """A saved `rnn` model (a GRU with its standardisation) evaluates as `dynamics.rnn_apply`
+    along a sequence from a zero state, and `step` from `initial_state` gives the same
+    windows one at a time."""
+    import jax.numpy as jnp
+
+    from pvvjax.dynamics import rnn_apply, rnn_init
+
+    rng = np.random.default_rng(1)
+    x = rng.normal([0.25, 16000, 0.0], [0.1, 2000, 3.0], (4, 40, 3))
+    scale = dict(x_shift=jnp.array([0.25, 16000, 0.0]), x_scale=jnp.array([0.1, 2000, 3.0]),
+                 y_shift=jnp.array(0.1), y_scale=jnp.array(0.05))
+    p = rnn_init(jax.random.key(2), 3, 6, scale=scale)
+    save_params(tmp_path / "gru.npz", jax.tree.map(np.asarray, p), {})
+    net = NumpyNet.load(tmp_path / "gru.npz")
+    assert net.stateful and net.hidden == 6 and net.n_in == 3
+    want = np.asarray(rnn_apply(p, jnp.asarray(x, jnp.float32)))
+    np.testing.assert_allclose(net(x), want, atol=1e-6)
+    h, got = net.initial_state(), []
+    for w in range(x.shape[1]):
+        h, y = net.step(h, x[1, w])
+        got.append(y)
+    np.testing.assert_allclose(got, net(x)[1], rtol=0, atol=1e-12)
+    assert np.ptp(want[1]) > 1e-3  # the state moves the prediction

@@ -123,10 +123,10 @@ def test_out_of_envelope_is_flagged_and_clipped(setup):
     # would be extrapolated.
     x = X[len(X) // 2].copy()
     x[CHANNELS.index("airspeed_kt")] = 1e4
-    z, flag = el._net_inputs(x)
+    z, flag = el._net_inputs(x, 0.0)
     assert flag and np.all(z >= narrow[0]) and np.all(z <= narrow[1])
     free = VibrationElement(nets, DB_INPUTS["db1"], envelope=narrow, clip=False)
-    z2, flag2 = free._net_inputs(x)
+    z2, flag2 = free._net_inputs(x, 0.0)
     assert flag2 and z2.max() > narrow[1].max()
 
 
@@ -221,3 +221,34 @@ def test_each_axis_of_a_three_axis_element_is_the_element_of_that_output(setup, 
     assert o.ready and o.pvv_g == o.pvv_y_g  # the first output is pvv_g
     with pytest.raises(ValueError, match="each one of ax_g, ay_g, az_g, at most once"):
         VibrationElement([], DB_INPUTS["db1"], outputs=("az_g", "az_g"))
+
+
+@pytest.mark.parametrize("model", ["window_static_rates", "rnn"])
+def test_an_element_of_rates_and_a_recurrent_state_equals_the_model_on_the_training_windows(setup, model):
+    """An element whose nets take the inputs' rates (an MLP) or carry a state (a GRU) predicts,
+    window by window, what the model predicts on `dynamics.window_sequences` of the record:
+    the rates are backward differences of the window averages over their centre times (0 at
+    the first window), and the GRU's state runs from zero along the windows."""
+    import jax.numpy as jnp
+
+    from pvvjax.dynamics import rnn_apply, rnn_init, window_sequences
+    from pvvjax.nets.networks import mlp_apply, mlp_init, scaling
+
+    camp, _, _ = setup
+    counter = camp.counters.index[camp.counters.maneuver == "pullup"][0]
+    seq = window_sequences(camp, DB_INPUTS["db1"], window_revs=2.0, hop_revs=1.0, rates=True, counters=[counter])
+    n = int(seq.mask[0].sum())
+    x = seq.inputs[0, :n]
+    sc = scaling(x.astype(np.float32), seq.amplitude[0, :n].astype(np.float32))
+    params = [jax.tree.map(np.asarray, mlp_init(jax.random.key(s), x.shape[1], (8, 4), scale=sc) if model != "rnn"
+                           else rnn_init(jax.random.key(s), x.shape[1], 6, scale=sc)) for s in range(3)]
+    apply = rnn_apply if model == "rnn" else mlp_apply
+    offline = np.median([np.asarray(apply(p, jnp.asarray(x, jnp.float32))) for p in params], axis=0)
+    el = VibrationElement([NumpyNet(p) for p in params], seq.names, window_revs=2.0, hop_revs=1.0)
+    streamed = _stream(el, *_frames(camp, counter))
+    j = np.array(sorted(streamed))
+    assert len(j) == n
+    np.testing.assert_allclose([streamed[k] for k in j], offline, rtol=0, atol=2e-5)
+    assert np.ptp(np.diff(offline)) > 1e-3
+    with pytest.raises(ValueError, match="d_<name>_dt"):
+        VibrationElement(el.nets, ["d_airspeed_dt"])

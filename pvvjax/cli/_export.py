@@ -117,8 +117,10 @@ def _export_dynamic_element(args, folder: Path) -> int:
     em = element_model(folder, cfg, args.model, args.database)
     campaign, _ = resolve_campaign(cfg)
     counters = sorted(set(pd.read_parquet(folder / "predictions.parquet", columns=["counter"]).counter))
-    seq = window_sequences(campaign, em.nets[0][1]["inputs"], window_revs=em.window_revs, hop_revs=em.hop_revs,
-                           counters=counters)
+    inputs = em.nets[0][1]["inputs"]
+    plain = [n for n in inputs if not n.startswith("d_")]
+    seq = window_sequences(campaign, plain, window_revs=em.window_revs, hop_revs=em.hop_revs, counters=counters,
+                           rates=len(plain) < len(inputs), chain=True)
     x = seq.inputs[seq.mask]
     spec = element_spec([f"net_{i}.npz" for i in range(len(em.nets))], em.nets[0][1]["inputs"],
                         (x.min(axis=0), x.max(axis=0)), campaign, cfg.analysis.window_revs,

@@ -141,7 +141,8 @@ def _net_commands(sub):
                                    "FMI 2.0 co-simulation FMU.")
     s.add_argument("sweep", help="sweep folder (with results.parquet and params/), or with --element the folder of "
                                  "`pvvjax dynamic` (its best model, or --model)")
-    s.add_argument("--model", default=None, choices=["quasi_static", "window_static", "dynamic"],
+    s.add_argument("--model", default=None, choices=["quasi_static", "window_static", "window_static_rates",
+                                                      "dynamic", "rnn"],
                    help="element from a `pvvjax dynamic` folder: the model, of --database (default: the comparison's "
                         "best; its window, hop and offset are the comparison's)")
     s.add_argument("--out", required=True, help="output folder")

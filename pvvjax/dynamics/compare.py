@@ -22,9 +22,9 @@ from ..nets.networks import mlp_apply, mlp_init, scaling
 from .models import dynamic_apply, dynamic_init, identified, rnn_apply, rnn_init
 from .sequences import Sequences
 
-__all__ = ["APPLY", "Split", "Trained", "condition_split", "dynamic_model_init", "fit_peak_map", "fit_sequence_model",
-           "heldout", "identified_table", "kind_split", "model_inputs", "offset_replay", "recurrent_init",
-           "split_problem", "static_init"]
+__all__ = ["APPLY", "WITH_RATES", "Split", "Trained", "condition_split", "dynamic_model_init", "fit_peak_map",
+           "fit_sequence_model", "heldout", "identified_table", "kind_split", "model_inputs", "offset_replay",
+           "recurrent_init", "split_problem", "static_init"]
 
 
 class Split(NamedTuple):
@@ -88,15 +88,19 @@ class Trained(NamedTuple):
     failed_step: np.ndarray
 
 
+# Models that take the database inputs' rates beside them (`model_inputs`).
+WITH_RATES = ("window_static_rates", "rnn")
+
+
 def model_inputs(seq: Sequences, model: str) -> np.ndarray:
     """A model's inputs (R, W, C) from a sequence: the database inputs (window_static), with
-    their rates (window_static_rates, rnn), or followed by the window times (dynamic)."""
+    their rates (`WITH_RATES`), or followed by the window times (dynamic)."""
     plain = [i for i, n in enumerate(seq.names) if not n.startswith("d_")]
     if model == "window_static":
         return seq.inputs[..., plain]
     if model == "dynamic":
         return np.concatenate([seq.inputs[..., plain], seq.time[..., None]], axis=-1)
-    if model in ("window_static_rates", "rnn"):
+    if model in WITH_RATES:
         return seq.inputs
     raise ValueError(f"{model!r} is not a sequence model")
 

@@ -32,7 +32,7 @@ __all__ = ["EXPORTABLE", "PAPER_PULLUP", "Database", "ElementModel", "comparison
            "run_comparison", "run_dynamic", "run_parts", "sequence_limits", "shown_conditions"]
 
 # Models the real-time element runs (`pvvjax export --element`): `best` is chosen among them.
-EXPORTABLE = ("quasi_static", "window_static", "dynamic")
+EXPORTABLE = ("quasi_static", "window_static", "window_static_rates", "dynamic", "rnn")
 # Models that map each window on its own: they train on the real windows alone.
 POINTWISE = ("window_static", "window_static_rates")
 
@@ -435,11 +435,10 @@ def element_model(folder: Path, cfg, model: str | None = None, database: str | N
     if model is None:
         pick = table[table.best & ((table.database == database) if database else True)]
         if pick.empty:
-            pool = table[table.model.isin(EXPORTABLE) & ((table.database == database) if database else True)]
+            pool = table if database is None else table[table.database == database]
             if pool.empty:
-                raise ValueError(f"{where}: the element runs {', '.join(EXPORTABLE)}; this comparison holds "
-                                 f"{', '.join(dict.fromkeys(table.model))}{' of ' + database if database else ''}: "
-                                 "add one of them to dynamic.models and run `pvvjax dynamic` again")
+                raise ValueError(f"{where}: no model of {database}: it compares "
+                                 f"{', '.join(dict.fromkeys(table.database))}")
             why = "; ".join(f"{r.model} ({r.database}): {r.degenerate or 'not marked best'}" for r in pool.itertuples())
             raise ValueError(f"{where}: no model is fit to export ({why}); name one with --model to export it "
                              "anyway")
@@ -454,8 +453,11 @@ def element_model(folder: Path, cfg, model: str | None = None, database: str | N
     if rows.degenerate.iloc[0]:
         warnings.warn(f"exporting {model} ({database}), a degenerate model: {rows.degenerate.iloc[0]}", stacklevel=2)
     stacked, _ = read_npz(Path(folder) / "parts" / f"{database}-condition-{model}.params.npz")
-    folds, seeds = np.shape(stacked["y_scale"])
-    meta = {"inputs": list(DB_INPUTS[database]), "model": model}
+    folds, seeds = np.shape(stacked["y_scale"])[:2]
+    inputs = list(DB_INPUTS[database])
+    if model in compare.WITH_RATES:
+        inputs += [f"d_{n}_dt" for n in inputs]
+    meta = {"inputs": inputs, "model": model}
     nets = [({k: v for k, v in jax.tree.map(lambda a: a[f, s], stacked).items() if k != "response"}, meta)
             for f in range(folds) for s in range(seeds)]
     response = None

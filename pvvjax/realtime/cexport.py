@@ -3,9 +3,10 @@
 `c_sources` turns an element (its `element.json` settings and its nets as `NumpyNet`) into C:
 the nets' weights become constants (input and output scalings already folded in, padding
 dropped), and the element's arithmetic is `csrc/pvv_element.c`, the NumPy element line by line.
-The frame buffers have a fixed size, chosen here from the highest frame rate, the lowest rotor
-speed and the largest window and offsets a host may set; nothing is allocated at run time.
-Imports NumPy only.
+Inputs may be features or their rates (`element.input_source`), nets MLP, RBF or GRU (whose
+state the element carries from window to window). The frame buffers have a fixed size, chosen
+here from the highest frame rate, the lowest rotor speed and the largest window and offsets a
+host may set; nothing is allocated at run time. Imports NumPy only.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .element import AIRCRAFT_DEFAULTS, AXIS_OUTPUTS, CHANNELS, FEATURES, shake_settings
+from .element import AIRCRAFT_DEFAULTS, AXIS_OUTPUTS, CHANNELS, FEATURES, input_source, shake_settings
 
 __all__ = ["CElement", "CSourceLimits", "buffer_capacity", "c_compiler", "c_sources", "compile_shared",
            "write_c_element"]
@@ -103,11 +104,17 @@ def _array(name: str, values, ctype: str = "double") -> str:
 
 
 def _net_source(k: int, net) -> str:
-    """Constants and the evaluating function `net{k}(z, out)` of one `NumpyNet` (MLP or RBF),
-    writing its `n_out` outputs."""
+    """Constants and the evaluating function `net{k}(z, state, out)` of one `NumpyNet` (MLP,
+    RBF or GRU), writing its `n_out` outputs; a GRU advances its `state` in place."""
     p = f"NET{k}_"
     out = []
-    if net.kind == "mlp":
+    if net.kind == "gru":
+        out += [_array(f"{p}WI", net.w_i), _array(f"{p}BI", net.b_i), _array(f"{p}WH", net.w_h),
+                _array(f"{p}WHN", net.w_hn), _array(f"{p}BHN", net.b_hn), _array(f"{p}WOUT", net.w_out)]
+        body = [f"    double next[{net.hidden}];",
+                f"    out[0] = gru(z, {net.n_in}, {net.hidden}, {p}WI, {p}BI, {p}WH, {p}WHN, {p}BHN, {p}WOUT, "
+                f"{_num(net.b_out)}, state, next);"]
+    elif net.kind == "mlp":
         widths = [w.shape[1] for w in net.w[:-1]]
         for i, (w, b) in enumerate(zip(net.w[:-1], net.b[:-1])):
             out += [_array(f"{p}W{i}", w), _array(f"{p}B{i}", b)]
@@ -126,7 +133,10 @@ def _net_source(k: int, net) -> str:
                 _array(f"{p}INV2W2", np.broadcast_to(net.inv2w2, (n_c,))), _array(f"{p}WO", net.wo)]
         body = [f"    out[0] = rbf(z, {net.n_in}, {n_c}, {p}SHIFT, {p}SCALE, {p}CENTERS, {p}INV2W2, {p}WO, "
                 f"{_num(net.bo)});"]
-    return "".join(out) + f"static void net{k}(const double *z, double *out)\n{{\n" + "\n".join(body) + "\n}\n"
+    if net.kind != "gru":
+        body.insert(0, "    (void)state;")
+    return ("".join(out) + f"static void net{k}(const double *z, double *state, double *out)\n{{\n"
+            + "\n".join(body) + "\n}\n")
 
 
 def c_sources(spec: dict, nets: list, limits: CSourceLimits = CSourceLimits(), source: str = "") -> dict[str, str]:
@@ -144,9 +154,7 @@ def c_sources(spec: dict, nets: list, limits: CSourceLimits = CSourceLimits(), s
     for i, net in enumerate(nets):
         if net.n_in != len(inputs):
             raise ValueError(f"net {i} takes {net.n_in} inputs; the element's database has {len(inputs)}")
-    unknown = [k for k in inputs if k not in FEATURES]
-    if unknown:
-        raise ValueError(f"inputs {unknown}: the C element computes {', '.join(FEATURES)}")
+    sources = [input_source(k) for k in inputs]
     ac = {**AIRCRAFT_DEFAULTS, **spec.get("aircraft", {})}
     lo, hi = limits.window_revs
     if not (lo <= spec["window_revs"] <= hi and abs(spec["offset_s"]) <= limits.max_offset_s
@@ -166,11 +174,13 @@ def c_sources(spec: dict, nets: list, limits: CSourceLimits = CSourceLimits(), s
                    ROTOR_RADIUS_FT=_num(ac["rotor_radius_ft"]), G_FT_S2=_num(ac["g_ft_s2"]),
                    DEFAULT_OFFSET_S=_num(spec["offset_s"]), DEFAULT_STICK_OFFSET_S=_num(spec["stick_offset_s"]),
                    DEFAULT_WINDOW_REVS=_num(spec["window_revs"]), DEFAULT_HOP_REVS=_num(spec["hop_revs"]),
-                   N_INPUTS=d, N_HARMONICS=len(harm), N_NETS=len(nets), **_response_defines(spec))
+                   N_INPUTS=d, N_HARMONICS=len(harm), RATES=int(any(r for _, r in sources)),
+                   **_response_defines(spec))
     seat_axis = {"x": 0, "y": 1, "z": 2}
     constants = "".join(f"#define PVV_{k} {v}\n" for k, v in defines.items()) + "\n"
     constants += f"/* inputs: {', '.join(inputs)} */\n"
-    constants += _array("PVV_INPUT_FEATURE", [FEATURES.index(k) for k in inputs], "int")
+    # a feature's index in FEATURES order, its rate's that plus len(FEATURES)
+    constants += _array("PVV_INPUT_FEATURE", [FEATURES.index(f) + len(FEATURES) * r for f, r in sources], "int")
     constants += _array("PVV_LO", elo) + _array("PVV_HI", ehi)
     constants += f"/* outputs: {', '.join(outputs)} */\n"
     constants += _array("PVV_OUT_AXIS", [seat_axis[AXIS_OUTPUTS[o]] for o in outputs], "int")
@@ -182,10 +192,10 @@ def c_sources(spec: dict, nets: list, limits: CSourceLimits = CSourceLimits(), s
     constants += _array("PVV_HARMONIC_RATIO", [h[2][0] for h in harm])
     constants += _array("PVV_HARMONIC_PHASE", [h[2][1] for h in harm])
     kinds = {net.kind for net in nets}
-    helpers = "".join((_CSRC / f"net_{k}.inc").read_text() + "\n" for k in ("mlp", "rbf") if k in kinds)
+    helpers = "".join((_CSRC / f"net_{k}.inc").read_text() + "\n" for k in ("mlp", "rbf", "gru") if k in kinds)
     nets_src = helpers + "\n".join(_net_source(k, net) for k, net in enumerate(nets))
     table = ", ".join(f"net{k}" for k in range(len(nets)))
-    nets_src += ("\ntypedef void (*pvv_net_fn)(const double *z, double *out);\n"
+    nets_src += ("\ntypedef void (*pvv_net_fn)(const double *z, double *state, double *out);\n"
                  f"static const pvv_net_fn PVV_NETS[PVV_N_NETS] = {{{table}}};\n")
     header = dict(BLADES=str(int(ac["blades"])), SOURCE=source or "pvvjax", MAX_RATE_HZ=_num(limits.max_rate_hz),
                   MIN_RPM=_num(limits.min_rpm_ratio * ac["nominal_rpm"]), MIN_WINDOW_REVS=_num(lo),
@@ -193,6 +203,7 @@ def c_sources(spec: dict, nets: list, limits: CSourceLimits = CSourceLimits(), s
                   MAX_STICK_OFFSET_S=_num(limits.max_stick_offset_s),
                   CAPACITY=str(buffer_capacity(limits, ac["nominal_rpm"])),
                   HIST=str(history_capacity(spec, limits, ac["nominal_rpm"])), N_OUT=str(len(outputs)),
+                  N_NETS=str(len(nets)), STATE=str(max([net.hidden for net in nets if net.kind == "gru"] or [1])),
                   OUTPUTS=", ".join(outputs))
     h = _fill((_CSRC / "pvv_element.h").read_text(), header)
     c = _fill((_CSRC / "pvv_element.c").read_text(), dict(SOURCE=header["SOURCE"], CONSTANTS=constants, NETS=nets_src))

@@ -26,6 +26,12 @@ window times, stepped exactly as `pvvjax.dynamics.second_order` integrates it (T
 rest at the first window): in trimmed flight it equals the static map, through a maneuver it
 lags and rings as identified.
 
+Inputs named `d_<feature>_dt` (the `_rates` models and the GRU of `pvvjax dynamic`) are
+a feature's rate, per second: the backward difference of its window average to the window
+before, over their centre times, 0 at the first window (as `dynamics.window_sequences`
+computes them in training). A recurrent net (`NumpyNet.stateful`) carries its state from
+window to window from zero at the first.
+
 Frames are stored as they come (time need not be uniform: jitter, frame-rate changes and
 missed frames only change the samples the windows integrate), old frames are dropped once
 no future window needs them, and a rotor-speed change is followed through the azimuth.
@@ -43,7 +49,7 @@ from typing import NamedTuple
 import numpy as np
 
 __all__ = ["AIRCRAFT_DEFAULTS", "AXIS_OUTPUTS", "CHANNELS", "FEATURES", "ElementOutput", "VibrationElement",
-           "shake_settings"]
+           "input_source", "shake_settings"]
 
 # Frame channels, canonical units (data contract): what db1-db3 and their features need.
 CHANNELS = ("airspeed_kt", "gross_weight_lb", "rotor_rpm", "density_ratio", "pitch_rate_dps", "roll_angle_deg",
@@ -88,6 +94,16 @@ class ElementOutput(NamedTuple):
     shake_x_g: float = 0.0
     shake_y_g: float = 0.0
     shake_z_g: float = 0.0
+
+
+def input_source(name: str) -> tuple[str, bool]:
+    """What a net input is: (the feature, False) for a `FEATURES` name, (the feature, True)
+    for its rate `d_<feature>_dt`; any other name is a ValueError naming the ones allowed."""
+    if name in FEATURES:
+        return name, False
+    if name.startswith("d_") and name.endswith("_dt") and name[2:-3] in FEATURES:
+        return name[2:-3], True
+    raise ValueError(f"input {name!r}: the element computes {', '.join(FEATURES)} and their rates d_<name>_dt")
 
 
 def shake_settings(outputs, shake=None, phase_rad=0.0, harmonics=None) -> list[dict]:
@@ -142,6 +158,7 @@ class VibrationElement:
                  outputs=("az_g",), shake=None):
         self.nets = list(nets)
         self.inputs = tuple(inputs)
+        self._sources = [input_source(k) for k in self.inputs]
         self.L, self.hop = float(window_revs), float(hop_revs)
         self.tau, self.tau_stick = float(offset_s), float(stick_offset_s)
         self.outputs = tuple(outputs)
@@ -206,6 +223,8 @@ class VibrationElement:
         self._dropped = False  # the first stored frame is no longer the record's first
         self._rpm_last = 0.0
         self._hist_t, self._hist_u = [], []  # the static values of recent windows (the delay's past)
+        self._states = [net.initial_state() if getattr(net, "stateful", False) else None for net in self.nets]
+        self._last = None  # (centre time, features) of the latest window: the rates' backward difference
         self._dyn = None  # (time, delayed input, y, y') of the latest window
 
     def _respond(self, u: np.ndarray, t: float) -> np.ndarray:
@@ -346,13 +365,21 @@ class VibrationElement:
         if len(means) > 1:
             x = x.copy()
             x[self._stick_cols] = means[1][self._stick_cols]
-        z, flag = self._net_inputs(x)
-        pred = np.median([np.reshape(net(z[None]), -1) for net in self.nets], axis=0)  # (A,)
-        if self.response is not None:  # at the window's weighted centre time, as the offline analysis
-            h = width
-            w = h * edge_weight((r - a) / h) * edge_weight((b - r) / h)
-            w = np.where(np.isfinite(w), w, 0.0)
-            pred = self._respond(pred, float(w @ t / w.sum()))
+        # the window's weighted centre time, as the offline analysis's
+        w = width * edge_weight((r - a) / width) * edge_weight((b - r) / width)
+        w = np.where(np.isfinite(w), w, 0.0)
+        tc = float(w @ t / w.sum())
+        z, flag = self._net_inputs(x, tc)
+        outs = []
+        for k, net in enumerate(self.nets):
+            if self._states[k] is None:
+                outs.append(np.reshape(net(z[None]), -1))
+            else:
+                self._states[k], y = net.step(self._states[k], z)
+                outs.append(np.reshape(y, -1))
+        pred = np.median(outs, axis=0)  # (A,)
+        if self.response is not None:
+            pred = self._respond(pred, tc)
         self._prev = self._amplitude() if self._ready else pred
         self._pvv, self._flag, self._ready = pred, flag, True
         self._ramp_rev = r[-1]
@@ -364,7 +391,9 @@ class VibrationElement:
         self._drop(int(np.searchsorted(t, t_next)) - 2)
         return True
 
-    def _net_inputs(self, x):
+    def _net_inputs(self, x, tc: float):
+        """The nets' inputs from a window's channel means `x` at centre time `tc`: features
+        and rates, clipped to the envelope, and whether any lay outside it."""
         ch = dict(zip(CHANNELS, x))
         v = ch["airspeed_kt"] * _KT_TO_FT_S
         feats = {
@@ -373,7 +402,10 @@ class VibrationElement:
             "mlf": ((1.0 + math.radians(ch["pitch_rate_dps"]) * v / self.g)
                     / math.cos(math.radians(ch["roll_angle_deg"]))),
         }
-        z = np.array([feats[k] for k in self.inputs], float)
+        last, self._last = self._last, (tc, feats)
+        rate = ((lambda f: (feats[f] - last[1][f]) / (tc - last[0])) if last is not None and tc > last[0]
+                else (lambda f: 0.0))
+        z = np.array([rate(f) if is_rate else feats[f] for f, is_rate in self._sources], float)
         flag = False
         if self.envelope is not None:
             lo, hi = self.envelope

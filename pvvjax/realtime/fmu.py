@@ -21,7 +21,7 @@ from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
 from .cexport import _CSRC, CSourceLimits, _fill, c_sources, compile_shared
-from .element import AIRCRAFT_DEFAULTS, CHANNELS
+from .element import AIRCRAFT_DEFAULTS, CHANNELS, input_source
 
 __all__ = ["FMU_INPUTS", "build_fmu", "fmu_channels", "fmu_platform", "model_description"]
 
@@ -62,11 +62,12 @@ def fmu_platform() -> str:
 
 
 def fmu_channels(inputs) -> list[str]:
-    """The frame channels a database's inputs need, in `CHANNELS` order (the rotor speed always:
-    it drives the azimuth when no azimuth is given)."""
+    """The frame channels a database's inputs (features or their rates) need, in `CHANNELS`
+    order (the rotor speed always: it drives the azimuth when no azimuth is given)."""
     need = {"rotor_rpm"}
     for k in inputs:
-        need.update(_NEEDS.get(k, (k,)))
+        f, _ = input_source(k)
+        need.update(_NEEDS.get(f, (f,)))
     return [c for c in CHANNELS if c in need]
 
 

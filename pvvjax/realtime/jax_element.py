@@ -63,7 +63,13 @@ class ElementSpec(NamedTuple):
 
 def make_spec(params, inputs, *, window_revs=8.0, hop_revs=1.0, offset_s=0.0, stick_offset_s=0.0, phase_rad=0.0,
               envelope=None, clip=True, rotor_radius_ft=26.83, g_ft_s2=32.174, harmonics=None) -> ElementSpec:
-    """An `ElementSpec` from stacked net parameters and the database's input names."""
+    """An `ElementSpec` from stacked net parameters (MLP or RBF) and the database's input
+    names (features: the rates and the GRU of `pvvjax dynamic` run in the NumPy, C and FMU
+    elements)."""
+    rates = [k for k in inputs if k not in FEATURES]
+    if rates or "rnn" in params:
+        raise ValueError(f"the JAX element takes {', '.join(FEATURES)} into MLP or RBF nets; "
+                         f"{'inputs ' + str(rates) if rates else 'a GRU'} run in the NumPy, C or FMU element")
     # Nets from a sweep take every database padded to the same inputs (masked): pad to match.
     n_in = int(np.shape(params["x_shift"])[-1])
     d = len(inputs)

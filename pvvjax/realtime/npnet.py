@@ -3,7 +3,9 @@
 `NumpyNet.load("net.npz")` reads a parameter file written by pvvjax (`.npz` read with
 `allow_pickle=False`); calling it evaluates the net. At load time the input and output
 scalings are folded into the first and last layers and masked (padding) units are
-dropped, so one prediction is a few small matrix-vector products. This file depends on
+dropped, so one prediction is a few small matrix-vector products. A recurrent net (the GRU
+of `pvvjax dynamic`'s `rnn` model) carries a state from window to window: `step(state, x)`
+advances it by one window from `initial_state()`. This file depends on
 NumPy only and can be copied next to the parameter file (`pvvjax export` does that).
 """
 
@@ -60,8 +62,10 @@ def write_npz(path, params: dict, meta: dict):
 
 
 class NumpyNet:
-    """An MLP or RBF network evaluated with NumPy (float64). An MLP of several outputs
-    (`n_out`, e.g. one per pilot-floor axis) returns one value per output.
+    """An MLP, RBF or GRU network evaluated with NumPy (float64). An MLP of several outputs
+    (`n_out`, e.g. one per pilot-floor axis) returns one value per output. A GRU (`kind`
+    "gru", `stateful`) reads its inputs window by window; called on a sequence it runs along
+    the sequence's second-to-last axis from a zero state, as `dynamics.rnn_apply` does.
 
     Args:
         params: parameter dict (as saved by pvvjax).
@@ -72,6 +76,9 @@ class NumpyNet:
         self.meta = dict(meta or {})
         self.inputs = list(self.meta.get("inputs", []))
         p = {k: v for k, v in params.items()}
+        if "rnn" in p:
+            self._gru(p)
+            return
         in_mask = np.asarray(p["in_mask"], np.float64) > 0
         self.n_in = int(in_mask.sum())
         shift = np.asarray(p["x_shift"], np.float64)[in_mask]
@@ -105,6 +112,53 @@ class NumpyNet:
             self.wo = np.asarray(p["w"], np.float64) * float(self.y_scale)
             self.bo = float(p["b"]) * float(self.y_scale) + float(self.y_shift)
 
+    def _gru(self, p: dict):
+        """A GRU of `dynamics.Recurrent`'s variables with its standardisation folded in:
+        one (n_in, 3H) input kernel and bias for the reset, update and candidate gates, the
+        (H, 2H) recurrent kernel of the reset and update gates, the candidate's (H, H) kernel
+        and bias, and a (H,) readout in g."""
+        self.kind = "gru"
+        cell, dense = p["rnn"]["GRUCell_0"], p["rnn"]["Dense_0"]
+        f = lambda a: np.asarray(a, np.float64)  # noqa: E731
+        shift, scale = f(p["x_shift"]), f(p["x_scale"])
+        w_i = np.concatenate([f(cell[g]["kernel"]) for g in ("ir", "iz", "in")], axis=1)
+        b_i = np.concatenate([f(cell[g]["bias"]) for g in ("ir", "iz", "in")])
+        self.w_i, self.b_i = w_i / scale[:, None], b_i - (shift / scale) @ w_i
+        self.w_h = np.concatenate([f(cell["hr"]["kernel"]), f(cell["hz"]["kernel"])], axis=1)
+        self.w_hn, self.b_hn = f(cell["hn"]["kernel"]), f(cell["hn"]["bias"])
+        y_scale, y_shift = float(f(p["y_scale"])), float(f(p["y_shift"]))
+        self.w_out = f(dense["kernel"])[:, 0] * y_scale
+        self.b_out = float(f(dense["bias"])[0]) * y_scale + y_shift
+        self.n_in, self.n_out, self.hidden = self.w_i.shape[0], 1, self.w_hn.shape[0]
+
+    @property
+    def stateful(self) -> bool:
+        """Whether the net carries a state from one window to the next (a GRU)."""
+        return self.kind == "gru"
+
+    def initial_state(self) -> np.ndarray:
+        """The state before the first window: (hidden,) zeros for a GRU, (0,) otherwise."""
+        return np.zeros(self.hidden if self.stateful else 0)
+
+    def step(self, state: np.ndarray, x: np.ndarray):
+        """One window: (the next state, the prediction) from the state and (n_in,) inputs.
+        A net without a state returns the state unchanged."""
+        if not self.stateful:
+            return state, self(x)
+        return self._gru_step(state, np.asarray(x, np.float64))
+
+    def _gru_step(self, h, x):
+        """flax's `GRUCell`: r, z = σ(x W_i + h W_h), n = tanh(x W_in + b + r (h W_hn + b_hn)),
+        h' = (1 - z) n + z h; the readout is linear in h'."""
+        H = self.hidden
+        gi = x @ self.w_i + self.b_i  # (..., 3H)
+        gh = h @ self.w_h
+        r = 1.0 / (1.0 + np.exp(-(gi[..., :H] + gh[..., :H])))
+        z = 1.0 / (1.0 + np.exp(-(gi[..., H:2 * H] + gh[..., H:])))
+        n = np.tanh(gi[..., 2 * H:] + r * (h @ self.w_hn + self.b_hn))
+        h = (1.0 - z) * n + z * h
+        return h, h @ self.w_out + self.b_out
+
     @classmethod
     def load(cls, path) -> "NumpyNet":
         return cls(*read_npz(path))
@@ -124,8 +178,15 @@ class NumpyNet:
 
     def __call__(self, x):
         """Peak PVV (g) for inputs x: (n_in,) or (n, n_in), physical units, database order
-        (with several outputs, a last axis of n_out)."""
+        (with several outputs, a last axis of n_out); for a GRU, (..., W, n_in) sequences
+        to (..., W)."""
         x = np.asarray(x, np.float64)
+        if self.kind == "gru":  # (..., W, n_in): along W from a zero state
+            h, out = np.zeros(x.shape[:-2] + (self.hidden,)), []
+            for w in range(x.shape[-2]):
+                h, y = self._gru_step(h, x[..., w, :])
+                out.append(y)
+            return np.stack(out, axis=-1)
         if self.kind == "mlp" and x.ndim == 1:
             return self.predict1(x)
         if self.kind == "rbf":

@@ -115,16 +115,24 @@ static pvv_output output(const pvv_element *e, int rejected)
     return o;
 }
 
-/* The nets' inputs from window-averaged channels: features, envelope flag, clipping. */
-static int net_inputs(const pvv_element *e, const double *x, double *z)
+/* The nets' inputs from window-averaged channels at centre time tc: features and their rates
+ * (the backward difference to the latest window), envelope flag, clipping. */
+static int net_inputs(pvv_element *e, const double *x, double tc, double *z)
 {
-    double feats[PVV_N_CHANNELS + 2];
+    double feats[2 * (PVV_N_CHANNELS + 2)];
     double v = x[PVV_AIRSPEED_KT] * PVV_KT_TO_FT_S;
+    const int nf = PVV_N_CHANNELS + 2;
     int i, flag = 0;
     for (i = 0; i < PVV_N_CHANNELS; i++) feats[i] = x[i];
     feats[PVV_N_CHANNELS] = v / (x[PVV_ROTOR_RPM] * 2.0 * PVV_PI / 60.0 * PVV_ROTOR_RADIUS_FT);
     feats[PVV_N_CHANNELS + 1] = ((1.0 + x[PVV_PITCH_RATE_DPS] * (PVV_PI / 180.0) * v / PVV_G_FT_S2)
                                  / cos(x[PVV_ROLL_ANGLE_DEG] * (PVV_PI / 180.0)));
+    for (i = 0; i < nf; i++) {
+        feats[nf + i] = e->has_last && tc > e->last_tc ? (feats[i] - e->last_feats[i]) / (tc - e->last_tc) : 0.0;
+        e->last_feats[i] = feats[i];
+    }
+    e->last_tc = tc;
+    e->has_last = 1;
     for (i = 0; i < PVV_N_INPUTS; i++) {
         double lo = PVV_LO[i], hi = PVV_HI[i];
         double tol = 1e-9 * (1.0 + (fabs(lo) > fabs(hi) ? fabs(lo) : fabs(hi)));
@@ -135,12 +143,12 @@ static int net_inputs(const pvv_element *e, const double *x, double *z)
     return flag;
 }
 
-/* The nets' median, output by output. */
-static void median_prediction(const double *z, double *pred)
+/* The nets' median, output by output (each recurrent net's state advanced by one window). */
+static void median_prediction(pvv_element *e, const double *z, double *pred)
 {
     double outs[PVV_N_NETS][PVV_N_OUT], p[PVV_N_NETS];
     int i, k, o;
-    for (k = 0; k < PVV_N_NETS; k++) PVV_NETS[k](z, outs[k]);
+    for (k = 0; k < PVV_N_NETS; k++) PVV_NETS[k](z, e->net_state[k], outs[k]);
     for (o = 0; o < PVV_N_OUT; o++) {
         for (k = 0; k < PVV_N_NETS; k++) {  /* insertion sort as they come */
             double v = outs[k][o];
@@ -207,6 +215,8 @@ static void respond(pvv_element *e, double *u, double tc)
     e->dyn_t = tc;
 }
 
+#endif
+
 /* The window [a, b)'s time weighted as its channel means (the offline analysis's centre time). */
 static double centre_time(const pvv_element *e, double a, double b)
 {
@@ -224,8 +234,6 @@ static double centre_time(const pvv_element *e, double a, double b)
     }
     return tw / wsum;
 }
-#endif
-
 /* Predict the next window if the stored frames cover it; returns 1 if one was predicted. */
 static int try_window(pvv_element *e)
 {
@@ -271,13 +279,13 @@ static int try_window(pvv_element *e)
         mean[0][PVV_LATERAL_PCT] = mean[1][PVV_LATERAL_PCT];
         mean[0][PVV_LONGITUDINAL_PCT] = mean[1][PVV_LONGITUDINAL_PCT];
     }
-    flag = net_inputs(e, mean[0], z);
     {
-        double pred[PVV_N_OUT];
+        double pred[PVV_N_OUT], tc = centre_time(e, a, b);
         int o;
-        median_prediction(z, pred);
+        flag = net_inputs(e, mean[0], tc, z);
+        median_prediction(e, z, pred);
 #if PVV_RESPONSE
-        respond(e, pred, centre_time(e, a, b));
+        respond(e, pred, tc);
 #endif
         for (o = 0; o < PVV_N_OUT; o++) {
             e->prev[o] = e->ready ? ramped(e, o) : pred[o];
@@ -321,7 +329,11 @@ void pvv_reset(pvv_element *e)
     e->wtime = NAN;
     e->j = 0;
     e->has_az = e->has_start = e->flag = e->ready = e->dropped = e->overflow = 0;
-    e->nh = e->has_dyn = 0;
+    e->nh = e->has_dyn = e->has_last = 0;
+    for (o = 0; o < PVV_N_NETS; o++) {
+        int k;
+        for (k = 0; k < PVV_STATE; k++) e->net_state[o][k] = 0.0;
+    }
 }
 
 int pvv_init(pvv_element *e, const pvv_settings *s)

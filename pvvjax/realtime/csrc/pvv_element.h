@@ -9,7 +9,9 @@
  * each window's median through a delay and a unit-gain second-order response along the window
  * times, as the NumPy element does. Nets of several outputs (PVV_N_OUT, one per pilot-floor axis)
  * give each seat axis its PVV and its shake (N/rev at the predicted amplitude and its phase, plus
- * the 1/rev of rotor track and balance); an axis the element does not predict stays 0.
+ * the 1/rev of rotor track and balance); an axis the element does not predict stays 0. Inputs may be
+ * rates (the backward difference of a feature's window average to the window before, per second,
+ * 0 at the first window), and GRU nets carry their state from window to window.
  *
  * Needs <math.h> only. The element is one struct of fixed size: declare it static or allocate it
  * once (pvv_element_size() bytes); no call allocates memory.
@@ -62,6 +64,10 @@ enum pvv_channel {
 #define PVV_HIST @HIST@
 /* Outputs of every net: the pilot-floor axes the element predicts (@OUTPUTS@). */
 #define PVV_N_OUT @N_OUT@
+/* The nets whose median the element predicts, and the largest state one carries (a GRU's
+ * units; 1 where none carries one). */
+#define PVV_N_NETS @N_NETS@
+#define PVV_STATE @STATE@
 
 #define PVV_OK 0
 #define PVV_EBADSETTINGS (-1)
@@ -101,6 +107,9 @@ typedef struct pvv_element {
     double hist_t[PVV_HIST], hist_u[PVV_HIST][PVV_N_OUT], first_t, first_u[PVV_N_OUT], dyn_t;
     double dyn_ud[PVV_N_OUT], dyn_y[PVV_N_OUT], dyn_v[PVV_N_OUT];
     int nh, has_dyn;
+    /* the recurrent nets' states, and the latest window's centre time and features (for rates) */
+    double net_state[PVV_N_NETS][PVV_STATE], last_tc, last_feats[PVV_N_CHANNELS + 2];
+    int has_last;
 } pvv_element;
 
 /* The settings the element was exported with. */
