@@ -23,6 +23,22 @@ def test_faa_tolerance_is_plus_3_minus_6_db_or_a_tenth_of_the_cruise_level():
     assert scores_module.FAA_RATIO == pytest.approx((0.501187, 1.412538), rel=1e-5)
 
 
+def test_rms_by_kind_is_each_kinds_windows_alone():
+    """Each kind's RMS over its own rows' real windows, against a loop over the windows; a
+    row of NaN prediction is left out, and a kind left with no window is NaN."""
+    rng = np.random.default_rng(4)
+    measured = rng.uniform(0.05, 0.2, (6, 20))
+    pred = measured + rng.normal(0, 0.02, (6, 20))
+    mask = np.arange(20)[None, :] < np.array([20, 5, 12, 20, 9, 3])[:, None]
+    kinds = ["level", "pullup", "level", "roll", "pullup", "turn"]
+    pred[3] = np.nan
+    got = scores_module.rms_by_kind(pred, measured, mask, kinds)
+    assert list(got) == ["level", "pullup", "roll", "turn"] and np.isnan(got["roll"])
+    for kind in ("level", "pullup", "turn"):
+        err = [pred[r, w] - measured[r, w] for r in range(6) for w in range(20) if kinds[r] == kind and mask[r, w]]
+        assert got[kind] == pytest.approx(np.sqrt(np.mean(np.square(err))))
+
+
 def test_kendall_tau_and_peaks_against_brute_force():
     rng = np.random.default_rng(3)
     time = np.cumsum(rng.uniform(0.2, 0.3, (12, 30)), axis=1)
@@ -294,3 +310,30 @@ def test_main_job_reports_the_dynamic_stage(tmp_path, small_campaign_dir, capsys
     assert "## PVV through time" in report and "dynamic/figures/through_time_db1.png" in report
     table = pd.read_csv(tmp_path / "d" / "dynamic" / "comparison.csv")
     assert list(table.model) == ["quasi_static", "window_static", "dynamic"] and "rms_kind_holdout_g" not in table
+
+
+def test_record_pieces_score_every_real_window_once_after_its_burn_in():
+    """Pieces of 12 windows with a burn-in of 4 cover each chosen record's real windows once:
+    the first piece of a record from its start, every later one after 4 windows of its own
+    record; unchosen records and padding are never scored."""
+    from pvvjax.dynamics.compare import _pieces, record_pieces
+
+    lengths = np.array([30, 12, 5, 40, 13])
+    mask = np.arange(40)[None, :] < lengths[:, None]
+    rows = np.array([True, True, True, False, True])
+    row, start, scored = record_pieces(mask, rows, 12, 4)
+    assert set(row) == {0, 1, 2, 4}
+    x = np.stack(np.meshgrid(np.arange(40), np.arange(5))[::-1], -1).astype(np.float32)  # (R, W, 2): row, window
+    y = x[..., 1] + 100 * x[..., 0]
+    n = len(row) + 3
+    xp, yp, wp = _pieces(x, y, mask, row, start, scored, n, 12)
+    assert xp.shape == (n, 12, 2) and wp[len(row):].sum() == 0  # padded pieces score nothing
+    got = sorted(int(v) for v in yp[wp > 0])
+    want = sorted(int(r * 100 + w) for r in np.flatnonzero(rows) for w in range(lengths[r]))
+    assert got == want  # every real window of the chosen records, once
+    for p in range(len(row)):
+        first = np.flatnonzero(wp[p])[0] if wp[p].any() else None
+        if first is not None and start[p] > 0:
+            assert first >= 4 and (xp[p, :first, 0] == row[p]).all()  # its burn-in: its own record's windows
+    with pytest.raises(ValueError, match="burn-in"):
+        record_pieces(mask, rows, 4, 4)

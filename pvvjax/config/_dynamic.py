@@ -6,6 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from ._sections import (
+    MAX_OFFSET_S,
     MAX_WIDTH,
     MAX_WINDOW_REVS,
     TRANSIENT_MANEUVERS,
@@ -54,6 +55,12 @@ class DynamicConfig:
             model but quasi_static, which trains as the paper's map with `[train]`); their
             other training settings are `[train]`'s. Tens of thousands of windows give a
             smooth loss that takes a larger step than a database of peaks.
+        burn_in_s: the models with a state (dynamic, rnn) train on pieces of the records,
+            each scored after this long of its record has run through the state (a piece
+            is three burn-ins long; `compare.record_pieces`), s: at least a few time
+            constants of the slowest response the data hold. 0: whole records (slower: the
+            recurrence walks the longest record at every step). Held-out predictions always
+            run on whole records.
     """
 
     databases: tuple[str, ...] = ("db1",)
@@ -73,6 +80,7 @@ class DynamicConfig:
     cruise_advance_ratio: tuple[float, float] = field(default=(0.25, 0.35), metadata={"repeats": True})
     transients: tuple[str, ...] = TRANSIENT_MANEUVERS
     learning_rate: float = 0.01
+    burn_in_s: float = 4.0
 
     def __post_init__(self):
         _check_databases("dynamic", self.databases)
@@ -102,5 +110,7 @@ class DynamicConfig:
         _grid("dynamic.offset_bounds", self.offset_bounds, "dynamic.offset_step_s", self.offset_step_s)
         _advance_ratio_band("dynamic.cruise_advance_ratio", self.cruise_advance_ratio)
         _maneuver_kinds("dynamic.transients", self.transients)
+        if not 0 <= self.burn_in_s <= MAX_OFFSET_S:
+            raise ValueError(f"dynamic.burn_in_s = {self.burn_in_s:g}: give 0 (whole records) to {MAX_OFFSET_S:g} s")
         if not 0 < self.learning_rate <= 1:
             raise ValueError(f"dynamic.learning_rate = {self.learning_rate!r}: must lie within 0 (excluded) to 1")

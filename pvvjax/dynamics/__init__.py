@@ -16,11 +16,11 @@ from .compare import (
 )
 from .models import Recurrent, Response, dynamic_apply, dynamic_init, identified, rnn_apply, rnn_init
 from .response import delayed, second_order
-from .scores import FAA_RATIO, faa_pass, heldout_scores, nominal_cruise, row_peaks
+from .scores import FAA_RATIO, faa_pass, heldout_scores, nominal_cruise, rms_by_kind, row_peaks
 from .sequences import Sequences, window_sequences
 from .study import EXPORTABLE, run_comparison
 
 __all__ = ["EXPORTABLE", "FAA_RATIO", "Recurrent", "Response", "Sequences", "Split", "Trained", "condition_split",
            "delayed", "dynamic_apply", "dynamic_init", "faa_pass", "fit_peak_map", "fit_sequence_model",
            "heldout", "heldout_scores", "identified", "kind_split", "nominal_cruise",
-           "rnn_apply", "rnn_init", "row_peaks", "run_comparison", "second_order", "window_sequences"]
+           "rms_by_kind", "rnn_apply", "rnn_init", "row_peaks", "run_comparison", "second_order", "window_sequences"]

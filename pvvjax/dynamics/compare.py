@@ -24,7 +24,7 @@ from .sequences import Sequences
 
 __all__ = ["APPLY", "WITH_RATES", "Split", "Trained", "condition_split", "dynamic_model_init", "fit_peak_map",
            "fit_sequence_model", "heldout", "identified_table", "kind_split", "model_inputs", "offset_replay",
-           "recurrent_init", "split_problem", "static_init"]
+           "record_pieces", "recurrent_init", "split_problem", "static_init"]
 
 
 class Split(NamedTuple):
@@ -110,7 +110,8 @@ def _stack(trees):
 
 
 def fit_sequence_model(init: Callable, apply: Callable, x, y, mask, split: Split, seeds: int, cfg,
-                       pointwise: bool = False, progress: Callable | None = None, chunk_evals: int = 10) -> Trained:
+                       pointwise: bool = False, progress: Callable | None = None, chunk_evals: int = 10,
+                       pieces: tuple[int, int] | None = None) -> Trained:
     """Train one net per (fold, seed) on window sequences, all in one vmapped program.
 
     Args:
@@ -126,6 +127,12 @@ def fit_sequence_model(init: Callable, apply: Callable, x, y, mask, split: Split
         progress: called as `progress(step, best validation RMS (median over nets), nets
             still training)` after every `chunk_evals` evaluations (the training runs in
             chunks between these looks; the result is the same as in one).
+        pieces: (length, burn-in) in windows: train a recurrent `apply` on pieces of the
+            training records instead of whole ones (`record_pieces`): every real window is
+            scored once, after at least `burn-in` windows of its record have warmed the
+            state up (none at a record's start), so the recurrence walks `length` windows
+            a step instead of the longest record, and padding is not computed. Validation
+            and the returned predictions run on whole records.
     """
     x, y, mask = np.asarray(x, np.float32), np.asarray(y, np.float32), np.asarray(mask, bool)
     trains = [~split.test[f] & ~split.val[f] for f in range(len(split.labels))]
@@ -137,10 +144,15 @@ def fit_sequence_model(init: Callable, apply: Callable, x, y, mask, split: Split
     else:
         n_train, n_val = max(int(r.sum()) for r in trains), max(int(v.sum()) for v in split.val)
         rows_of = lambda rows, n: _rows(x, y, mask, rows, n)  # noqa: E731
+    train_of = lambda f, n: rows_of(trains[f], n)  # noqa: E731
+    if pieces is not None and not pointwise:
+        cut = [record_pieces(mask, rows, *pieces) for rows in trains]
+        n_train = max(len(c[0]) for c in cut)
+        train_of = lambda f, n: _pieces(x, y, mask, *cut[f], n, pieces[0])  # noqa: E731
     params, data = [], []
     for f, train_rows in enumerate(trains):
         sc = scaling(x[train_rows][mask[train_rows]], y[train_rows][mask[train_rows]])
-        d = rows_of(train_rows, n_train) + rows_of(split.val[f], n_val)
+        d = train_of(f, n_train) + rows_of(split.val[f], n_val)
         for s in range(seeds):
             params.append(init(jax.random.key(s), sc, (f, s)))
             data.append(train.Data(*d))
@@ -197,6 +209,44 @@ def _windows(x, y, select, n: int) -> tuple:
     pad = n - len(r)
     r, w = np.concatenate([r, np.full(pad, r[0])]), np.concatenate([w, np.full(pad, w[0])])
     return x[r, w][:, None], y[r, w][:, None], (np.arange(n) < n - pad).astype(np.float32)[:, None]
+
+
+def record_pieces(mask, rows, length: int, burn_in: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pieces of `length` windows that cover the chosen rows' real windows, each scored once.
+
+    A record's first piece starts at its first window and scores all of its windows; each
+    later piece starts `burn_in` windows before the first window it scores and scores the
+    rest (`length - burn_in`), so that a recurrent state has run through the windows before
+    it. A piece past a record's end is clipped to its last real window.
+
+    Args:
+        mask: (R, W) real windows. rows: (R,) the records to cut.
+        length, burn_in: windows per piece and of its burn-in (0 <= burn_in < length).
+
+    Returns:
+        (row (P,), first window (P,), first scored window (P,)) of the P pieces.
+    """
+    if not 0 <= burn_in < length:
+        raise ValueError(f"pieces of {length} windows with a burn-in of {burn_in}: need 0 <= burn-in < length")
+    row, start, scored = [], [], []
+    for r in np.flatnonzero(rows):
+        n, a, w = int(mask[r].sum()), 0, 0
+        while w < n:
+            row.append(r), start.append(a), scored.append(w)
+            w = a + length
+            a = w - burn_in
+    return np.asarray(row), np.asarray(start), np.asarray(scored)
+
+
+def _pieces(x, y, mask, row, start, scored, n: int, length: int) -> tuple:
+    """The pieces' (x, y, weights) (n, length, ...), padded to n pieces of weight 0; weight 1
+    on the real windows a piece scores."""
+    pad = n - len(row)
+    row, start, scored = (np.concatenate([a, np.full(pad, a[0])]) for a in (row, start, scored))
+    idx = np.minimum(start[:, None] + np.arange(length), x.shape[1] - 1)
+    w = (mask[row[:, None], idx] & (idx >= scored[:, None]) & (start[:, None] + np.arange(length) < x.shape[1])
+         & (np.arange(n) < n - pad)[:, None])  # past the padded width: the clipped window is scored once only
+    return x[row[:, None], idx], y[row[:, None], idx], w.astype(np.float32)
 
 
 def _rows(x, y, mask, rows, n: int) -> tuple:

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.stats import kendalltau
 
-__all__ = ["FAA_RATIO", "faa_pass", "nominal_cruise", "heldout_scores", "row_peaks"]
+__all__ = ["FAA_RATIO", "faa_pass", "nominal_cruise", "heldout_scores", "rms_by_kind", "row_peaks"]
 
 FAA_RATIO = (10 ** (-6 / 20), 10 ** (3 / 20))  # −6 dB, +3 dB: 0.501, 1.413
 
@@ -88,3 +88,25 @@ def heldout_scores(pred, measured, mask, time, maneuvers, transients, nominal_g:
                 time_of_peak_err_median_s=nan_if_empty(np.abs(tp - tm)[trans], np.median),
                 faa_pass_share=nan_if_empty(ok, np.mean), faa_pass_share_transient=nan_if_empty(ok[trans], np.mean),
                 kendall_tau=tau, n_conditions=int(len(pred)), notes="; ".join(notes))
+
+
+def rms_by_kind(pred, measured, mask, maneuvers) -> dict[str, float]:
+    """The per-window RMS error of each maneuver kind's rows, g (rows of NaN prediction left
+    out; a kind with no real window left is NaN): where a model wins or loses, e.g. level
+    flight, most of a campaign's windows, against the transients.
+
+    Args:
+        pred, measured: (R, W) predicted and measured PVV, g. mask: (R, W) real windows.
+        maneuvers: (R,) each row's kind.
+
+    Returns:
+        {kind: RMS, g} in the order the kinds first appear.
+    """
+    pred, measured, mask = np.asarray(pred, float), np.asarray(measured, float), np.asarray(mask, bool)
+    mask = mask & ~np.isnan(pred).any(axis=1)[:, None]
+    kinds = np.asarray(maneuvers)
+    out = {}
+    for k in dict.fromkeys(kinds.tolist()):
+        m = mask & (kinds == k)[:, None]
+        out[k] = float(np.sqrt(np.mean((pred[m] - measured[m]) ** 2))) if m.any() else float("nan")
+    return out

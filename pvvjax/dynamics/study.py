@@ -124,9 +124,20 @@ def _train(d: Database, split, model: str, cfg, progress=None) -> tuple[dict, di
             init = compare.static_init(x.shape[-1], dc.hidden)
         train_cfg = dataclasses.replace(cfg.train, learning_rate=dc.learning_rate)
         t = compare.fit_sequence_model(init, compare.APPLY[model], x, seq.amplitude, seq.mask, split, dc.seeds,
-                                       train_cfg, pointwise=model in POINTWISE, progress=progress)
+                                       train_cfg, pointwise=model in POINTWISE, progress=progress,
+                                       pieces=None if model in POINTWISE else _pieces(seq, dc.burn_in_s))
         held, extra = compare.heldout(t.pred, split), {}
     return t.params, dict(heldout=held, best_step=t.best_step, failed_step=t.failed_step, **extra)
+
+
+def _pieces(seq: Sequences, burn_in_s: float) -> tuple[int, int] | None:
+    """`compare.fit_sequence_model`'s pieces for a burn-in of `burn_in_s` seconds: (3 burn-ins,
+    a burn-in) in windows at the sequence's median window spacing; None (whole records) for 0."""
+    if burn_in_s <= 0:
+        return None
+    steps = np.diff(seq.time, axis=1)[seq.mask[:, 1:]]
+    burn = max(1, int(np.ceil(burn_in_s / float(np.median(steps)))))
+    return 3 * burn, burn
 
 
 def _part(folder: Path, d: Database, split, model: str, cfg, log) -> tuple:
