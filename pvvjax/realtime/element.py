@@ -134,8 +134,10 @@ class VibrationElement:
 
     Args:
         nets: callables x (n, d) -> (n,) PVV, g, or (n, A) for A `outputs` (e.g.
-            `npnet.NumpyNet`); the median over nets is used, output by output.
-        inputs: the database's input names in the nets' order (features or channels).
+            `npnet.NumpyNet`), or nets with a state (`NumpyNet.stateful`, a GRU: stepped
+            window by window); the median over nets is used, output by output.
+        inputs: the nets' input names in their order: `FEATURES` (channels or derived
+            features) and rates `d_<feature>_dt` (`input_source`).
         window_revs, hop_revs: window length and spacing, revolutions.
         offset_s, stick_offset_s: input-to-vibration offset and the sticks' extra offset, s.
         phase_rad: phase of the N/rev seat shake relative to the blade azimuth.
