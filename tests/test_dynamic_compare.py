@@ -201,10 +201,16 @@ def test_dynamic_command_writes_every_model_every_window_once(dynamic_run, small
     assert (per == 1).all()  # every counter held out by one fold
     sizes = pred.groupby("model").size()
     assert sizes.nunique() == 1  # every model scored on the same windows
+    kinds = pd.read_csv(out / "by_kind.csv")
+    level = kinds[(kinds.model == "window_static") & (kinds.maneuver == "level")]
+    r = pred[(pred.model == "window_static") & (pred.maneuver == "level")]
+    assert level.rms_g.iloc[0] == pytest.approx(np.sqrt(np.mean((r.pvv_g - r.measured_g) ** 2)))
+    assert level.windows.iloc[0] == len(r) and set(kinds.maneuver) == set(pred.maneuver)
+    assert kinds.groupby("model").windows.sum().nunique() == 1 and kinds.campaign.nunique() == 1
     ident = pd.read_csv(out / "identified.csv")
     assert set(ident.split) == {"condition", "maneuver"} and (ident.zeta > 0).all()
     report = (out / "report.md").read_text()
-    assert "3.f.1" in report and "figures/through_time_db1.png" in report
+    assert "3.f.1" in report and "figures/through_time_db1.png" in report and "## Window RMS by maneuver kind" in report
     assert (out / "figures" / "through_time_db1.png").stat().st_size > 10_000
 
 

@@ -24,11 +24,11 @@ from ..realtime.npnet import read_npz, write_npz
 from . import compare
 from .checks import ResponseLimits, check_dynamic, parameter_problems, prediction_problems, response_limits
 from .models import identified
-from .scores import heldout_scores, nominal_cruise, row_peaks
+from .scores import heldout_scores, nominal_cruise, rms_by_kind, row_peaks
 from .sequences import Sequences, window_sequences
 
 __all__ = ["EXPORTABLE", "PAPER_PULLUP", "Database", "ElementModel", "comparison_table", "element_model", "figures",
-           "identified_rows", "predictions_table", "prepare_database", "report", "report_section", "result_notes",
+           "identified_rows", "kind_table", "predictions_table", "prepare_database", "report", "report_section", "result_notes",
            "run_comparison", "run_dynamic", "run_parts", "sequence_limits", "shown_conditions"]
 
 # Models the real-time element runs (`pvvjax export --element`): `best` is chosen among them.
@@ -229,6 +229,21 @@ def comparison_table(parts: dict, cfg) -> pd.DataFrame:
     return table
 
 
+def kind_table(parts: dict) -> pd.DataFrame:
+    """Where each model wins or loses: one row per (database, model, maneuver kind) of the
+    split by condition, its held-out window RMS (`scores.rms_by_kind`, g) and its real
+    windows (`windows`)."""
+    rows = []
+    for db, (d, by_split) in parts.items():
+        seq = d.seq
+        kinds = np.asarray(seq.maneuvers)
+        for model, (_, arrays) in by_split["condition"].items():
+            for kind, rms in rms_by_kind(arrays["heldout"], seq.amplitude, seq.mask, seq.maneuvers).items():
+                rows.append(dict(database=db, model=model, maneuver=kind, rms_g=rms,
+                                 windows=int(seq.mask[kinds == kind].sum())))
+    return pd.DataFrame(rows)
+
+
 def sequence_limits(seq: Sequences) -> ResponseLimits:
     """The `checks.ResponseLimits` of a sequence's rows: their median duration and window
     spacing, s."""
@@ -321,8 +336,10 @@ def figures(parts: dict, cfg, out: Path) -> list[Path]:
     return paths
 
 
-def report(table: pd.DataFrame, ident: pd.DataFrame, figs: list[Path], out: Path) -> Path:
-    """`report.md`: the comparison, the identified response and the figures."""
+def report(table: pd.DataFrame, ident: pd.DataFrame, figs: list[Path], out: Path,
+           kinds: pd.DataFrame | None = None) -> Path:
+    """`report.md`: the comparison, the window RMS by maneuver kind (`kind_table`), the
+    identified response and the figures."""
     lines = ["# PVV through time: dynamic models against the quasi-static map", "",
              "Held out by condition (every condition once); `rms_kind_holdout_g` holds out one maneuver kind at a "
              "time. FAA 14 CFR Part 60 App. C test 3.f.1: a condition passes when its predicted peak lies within "
@@ -336,6 +353,14 @@ def report(table: pd.DataFrame, ident: pd.DataFrame, figs: list[Path], out: Path
         if not any(p.stem == f"through_time_{db}" for p in figs):
             lines += [f"No figure of {db}: the campaign has neither the paper's conditions ({', '.join(PAPER_PULLUP)}) "
                       "nor a transient maneuver to draw.", ""]
+    if kinds is not None and len(kinds):
+        lines += ["## Window RMS by maneuver kind", "",
+                  "Held out by condition, g; level flight is most of a campaign's windows, the transients the rest.",
+                  ""]
+        for db, rows in kinds.groupby("database", sort=False):
+            wide = rows.pivot(index="model", columns="maneuver", values="rms_g")  # models down, kinds across
+            wide = wide.loc[list(dict.fromkeys(rows.model)), list(dict.fromkeys(rows.maneuver))].reset_index()
+            lines += [f"### {db}", "", markdown_table(wide, "{:.4g}"), ""]
     if len(ident):
         cols = ["f_n_hz", "zeta", "delay_s", "tau_equivalent_s", "tau_slow_pole_s"]
         g = ident.groupby(["database", "split"], sort=False)[cols]
@@ -353,8 +378,9 @@ def report(table: pd.DataFrame, ident: pd.DataFrame, figs: list[Path], out: Path
 
 def run_comparison(campaign, cfg, out: Path, log=print) -> pd.DataFrame:
     """Train (or resume) every part in `out/parts`, then write comparison.csv/.parquet (with
-    `config_hash` and `campaign` fingerprint columns), identified.csv, predictions.parquet,
-    the figures and report.md into `out`. Returns the comparison table."""
+    `config_hash` and `campaign` fingerprint columns), identified.csv, by_kind.csv/.parquet
+    (`kind_table`), predictions.parquet, the figures and report.md into `out`. Returns the
+    comparison table."""
     from .._strict import to_dict
     from ..config import config_hash
     from ..io import write_table
@@ -368,11 +394,13 @@ def run_comparison(campaign, cfg, out: Path, log=print) -> pd.DataFrame:
     ident = identified_rows(parts)
     if len(ident):
         write_table(ident, out / "identified", cfg.dynamic)
+    kinds = kind_table(parts).assign(config_hash=table.config_hash.iloc[0], campaign=campaign.fingerprint)
+    write_table(kinds, out / "by_kind", cfg.dynamic)
     pred = predictions_table(parts)
     tmp = out / "predictions.tmp.parquet"
     pred.to_parquet(tmp, index=False)
     tmp.replace(out / "predictions.parquet")
-    report(table, ident, figures(parts, cfg, out), out)
+    report(table, ident, figures(parts, cfg, out), out, kinds)
     return table
 
 
