@@ -28,8 +28,8 @@ from .scores import heldout_scores, nominal_cruise, rms_by_kind, row_peaks
 from .sequences import Sequences, window_sequences
 
 __all__ = ["EXPORTABLE", "PAPER_PULLUP", "Database", "ElementModel", "comparison_table", "element_model", "figures",
-           "identified_rows", "kind_table", "predictions_table", "prepare_database", "report", "report_section", "result_notes",
-           "run_comparison", "run_dynamic", "run_parts", "sequence_limits", "shown_conditions"]
+           "identified_rows", "kind_table", "predictions_table", "prepare_database", "report", "report_section",
+           "result_notes", "run_comparison", "run_dynamic", "run_parts", "sequence_limits", "shown_conditions"]
 
 # Models the real-time element runs (`pvvjax export --element`): `best` is chosen among them.
 EXPORTABLE = ("quasi_static", "window_static", "window_static_rates", "dynamic", "rnn")
