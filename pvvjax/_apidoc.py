@@ -43,6 +43,7 @@ MODULES = [
     "dynamics.compare",
     "dynamics.scores",
     "dynamics.study",
+    "dynamics.reporting",
     "seat.study",
     "seat.report",
     "realtime.element",

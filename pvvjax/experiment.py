@@ -475,7 +475,7 @@ def _write_report(cfg, out: Path, summary: str, figures, paper_figs, checks, net
 
         lines += report_section(disc[0], cfg.run.discovery_scenario, disc[1])
     if dyn is not None:
-        from .dynamics.study import report_section
+        from .dynamics.reporting import report_section
 
         lines += report_section(dyn, "dynamic/")
     lines += axes or []

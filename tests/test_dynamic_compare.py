@@ -269,7 +269,8 @@ def test_a_degenerate_model_is_flagged_never_best_and_exported_only_by_name(dyna
     from pvvjax.cli import main
     from pvvjax.config import load_config
     from pvvjax.data.campaign import load_campaign
-    from pvvjax.dynamics.study import comparison_table, result_notes, run_parts
+    from pvvjax.dynamics.reporting import result_notes
+    from pvvjax.dynamics.study import comparison_table, run_parts
 
     _, out, _ = dynamic_run
     cfg = load_config(out / "config.toml")
