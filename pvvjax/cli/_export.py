@@ -111,6 +111,7 @@ def _export_dynamic_element(args, folder: Path) -> int:
     from ..config import load_config
     from ..dynamics import window_sequences
     from ..dynamics.study import element_model
+    from ..realtime.element import input_source
     from ..realtime.export import element_spec
 
     cfg = load_config(folder / "config.toml")
@@ -118,7 +119,7 @@ def _export_dynamic_element(args, folder: Path) -> int:
     campaign, _ = resolve_campaign(cfg)
     counters = sorted(set(pd.read_parquet(folder / "predictions.parquet", columns=["counter"]).counter))
     inputs = em.nets[0][1]["inputs"]
-    plain = [n for n in inputs if not n.startswith("d_")]
+    plain = [n for n in inputs if not input_source(n)[1]]  # the features whose rates the nets take too
     seq = window_sequences(campaign, plain, window_revs=em.window_revs, hop_revs=em.hop_revs, counters=counters,
                            rates=len(plain) < len(inputs), chain=True)
     x = seq.inputs[seq.mask]

@@ -243,9 +243,9 @@ def _pieces(x, y, mask, row, start, scored, n: int, length: int) -> tuple:
     on the real windows a piece scores."""
     pad = n - len(row)
     row, start, scored = (np.concatenate([a, np.full(pad, a[0])]) for a in (row, start, scored))
-    idx = np.minimum(start[:, None] + np.arange(length), x.shape[1] - 1)
-    w = (mask[row[:, None], idx] & (idx >= scored[:, None]) & (start[:, None] + np.arange(length) < x.shape[1])
-         & (np.arange(n) < n - pad)[:, None])  # past the padded width: the clipped window is scored once only
+    at = start[:, None] + np.arange(length)  # each piece's windows; past the padded width, the last one
+    idx = np.minimum(at, x.shape[1] - 1)  # repeated, and scored once only (where `at` lies within it)
+    w = mask[row[:, None], idx] & (at >= scored[:, None]) & (at < x.shape[1]) & (np.arange(n) < n - pad)[:, None]
     return x[row[:, None], idx], y[row[:, None], idx], w.astype(np.float32)
 
 

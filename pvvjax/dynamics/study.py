@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 
 from ..analysis.databases import DB_INPUTS, OUTPUT, build_databases
+from ..config import DYNAMIC_MODELS
 from ..interrupts import check_interrupt
 from ..realtime.npnet import read_npz, write_npz
 from . import compare
@@ -31,8 +32,8 @@ __all__ = ["EXPORTABLE", "Database", "ElementModel", "comparison_table", "elemen
            "kind_table", "predictions_table", "prepare_database", "run_comparison", "run_dynamic", "run_parts",
            "sequence_limits"]
 
-# Models the real-time element runs (`pvvjax export --element`): `best` is chosen among them.
-EXPORTABLE = ("quasi_static", "window_static", "window_static_rates", "dynamic", "rnn")
+# Models the real-time element runs (`pvvjax export --element`): every model compared.
+EXPORTABLE = DYNAMIC_MODELS
 # Models that map each window on its own: they train on the real windows alone.
 POINTWISE = ("window_static", "window_static_rates")
 
@@ -186,9 +187,9 @@ def comparison_table(parts: dict, cfg) -> pd.DataFrame:
     """One row per (database, model): the held-out scores by condition (`scores.heldout_scores`),
     the window RMS with each maneuver kind held out, the identified response (median over
     folds and seeds, with its range), `degenerate` (why the model cannot be trusted:
-    `checks`; empty when it can), `notes` (why a score is NaN), and `best`: the exportable
-    model (`EXPORTABLE`) of the lowest window RMS among those not degenerate (none, when
-    every one is)."""
+    `checks`; empty when it can), `notes` (why a score is NaN), and `best`: the model of
+    the lowest window RMS among those not degenerate (none, when every one is); the
+    element runs every one (`EXPORTABLE`)."""
     rows = []
     for db, (d, by_split) in parts.items():
         seq = d.seq
@@ -222,7 +223,7 @@ def comparison_table(parts: dict, cfg) -> pd.DataFrame:
             row["degenerate"], row["notes"] = "; ".join(problems), "; ".join(notes)
             rows.append(row)
     table = pd.DataFrame(rows)
-    ok = table[table.model.isin(EXPORTABLE) & (table.degenerate == "") & np.isfinite(table.rms_g)]
+    ok = table[(table.degenerate == "") & np.isfinite(table.rms_g)]
     table["best"] = False
     if len(ok):
         table.loc[ok.rms_g.idxmin(), "best"] = True
