@@ -2,10 +2,13 @@
 
 The generator writes campaigns in the data-contract format; nothing in the pipeline
 imports it. A scenario config switches effects on or off, rescales them or changes their
-parameters; the ground truth is written beside the campaign folder, never inside it.
+parameters; `draw_world` draws a whole world (law, noise, scatter, size, aircraft and
+planted effects) over declared ranges. The ground truth is written beside the campaign
+folder, never inside it.
 """
 
 from ._conditions import NAMED, Condition, catalogue
+from ._draw import Planted, Span, WorldDraw, draw_world, law_effects
 from ._generate import (
     GENERATOR_VERSION,
     EffectConfig,
@@ -21,7 +24,7 @@ from ._generate import (
 from ._vibration import EFFECTS, Effect
 
 __all__ = [
-    "EFFECTS", "GENERATOR_VERSION", "NAMED", "Condition", "Effect", "EffectConfig", "SynthConfig",
-    "cached_campaign", "catalogue", "default_cache_dir", "describe_effects", "generate", "ground_truth",
-    "load_synth_config", "write_synthetic",
+    "EFFECTS", "GENERATOR_VERSION", "NAMED", "Condition", "Effect", "EffectConfig", "Planted", "Span",
+    "SynthConfig", "WorldDraw", "cached_campaign", "catalogue", "default_cache_dir", "describe_effects",
+    "draw_world", "generate", "ground_truth", "law_effects", "load_synth_config", "write_synthetic",
 ]

@@ -291,7 +291,7 @@ def _is_synthetic(folder: Path) -> bool:
 
 
 def write_synthetic(out, cfg: SynthConfig = SynthConfig(), truth_path=None, force: bool = False,
-                    log=print) -> tuple[Path, Path]:
+                    log=print, drawn: dict | None = None) -> tuple[Path, Path]:
     """Generate a campaign and write it to `out`; the ground truth goes to `truth_path`
     (default: `<out>.truth.json`, beside the folder, never inside it).
 
@@ -304,6 +304,8 @@ def write_synthetic(out, cfg: SynthConfig = SynthConfig(), truth_path=None, forc
         force: also write into a non-empty folder that is not a synthetic campaign, beside
             the files there (refused otherwise: it may be a user's own data).
         log: where replaced files are reported.
+        drawn: what a random draw set (`draw_world`'s record), written into the truth as
+            `drawn`.
 
     Returns:
         (campaign folder, ground-truth file).
@@ -328,6 +330,8 @@ def write_synthetic(out, cfg: SynthConfig = SynthConfig(), truth_path=None, forc
     if truth_path.exists() and not _is_truth(truth_path):
         raise ValueError(f"{truth_path}: exists and is not a ground truth of pvvjax.synth; give a new file (--truth)")
     counters, records, truth = generate(cfg)
+    if drawn:
+        truth = {**truth, "drawn": dict(drawn)}
     if synthetic:
         _remove_synthetic(out, log)
     ac = cfg.aircraft_constants()

@@ -2,17 +2,18 @@
 
 The quasi-static 4P amplitude is a sum of additive effects, each a function of the flight
 state (see `EFFECTS` for every formula), multiplied by the airframe's response at 4Ω
-(`rotor_resonance`), and then passed through a first-order lag (`dynamic_lag`) and, where
-switched on, a second-order response (`second_order`): the vibratory response follows a
-change of flight state with a delay, and may overshoot.
+(`rotor_resonance`, `rotor_band`), and then passed through first-order lags (`dynamic_lag`,
+`slow_lag`) and, where switched on, a second-order response (`second_order`): the vibratory
+response follows a change of flight state with a delay, and may overshoot.
 
     A4_static = Σ_additive scale_e · f_e(state)
-    A4        = mode_ωn,ζ( lag_τ( H(4Ω) · A4_static · (1 + scatter) ) )
+    A4        = mode_ωn,ζ( slow_lag( lag_τ( Π_gain G_e · A4_static · (1 + scatter) ) ) )
 
 Each effect has an on/off switch, a scale and named parameters, all set from the
 generator config. Symbols: μ advance ratio, L = C_W/σ·n_z blade loading, ḣ climb rate
-(ft/min), q pitch rate (deg/s), q̇ pitch acceleration (deg/s²), p roll rate (deg/s),
-β sideslip (deg), θ₀ collective (%), f₄ = 4Ω/2π (Hz), s(x) = w·softplus(x/w) a smooth ramp.
+(ft/min), q pitch rate (deg/s), q̇ pitch acceleration (deg/s²), p roll rate (deg/s), r yaw
+rate (deg/s), β sideslip (deg), θ₀ collective (%), δ_lon longitudinal stick (%), f₄ = 4Ω/2π
+(Hz), Ω% rotor speed (% of nominal), s(x) = w·softplus(x/w) a smooth ramp.
 """
 
 from __future__ import annotations
@@ -88,6 +89,18 @@ def _collective_stall(s, a, knee):
     return a * _ramp(s["collective"] - knee, 1.0)
 
 
+def _yaw_rate(s, a):
+    return a * np.abs(s["r"])
+
+
+def _stick_knee(s, a, knee):
+    return a * _ramp(s["lon"] - knee, 1.0)
+
+
+def _rotor_band(s, gain, center_pct, width_pct):
+    return 1.0 + gain / (1.0 + ((s["rpm_pct"] - center_pct) / width_pct) ** 2)
+
+
 def _lateral_tail_rotor(s, a, mu0, width, q_ref):
     return a * np.exp(-(((s["mu"] - mu0) / width) ** 2)) * (1.0 + np.abs(s["q"]) / q_ref)
 
@@ -145,6 +158,17 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in [
     Effect("rotor_resonance", "gain", "H(f4)/H(f_ref), H(f) = 1 + gain/(1 + ((f − f_mode)/bandwidth)²)",
            "airframe response at 4Ω near a fuselage mode (H-60 pilot-station peak at 17–17.5 Hz)",
            dict(gain=0.5, f_mode=17.4, bandwidth=0.6, f_ref=17.19), ("rotor_rpm",), fn=_rotor_resonance),
+    Effect("yaw_rate", "additive", "a·|r|",
+           "maneuver transient: tail-rotor thrust changes and the main-rotor wake swept sideways with yaw rate",
+           dict(a=0.002), ("yaw_rate_dps",), default_on=False, fn=_yaw_rate),
+    Effect("stick_knee", "additive", "a·s(δ_lon − knee)",
+           "hub moments grow once the longitudinal cyclic passes a knee (aft c.g., high-speed or pull-up "
+           "trim): the blades fly at large cyclic pitch", dict(a=0.006, knee=64.0), ("longitudinal_pct",),
+           default_on=False, fn=_stick_knee),
+    Effect("rotor_band", "gain", "1 + gain/(1 + ((Ω% − center_pct)/width_pct)²)",
+           "a second airframe or drive-train mode met in a narrow band of rotor speed (Ω% of nominal): "
+           "the whole N/rev is magnified there", dict(gain=1.0, center_pct=103.0, width_pct=1.0),
+           ("rotor_rpm",), default_on=False, fn=_rotor_band),
     Effect("lateral_baseline", "additive", "a0",
            "steady lateral N/rev at the pilot floor: in-plane hub shears reach the seat (lateral axis)",
            dict(a0=0.025), (), fn=_baseline, axis="y"),
@@ -172,6 +196,9 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in [
     Effect("dynamic_lag", "lag", "τ·dA/dt = A_static − A",
            "rotor inflow and wake settle after a change of flight state: the vibration lags the state",
            dict(tau_s=0.6), (), fn=None),
+    Effect("slow_lag", "lag", "τ·dA/dt = A_in − A, in series with dynamic_lag",
+           "a slower settling of the whole response after a change of flight state (e.g. a wake that "
+           "convects over seconds), beside the fast inflow lag", dict(tau_s=2.0), (), default_on=False, fn=None),
     Effect("second_order", "lag", "d²A/dt² + 2ζω_n·dA/dt + ω_n²·A = ω_n²·A_in, ω_n = 2π·f_n_hz",
            "the vibratory response to a change of flight state as a damped mode: it overshoots and rings "
            "before it settles (unit steady-state gain)",
@@ -199,6 +226,8 @@ def vibration_state(states: dict, aircraft) -> dict:
         mu=mu, loading=cw / aircraft.solidity * states["nz_g"], climb_fpm=states["climb_rate_fpm"],
         q=states["pitch_rate_dps"], p=states["roll_rate_dps"], qdot=states["pitch_accel_dps2"],
         beta=states["sideslip_deg"], collective=states["collective_pct"], phi=states["roll_angle_deg"],
+        r=states["yaw_rate_dps"], lon=states["longitudinal_pct"],
+        rpm_pct=100.0 * states["rotor_rpm"] / aircraft.nominal_rpm,
         f4=aircraft.blades * states["rotor_rpm"] / 60.0 * (UH60A.nominal_np_hz() / aircraft.nominal_np_hz()),
     )
 
@@ -256,9 +285,10 @@ def amplitude_4p(state: dict, settings: dict, dt: float) -> tuple[np.ndarray, di
         (A4 after gain and lag, per-effect additive contributions before the lag).
     """
     total, parts = _additive(state, settings, "z")
-    gain_on, gain_scale, gain_params = settings["rotor_resonance"]
-    if gain_on:
-        total = total * (1.0 + gain_scale * (EFFECTS["rotor_resonance"].fn(state, **gain_params) - 1.0))
+    for name, eff in EFFECTS.items():  # the airframe's gains: a mode magnifies the whole N/rev
+        on, scale, params = settings[name]
+        if eff.kind == "gain" and on:
+            total = total * (1.0 + scale * (eff.fn(state, **params) - 1.0))
     return _settle(total, settings, dt), parts
 
 
@@ -283,10 +313,11 @@ def _additive(state: dict, settings: dict, axis: str) -> tuple[np.ndarray, dict]
 
 
 def _settle(total: np.ndarray, settings: dict, dt: float) -> np.ndarray:
-    """An amplitude through the switched-on `dynamic_lag` and `second_order` response."""
-    lag_on, lag_scale, lag_params = settings["dynamic_lag"]
-    if lag_on:
-        total = first_order_lag(total, lag_scale * lag_params["tau_s"], dt)
+    """An amplitude through the switched-on `dynamic_lag`, `slow_lag` and `second_order` response."""
+    for name in ("dynamic_lag", "slow_lag"):
+        lag_on, lag_scale, lag_params = settings[name]
+        if lag_on:
+            total = first_order_lag(total, lag_scale * lag_params["tau_s"], dt)
     mode_on, _, mode = settings["second_order"]
     if mode_on:
         total = second_order_response(total, dt, 2.0 * np.pi * mode["f_n_hz"], mode["zeta"])
