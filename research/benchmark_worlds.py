@@ -1,4 +1,4 @@
-"""The worlds of the discovery benchmark, drawn at random (`pvvjax.synth.draw_world`).
+"""The worlds of the discovery benchmark, drawn at random (`pvvjax.synth.draw_campaign`).
 
 A plan (the `[world]`, `[protocol]` and `[[family]]` tables of a benchmark config) names
 the ranges of the base world, the hidden-effect families with the spans their parameters
@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from pvvjax.config import from_dict, load_toml
-from pvvjax.synth import Planted, WorldDraw, draw_world, ground_truth
+from pvvjax.synth import CampaignDraw, Planted, draw_campaign, ground_truth
 
 
 @dataclass(frozen=True)
@@ -105,7 +105,7 @@ class Plan:
     """A benchmark config's worlds: the base's ranges, the protocol, the families and the
     families left out with the reason."""
 
-    world: WorldDraw
+    world: CampaignDraw
     protocol: Protocol
     family: tuple[Family, ...] = field(metadata={"repeats": True})  # names checked below
     dropped: dict[str, str] = field(default_factory=dict)
@@ -146,7 +146,7 @@ def worlds(plan: Plan, fresh: bool = False) -> list[dict]:
     every = int(round(1 / p.two_effects)) if p.two_effects > 0 else 0
     out, k = [], 0
     for seed in seeds:
-        cfg, drawn = draw_world(plan.world, seed, name=f"null-{seed}")
+        cfg, drawn = draw_campaign(plan.world, seed, name=f"null-{seed}")
         out.append(dict(name=f"null-{seed}", seed=seed, database="db1", truth=None, synth=cfg, drawn=drawn))
         for _ in range(p.hidden_per_seed):
             fams = [deck[k]]
@@ -155,7 +155,7 @@ def worlds(plan: Plan, fresh: bool = False) -> list[dict]:
                 fams.append(others[int(rng.integers(len(others)))])
             k += 1
             name = "+".join(f.name for f in fams) + f"-{seed}"
-            cfg, drawn = draw_world(plan.world, seed, [f.planted for f in fams], name=name)
+            cfg, drawn = draw_campaign(plan.world, seed, [f.planted for f in fams], name=name)
             truth = _truth(fams[0], drawn, cfg)
             if len(fams) > 1:
                 truth["also"] = _truth(fams[1], drawn, cfg)

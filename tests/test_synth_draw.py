@@ -1,4 +1,4 @@
-"""Worlds drawn at random (`synth.draw_world`) and the effects the hidden-effect families
+"""Worlds drawn at random (`synth.draw_campaign`) and the effects the hidden-effect families
 plant (`yaw_rate`, `stick_knee`, `rotor_band`, `slow_lag`): draws within their declared
 ranges, recorded, pure in the seed; a null and a hidden world of one seed share their base;
 each new effect changes the vibration as its formula says and nothing else."""
@@ -13,34 +13,34 @@ from pvvjax.config import ConfigError, from_dict
 from pvvjax.synth import (
     EFFECTS,
     NAMED,
+    CampaignDraw,
     EffectConfig,
     Planted,
     Span,
     SynthConfig,
-    WorldDraw,
     catalogue,
-    draw_world,
+    draw_campaign,
     generate,
     law_effects,
     write_synthetic,
 )
 
 AH1S = dict(rotor_radius_ft=22.0, blades=2, nominal_rpm=324.0, chord_ft=2.25, solidity=0.06511)
-DRAW = WorldDraw(aircraft={"uh60a": {}, "ah1s": AH1S})
+DRAW = CampaignDraw(aircraft={"uh60a": {}, "ah1s": AH1S})
 LAG = Planted("slow_lag", params={"tau_s": Span(0.5, 4.0)})
 YAW = Planted("yaw_rate", scale=Span(0.6, 6.0, log=True))
 
 
 def test_a_world_is_a_pure_function_of_its_ranges_and_seed():
-    a, b = draw_world(DRAW, 3, [LAG]), draw_world(DRAW, 3, [LAG])
+    a, b = draw_campaign(DRAW, 3, [LAG]), draw_campaign(DRAW, 3, [LAG])
     assert a == b
-    other, _ = draw_world(DRAW, 4, [LAG])
+    other, _ = draw_campaign(DRAW, 4, [LAG])
     assert other.effects != a[0].effects and other.seed == 4
 
 
 def test_a_null_and_a_hidden_world_of_one_seed_share_their_base():
-    null, drawn_null = draw_world(DRAW, 11)
-    hidden, drawn = draw_world(DRAW, 11, [LAG, YAW])
+    null, drawn_null = draw_campaign(DRAW, 11)
+    hidden, drawn = draw_campaign(DRAW, 11, [LAG, YAW])
     assert {k: v for k, v in drawn.items() if not k.startswith("planted.")} == drawn_null
     assert {k: v for k, v in hidden.effects.items() if k not in ("slow_lag", "yaw_rate")} == null.effects
     for field in ("noise_g", "scatter", "counts", "aircraft", "sample_rate_hz", "seed"):
@@ -52,7 +52,7 @@ def test_a_null_and_a_hidden_world_of_one_seed_share_their_base():
 
 @pytest.mark.parametrize("seed", range(12))
 def test_every_draw_lies_within_its_declared_range(seed):
-    cfg, drawn = draw_world(DRAW, seed, [LAG, YAW])
+    cfg, drawn = draw_campaign(DRAW, seed, [LAG, YAW])
     default = SynthConfig()
     for eff in law_effects():
         for p, v in EFFECTS[eff].params.items():
@@ -69,7 +69,7 @@ def test_every_draw_lies_within_its_declared_range(seed):
 
 
 def test_the_draws_cover_their_ranges():
-    worlds = [draw_world(DRAW, s, [YAW])[1] for s in range(60)]
+    worlds = [draw_campaign(DRAW, s, [YAW])[1] for s in range(60)]
     assert {w["aircraft"] for w in worlds} == {"uh60a", "ah1s"}
     scales = np.log10([w["planted.yaw_rate.scale"] for w in worlds])
     assert scales.min() < np.log10(1.2) and scales.max() > np.log10(3.0)  # log-uniform over the decade
@@ -82,7 +82,7 @@ def test_the_draws_cover_their_ranges():
 def test_the_law_redrawn_is_the_steady_vertical_law_and_every_default_effect_stays_on():
     assert set(law_effects()) == {"baseline", "transition", "high_speed", "blade_loading", "dynamic_stall",
                                   "descent_bvi"}
-    cfg, _ = draw_world(DRAW, 5)
+    cfg, _ = draw_campaign(DRAW, 5)
     on = {n for n, (enabled, _, _) in cfg.effect_settings().items() if enabled}
     assert {n for n, e in EFFECTS.items() if e.default_on} <= on
     assert not cfg.maneuvers and not cfg.conditions  # every maneuver kind, autorotations included
@@ -99,7 +99,7 @@ def test_the_law_redrawn_is_the_steady_vertical_law_and_every_default_effect_sta
 ])
 def test_bad_ranges_are_errors_naming_the_key(table, needle):
     with pytest.raises(ConfigError, match=needle):
-        from_dict(WorldDraw, table)
+        from_dict(CampaignDraw, table)
 
 
 def test_a_planted_effect_must_be_a_known_effect_and_parameter():

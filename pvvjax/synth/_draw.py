@@ -1,12 +1,12 @@
 """Campaigns drawn at random: the full default physics with its law, noise, scatter, size
-and aircraft drawn per world over declared ranges, and hidden effects planted with drawn
-parameters, so that a rule judged on such worlds is judged on what a real campaign varies,
-not on one world's fixed values.
+and aircraft drawn per campaign over declared ranges, and hidden effects planted with drawn
+parameters, so that a rule judged on such campaigns is judged on what real campaigns vary,
+not on one campaign's fixed values.
 
-A world is a pure function of (ranges, seed): the base draws come from the seed's own
-stream and each planted effect from a stream of its own, so a null world and a hidden
-world of the same seed share their base (conditions, pilot inputs, law, noise) exactly,
-and the hidden effect's gap is measured against that null."""
+A drawn campaign is a pure function of (ranges, seed): the base draws come from the seed's
+own stream and each planted effect from a stream of its own, so the campaign without
+planted effects and one with them share their base (conditions, pilot inputs, law, noise)
+exactly, and a planted effect's gap is measured against the one without."""
 
 from __future__ import annotations
 
@@ -21,12 +21,12 @@ from ._conditions import DEFAULT_COUNTS, NAMED, SWEEP_SPEEDS, SWEEP_WEIGHTS
 from ._generate import EffectConfig, SynthConfig
 from ._vibration import EFFECTS
 
-__all__ = ["Planted", "Span", "WorldDraw", "draw_world", "law_effects"]
+__all__ = ["Planted", "Span", "CampaignDraw", "draw_campaign", "law_effects"]
 
 
 @dataclass(frozen=True)
 class Span:
-    """A number drawn per world: uniform on [lo, hi], or log-uniform with `log` (for a scale
+    """A number drawn per campaign: uniform on [lo, hi], or log-uniform with `log` (for a scale
     over decades). lo = hi fixes it."""
 
     lo: float
@@ -48,9 +48,9 @@ class Span:
 
 @dataclass(frozen=True)
 class Planted:
-    """A hidden effect planted in a world: a generator effect (`pvvjax.synth.EFFECTS`) switched
-    on, its scale and named parameters drawn per world (a parameter not listed keeps its
-    default; no scale: 1)."""
+    """A hidden effect planted in a drawn campaign: a generator effect (`pvvjax.synth.EFFECTS`)
+    switched on, its scale and named parameters drawn per campaign (a parameter not listed
+    keeps its default; no scale: 1)."""
 
     effect: str
     scale: Span | None = None
@@ -66,8 +66,8 @@ class Planted:
 
 
 @dataclass(frozen=True)
-class WorldDraw:
-    """How a world drawn at random departs from the default campaign, whose every default
+class CampaignDraw:
+    """How a campaign drawn at random departs from the default one, whose every default
     effect (transients, the rotor-speed resonance, autorotations) stays on.
 
     Attributes:
@@ -78,7 +78,7 @@ class WorldDraw:
         conditions: (fewest, most) conditions of the campaign, drawn uniformly; the random
             conditions of every maneuver kind scale together (at least one of each kind).
         aircraft: name -> rotor constants (`SynthConfig.aircraft`; empty: the UH-60A), one
-            drawn per world with equal odds.
+            drawn per campaign with equal odds.
     """
 
     law: float = 0.3
@@ -103,7 +103,7 @@ _FIXED = len(NAMED) + len(SWEEP_SPEEDS) * len(SWEEP_WEIGHTS)
 
 
 def law_effects() -> tuple[str, ...]:
-    """The effects of the quasi-static vertical law a world redraws: the default-on additive
+    """The effects of the quasi-static vertical law a drawn campaign redraws: the default-on additive
     effects of the vertical axis that depend on the steady state (not the maneuver
     transients of body rates, which the hidden-effect families plant)."""
     return tuple(n for n, e in EFFECTS.items()
@@ -126,24 +126,24 @@ def _counts(n: int) -> dict[str, int]:
     return counts
 
 
-def draw_world(draw: WorldDraw, seed: int, planted: Sequence[Planted] = (), base: SynthConfig = SynthConfig(),
+def draw_campaign(draw: CampaignDraw, seed: int, planted: Sequence[Planted] = (), base: SynthConfig = SynthConfig(),
                name: str = "") -> tuple[SynthConfig, dict]:
-    """A campaign drawn at random (pure: the same arguments give the same world).
+    """A campaign drawn at random (pure: the same arguments give the same campaign).
 
     Args:
-        draw: the ranges of the base world. seed: the world's seed (also the generator's).
+        draw: the ranges of its base. seed: its seed (also the generator's).
         planted: hidden effects, each switched on with its drawn scale and parameters.
         base: the config the draws start from: its rates, format, maneuvers and effects'
             overrides are kept (the drawn law parameters replace its own); its size
             (`counts`, `conditions`), noise, scatter and aircraft are drawn.
-        name: the campaign's name (default "world-<seed>").
+        name: the campaign's name (default "drawn-<seed>").
 
     Returns:
-        (the world's `SynthConfig`, what was drawn: key -> value, e.g. "law.blade_loading.a",
+        (its `SynthConfig`, what was drawn: key -> value, e.g. "law.blade_loading.a",
         "noise_g", "scatter", "conditions", "aircraft", "planted.slow_lag.tau_s"; the
-        record a world's truth file carries beside `ground_truth`).
+        record its truth file carries beside `ground_truth`).
     """
-    rng = _stream(seed, "world")
+    rng = _stream(seed, "base")
     effects = dict(base.effects)
     drawn: dict = {}
     for eff in law_effects():
@@ -174,7 +174,7 @@ def draw_world(draw: WorldDraw, seed: int, planted: Sequence[Planted] = (), base
         effects[plant.effect] = EffectConfig(enabled=True, scale=scale, params=params)
     rpm = aircraft.get("nominal_rpm", SynthConfig().aircraft_constants().nominal_rpm)
     rate = max(base.sample_rate_hz, 10.0 * math.ceil(64 * 1.15 * rpm / 60 / 10.0))  # 64 samples a rev at 115 %
-    cfg = SynthConfig(name=name or f"world-{seed}", seed=seed, sample_rate_hz=rate,
+    cfg = SynthConfig(name=name or f"drawn-{seed}", seed=seed, sample_rate_hz=rate,
                       dynamics_rate_hz=base.dynamics_rate_hz, noise_g=noise, scatter=scatter, format=base.format,
                       maneuvers=base.maneuvers, counts=counts, effects=effects,
                       vibration_weight_lb=base.vibration_weight_lb, aircraft=aircraft)

@@ -304,7 +304,7 @@ def write_synthetic(out, cfg: SynthConfig = SynthConfig(), truth_path=None, forc
         force: also write into a non-empty folder that is not a synthetic campaign, beside
             the files there (refused otherwise: it may be a user's own data).
         log: where replaced files are reported.
-        drawn: what a random draw set (`draw_world`'s record), written into the truth as
+        drawn: what a random draw set (`draw_campaign`'s record), written into the truth as
             `drawn`.
 
     Returns:
