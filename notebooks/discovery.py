@@ -93,7 +93,7 @@ res.localized["maneuver"].round(4)
 # of the gap is `chosen`.
 
 # %%
-res.rounds[["round", "name", "augment", "p_value", "cv_gain", "rms_before_g", "rms_after_g", "shrink",
+res.tries[["round", "name", "augment", "p_value", "cv_gain", "rms_before_g", "rms_after_g", "shrink",
             "confirmed", "chosen"]]
 
 # %% [markdown]
@@ -117,8 +117,8 @@ print(json.dumps(summary(res), indent=2))
 w = res.windows[res.windows.weight >= 0.999]
 if res.effects:
     e = res.effects[0]
-    fig = plots.partial_dependence(w[f"effect_{e['rank']}"], w.measured_g - w.predicted_before_g,
-                                   w.predicted_after_g - w.predicted_before_g, e["name"], e["name"])
+    fig = plots.partial_dependence(w[f"effect_{e.rank}"], w.measured_g - w.predicted_before_g,
+                                   w.predicted_after_g - w.predicted_before_g, e.name, e.name)
 
 # %%
 worst = (w.assign(r2=(w.measured_g - w.predicted_before_g) ** 2).groupby("counter").r2.mean()
@@ -155,7 +155,7 @@ print(f"held-out RMS: without the effect {without.before['rms_g']:.4f} g; with i
 both = res.windows[["counter", "window", "measured_g"]].merge(
     without.windows[["counter", "window", "measured_g"]], on=["counter", "window"], how="left", suffixes=("", "_0"))
 true_effect = (both.measured_g - both.measured_g_0).to_numpy()
-named = res.rounds[res.rounds.chosen].iloc[0]
+named = res.tries[res.tries.chosen].iloc[0]
 print(f"selection gain: the true effect {selection_gain(res, true_effect):.3f}; the named candidate "
       f"{selection_gain(res, res.windows['effect_1']):.3f} (the round's cv_gain: {named.cv_gain:.3f})")
 assert abs(selection_gain(res, res.windows["effect_1"]) - named.cv_gain) < 1e-9
@@ -165,7 +165,7 @@ assert abs(selection_gain(res, res.windows["effect_1"]) - named.cv_gain) < 1e-9
 
 # %%
 print("hidden:", truth["hidden"])
-print("named: ", [e["name"] for e in res.effects])
+print("named: ", [e.name for e in res.effects])
 first = summary(res)["effects"][0]
 assert first["operator"] == "input" and first["channels"] == ["sideslip_deg"], first
 assert attributable >= 0.5, attributable

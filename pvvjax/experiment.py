@@ -428,7 +428,7 @@ def _run_discovery(cfg, out: Path):
                 hidden.append(f"{e['name']} ({'on' if e['enabled'] else 'off'}"
                               + (f", scale {e['scale']:g}" if e["enabled"] and e["scale"] != 1 else "") + ")")
     print(f"generator settings that differ from the default physics: {', '.join(hidden) or 'none'}; named: "
-          f"{', '.join(e['name'] for e in res.effects) or 'nothing'}")
+          f"{', '.join(e.name for e in res.effects) or 'nothing'}")
     return res, hidden
 
 

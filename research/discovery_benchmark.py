@@ -121,7 +121,7 @@ def run_scenario(sc: dict, overrides: dict, out: Path, log=print):
     if truth:
         row["correct_first"] = bool(first and matches(first, truth["accept"]))
         # The truth among the first round's confirmed tries (named or not; round 0 is the lag test).
-        tries = res.rounds[(res.rounds["round"] <= 1) & res.rounds.confirmed] if len(res.rounds) else res.rounds
+        tries = res.tries[(res.tries["round"] <= 1) & res.tries.confirmed] if len(res.tries) else res.tries
         row["truth_confirmed"] = any(matches(dict(operator=t.operator, channels=t.channels.split(",")), truth["accept"])
                                      for t in tries.itertuples())
         if "parameter" in truth and first and row["correct_first"]:
@@ -251,7 +251,7 @@ def identifiability(res, null) -> dict:
     effect = (w.measured_g - w.measured_g_null).to_numpy()
     full = (w.weight >= 0.999).to_numpy() & np.isfinite(effect)
     out = dict(effect_rms_g=np.nan, truth_gain=np.nan, learned_share=np.nan, named_gain=np.nan)
-    if res.effects and res.residual is not None and res.effects[0]["operator"] != "lag":
+    if res.effects and res.residual is not None and res.effects[0].operator != "lag":
         out["named_gain"] = selection_gain(res, res.windows["effect_1"])
     if not np.any(np.abs(effect[full]) > 1e-6) or res.residual is None:  # same world (a model input taken away)
         return out

@@ -4,6 +4,7 @@ subset of the hidden-effect benchmark, research/discovery_benchmark.py)."""
 
 import json
 from dataclasses import replace
+from types import SimpleNamespace
 
 import numpy as np
 import pandas as pd
@@ -23,6 +24,7 @@ from pvvjax.discovery import (
     metrics,
     report,
 )
+from pvvjax.discovery._results import Confirmation, Predicted
 
 _fit_tau, _lag_identified = _fits._fit_tau, _fits._lag_identified
 _lag_windows, _Windows = _model._lag_windows, _model._Windows
@@ -228,7 +230,7 @@ def test_selection_gain_scores_a_column_on_the_first_rounds_design():
     floor, effect = rng.standard_normal((n, 2)), rng.standard_normal(n)
     resid = 0.5 * floor[:, 0] + 0.3 * effect + 0.1 * rng.standard_normal(n)
     rows = np.arange(n) % 2 == 0  # the selection's stride
-    res = Discovery("w", "db1", None, None, {}, {}, [], pd.DataFrame(), {}, pd.DataFrame(), {},
+    res = Discovery("w", "db1", None, None, {}, {}, (), pd.DataFrame(), {}, pd.DataFrame(), {},
                     Residual(resid, rows, floor[rows], groups, 5, 7))
     assert selection_gain(res, effect) == pytest.approx(gain(resid[rows], effect[rows], groups[rows], base=floor[rows],
                                                               seed=7))
@@ -392,12 +394,12 @@ def test_a_probes_band_gets_the_p_value_of_its_retraining_by_condition_where_it_
     win.values = lambda c: np.where(k < 15, 0.9, 0.1)  # the band acts on conditions K0-K14
     y = win.table.measured_g.to_numpy()
     rng = np.random.default_rng(3)
-    current = dict(pred=(y + 0.1 * rng.standard_normal(len(y)))[None], win=win)
+    current = Predicted((y + 0.1 * rng.standard_normal(len(y)))[None], win)
 
     def p(better):  # the current prediction with the error halved on the `better` windows
-        trial = dict(pred=np.where(better, (y + current["pred"][0]) / 2, current["pred"][0])[None], win=win)
+        trial = Predicted(np.where(better, (y + current.pred[0]) / 2, current.pred[0])[None], win)
         p, explained, why = P._probe_test(trial, current, None, 0, 0.05)
-        e2 = lambda t: np.sum((t["pred"][0] - y) ** 2)  # noqa: E731
+        e2 = lambda t: np.sum((t.pred[0] - y) ** 2)  # noqa: E731
         assert explained == pytest.approx(1 - e2(trial) / e2(current))
         assert (why == "") == (p <= 0.05)  # required at probe_alpha
         assert why == "" or why == f"its retraining's p = {p:.3f} by condition where it acts, above probe_alpha 0.05"
@@ -456,13 +458,13 @@ def test_a_source_try_gets_the_p_value_of_its_retraining_by_condition_where_it_a
     k = win.table.i.to_numpy()
     y = win.table.measured_g.to_numpy()
     rng = np.random.default_rng(3)
-    current = dict(pred=(y + 0.1 * rng.standard_normal(len(y)))[None], win=win)
+    current = Predicted((y + 0.1 * rng.standard_normal(len(y)))[None], win)
 
     def p(better, judged_in="pullup"):  # the current prediction with the error halved on `better`
-        trial = dict(pred=np.where(better, (y + current["pred"][0]) / 2, current["pred"][0])[None], win=win,
-                     judged_in=judged_in)
+        trial = SimpleNamespace(pred=np.where(better, (y + current.pred[0]) / 2, current.pred[0])[None], win=win,
+                                judged_in=judged_in)
         p, explained = P._source_test(trial, current, 0)
-        e2 = lambda t: np.sum((t["pred"][0] - y) ** 2)  # noqa: E731
+        e2 = lambda t: np.sum((t.pred[0] - y) ** 2)  # noqa: E731
         assert explained == pytest.approx(1 - e2(trial) / e2(current))
         return p
 
@@ -743,19 +745,19 @@ def test_a_try_confirms_where_its_candidate_is_active_or_twice_min_shrink_over_a
     monkeypatch.setattr(C, "predictions", lambda ctx, m, w: models[m.name])
     current, tried = (type("M", (), {"name": n, "offset_s": 0.0})() for n in ("current", "trial"))
     d = DiscoveryConfig()
-    ok, out = C._confirm(None, current, tried, Candidate("input", ("x",), {}), "all", d, slack)
-    assert out["judged_in"] == "pullup"
+    out = C._confirm(None, current, tried, Candidate("input", ("x",), {}), "all", d, slack)
+    assert isinstance(out, Confirmation) and out.judged_in == "pullup"
     rms = lambda p, rows: np.sqrt(np.mean((p[0, rows] - meas[rows]) ** 2))  # noqa: E731
     all_rows = np.ones(len(meas), bool)
-    assert out["shrink"] == pytest.approx(1 - rms(trial, all_rows) / rms(prev, all_rows))
-    assert out["local"] == pytest.approx(1 - rms(trial, pull) / rms(prev, pull))
-    assert ok is confirmed and (out["why"] == "") is confirmed
+    assert out.shrink == pytest.approx(1 - rms(trial, all_rows) / rms(prev, all_rows))
+    assert out.local == pytest.approx(1 - rms(trial, pull) / rms(prev, pull))
+    assert out.confirmed is confirmed and (out.why == "") is confirmed
     if level_gain > 0:
-        assert out["local"] == pytest.approx(0.0, abs=1e-12) and d.min_shrink < out["shrink"]
+        assert out.local == pytest.approx(0.0, abs=1e-12) and d.min_shrink < out.shrink
     if slack:
-        assert -slack < out["shrink"] < 0
-    assert ok == ((out["local"] >= d.min_shrink and out["shrink"] > 0) or out["shrink"] >= 2 * d.min_shrink
-                  or (out["local"] >= 2 * d.min_shrink and out["shrink"] > -slack))
+        assert -slack < out.shrink < 0
+    assert out.confirmed == ((out.local >= d.min_shrink and out.shrink > 0) or out.shrink >= 2 * d.min_shrink
+                             or (out.local >= 2 * d.min_shrink and out.shrink > -slack))
 
 
 def test_parameter_free_candidates_are_also_tried_at_the_candidate_offsets(monkeypatch):
@@ -901,13 +903,13 @@ def test_a_try_must_confirm_again_on_top_of_the_floor_control_or_beat_it_alone(
     asked, confirm = [], _round._confirm
 
     def confirm_on_the_current_model_only(ctx, current, trial, c, where, d, slack=0.0):
-        ok, out = confirm(ctx, current, trial, c, where, d, slack)
+        out = confirm(ctx, current, trial, c, where, d, slack)
         if len(asked) < 2:  # the current model's RMS, then the control's
-            out = {**out, "ensemble": ((0.050, 0.055 if control_worse else 0.045)[len(asked)], out["ensemble"][1])}
-        asked.append((current, trial, ok, out))
+            out = replace(out, ensemble=((0.050, 0.055 if control_worse else 0.045)[len(asked)], out.ensemble[1]))
+        asked.append((current, trial, out.confirmed, out))
         if len(asked) == 1 or (len(asked) == 3 and beats_it_alone):
-            return True, out
-        return False, {**out, "why": "too small a shrink"}
+            return replace(out, confirmed=True, why="")
+        return replace(out, confirmed=False, why="too small a shrink")
 
     monkeypatch.setattr(_workflow, "_propose", propose)
     monkeypatch.setattr(_round, "_confirm", confirm_on_the_current_model_only)
@@ -920,26 +922,26 @@ def test_a_try_must_confirm_again_on_top_of_the_floor_control_or_beat_it_alone(
     # (not against a control worse than the current model)
     if control_worse:
         assert len(asked) == 2
-        row = res.rounds.iloc[0]
+        row = res.tries.iloc[0]
         assert not row.confirmed and "the control predicts worse than the current model" in row.why_not
-        assert np.isnan(row.over_control_shrink) and res.effects == []
+        assert np.isnan(row.over_control_shrink) and res.effects == ()
         return
     (cur, trial, _, _), (control, on_control, _, out), (control_again, trial_again, _, over) = asked
-    assert cur.extra == () and [c.key for c in trial.extra] == [res.rounds.candidate[0]]
+    assert cur.extra == () and [c.key for c in trial.extra] == [res.tries.candidate[0]]
     assert len(control.extra) == 1 and control.extra[0].channels and control.params is not cur.params
     assert on_control.extra == control.extra + trial.extra  # the same try, added to the control
     assert control_again is control and trial_again is trial
-    row = res.rounds.iloc[0]
-    assert row.control_shrink == out["shrink"] and row.control_region_shrink == out["local"]
-    assert row.over_control_shrink == over["shrink"] and row.over_control_region_shrink == over["local"]
+    row = res.tries.iloc[0]
+    assert row.control_shrink == out.shrink and row.control_region_shrink == out.local
+    assert row.over_control_shrink == over.shrink and row.over_control_region_shrink == over.local
     assert row.control_terms == control.extra[0].name
     if beats_it_alone:  # confirmed and named: the current model with the try
-        assert row.confirmed and row.chosen and [e["key"] for e in res.effects] == [row.candidate]
+        assert row.confirmed and row.chosen and [e.key for e in res.effects] == [row.candidate]
         assert res.after != res.before
     else:
         assert not row.confirmed and row.why_not.startswith("not confirmed on top of the floor control: too small")
         assert "nor better than it alone" in row.why_not
-        assert res.effects == [] and res.after == res.before  # confirmed on the current model only: not named
+        assert res.effects == () and res.after == res.before  # confirmed on the current model only: not named
     report = write_discovery(res, tmp_path / "out", cfg).read_text()
     assert "over_control_region_shrink" in report and "the floor control" in report
 
@@ -976,8 +978,8 @@ def test_a_weak_name_brings_its_runner_up_on_other_channels_which_is_retrained_a
     shrink = {"proposal": (0.10, 0.01 if weak else 0.06), "rival": (0.095, 0.08)}  # (current model, control)
 
     def confirm_forced(ctx, current, trial, c, where, d, slack=0.0):
-        _, out = confirm(ctx, current, trial, c, where, d, slack)
-        return True, {**out, "shrink": shrink[who[_unaligned_key(c)]][1 if current.extra else 0], "why": ""}
+        out = confirm(ctx, current, trial, c, where, d, slack)
+        return replace(out, confirmed=True, shrink=shrink[who[_unaligned_key(c)]][1 if current.extra else 0], why="")
 
     monkeypatch.setattr(_workflow, "_propose", propose)
     monkeypatch.setattr(_round, "_confirm", confirm_forced)
@@ -986,12 +988,14 @@ def test_a_weak_name_brings_its_runner_up_on_other_channels_which_is_retrained_a
     res = discover(small_discovery, ExperimentConfig(train=TrainConfig(max_steps=100), discovery=d),
                    log=lambda m: None)
 
-    tries = res.rounds[res.rounds["round"] == 1]
+    tries = res.tries[res.tries["round"] == 1]
     assert list(tries.source) == (["selection", "rival"] if weak else ["selection"])
     assert tries.confirmed.all() and tries.chosen.sum() == 1
     named = tries[tries.chosen].iloc[0]
     assert named.source == ("rival" if weak else "selection")
-    assert [e["key"] for e in res.effects] == [named.candidate]
+    assert [e.key for e in res.effects] == [named.candidate]
+    (rnd,) = res.rounds  # the typed round: its tries and the effect it named
+    assert rnd.number == 1 and rnd.named is res.effects[0] and len(rnd.tries) == len(tries)
     if weak:
         assert tries.cv_gain.tolist() == [0.1, 0.08] and tries.control_shrink.tolist() == [0.01, 0.08]
 
@@ -1076,9 +1080,10 @@ def test_only_the_named_term_is_refitted_on_window_nets_and_kept_if_it_confirms(
         return augments[-1][-1]
 
     def confirm_forced(ctx, current, trial, c, where, d, slack=0.0):
-        _, out = confirm(ctx, current, trial, c, where, d, slack)
+        out = confirm(ctx, current, trial, c, where, d, slack)
         confirms.append((trial, out))
-        return (True if len(confirms) == 1 else kept), {**out, "why": "" if len(confirms) == 1 or kept else "forced"}
+        ok = True if len(confirms) == 1 else kept
+        return replace(out, confirmed=ok, why="" if ok else "forced")
 
     monkeypatch.setattr(_workflow, "_propose", propose)
     monkeypatch.setattr(_round, "_augment", augment_logged)
@@ -1089,7 +1094,7 @@ def test_only_the_named_term_is_refitted_on_window_nets_and_kept_if_it_confirms(
     cfg = ExperimentConfig(train=TrainConfig(max_steps=100), discovery=d)
     res = discover(small_discovery, cfg, log=lambda m: None)
 
-    row = res.rounds.iloc[0]
+    row = res.tries.iloc[0]
     assert row.chosen and len(res.effects) == 1
     report = write_discovery(res, tmp_path / "out", cfg).read_text()
     assert "window_refit_kept" in report
@@ -1100,11 +1105,11 @@ def test_only_the_named_term_is_refitted_on_window_nets_and_kept_if_it_confirms(
     assert not np.allclose(window_try.terms[-1][1], peaks_try.terms[-1][1])
     assert row.window_refit_kept == kept
     assert row.window_refit_coefficient == pytest.approx(np.median(window_try.terms[-1][1][:, 1]))
-    assert row.window_refit_ensemble_rms_g == confirms[1][1]["ensemble"][1]
+    assert row.window_refit_ensemble_rms_g == confirms[1][1].ensemble[1]
     final = window_try if kept else peaks_try
     assert res.final is final
-    assert res.effects[0]["parameters"]["coefficient"] == pytest.approx(np.median(final.terms[-1][1][:, 1]))
-    assert res.after["ensemble_rms_g"] == pytest.approx(confirms[1 if kept else 0][1]["metrics"]["ensemble_rms_g"])
+    assert res.effects[0].parameters["coefficient"] == pytest.approx(np.median(final.terms[-1][1][:, 1]))
+    assert res.after["ensemble_rms_g"] == pytest.approx(confirms[1 if kept else 0][1].metrics["ensemble_rms_g"])
 
 
 @pytest.mark.parametrize("shrinks, way", [((0.05, 0.06), "additive"), ((0.01, 0.20), "input")])
@@ -1127,10 +1132,11 @@ def test_a_named_input_gives_way_to_its_proposals_term_where_they_tie(
     confirm, trials = _round._confirm, []
 
     def confirm_forced(ctx, current, trial, c, where, d, slack=0.0):
-        _, out = confirm(ctx, current, trial, c, where, d, slack)
+        out = confirm(ctx, current, trial, c, where, d, slack)
         trials.append(trial)
         additive = bool(trial.terms)
-        return not additive, {**out, "shrink": shrinks[0 if additive else 1], "why": "forced" if additive else ""}
+        return replace(out, confirmed=not additive, shrink=shrinks[0 if additive else 1],
+                       why="forced" if additive else "")
 
     monkeypatch.setattr(_workflow, "_propose", propose)
     monkeypatch.setattr(_round, "_confirm", confirm_forced)
@@ -1139,13 +1145,13 @@ def test_a_named_input_gives_way_to_its_proposals_term_where_they_tie(
     cfg = ExperimentConfig(train=TrainConfig(max_steps=100), discovery=d)
     res = discover(small_discovery, cfg, log=lambda m: None)
 
-    rows = res.rounds[res.rounds["round"] == 1]
+    rows = res.tries[res.tries["round"] == 1]
     assert list(rows.augment) == ["additive", "input"] and list(rows.confirmed) == [False, True]
     named = rows[rows.chosen]
-    assert list(named.augment) == [way] and [e["key"] for e in res.effects] == list(named.candidate)
+    assert list(named.augment) == [way] and [e.key for e in res.effects] == list(named.candidate)
     term, input_ = trials
     assert res.final is (term if way == "additive" else input_)
-    assert ("coefficient" in res.effects[0]["parameters"]) == (way == "additive")
+    assert ("coefficient" in res.effects[0].parameters) == (way == "additive")
     assert rows.p_input_better.notna().tolist() == [True, False]  # the term's p, asked on its row
     assert 0 < rows.p_input_better.iloc[0] <= 1
     assert "p_input_better" in write_discovery(res, tmp_path / "out", cfg).read_text()
@@ -1166,9 +1172,9 @@ def test_every_confirmed_inputs_term_logs_the_p_of_the_way_it_was_chosen(monkeyp
     confirm = _round._confirm
 
     def confirm_forced(ctx, current, trial, c, where, d, slack=0.0):
-        _, out = confirm(ctx, current, trial, c, where, d, slack)
+        out = confirm(ctx, current, trial, c, where, d, slack)
         additive = bool(trial.terms)
-        return not additive, {**out, "shrink": 0.05 if additive else 0.06, "why": "forced" if additive else ""}
+        return replace(out, confirmed=not additive, shrink=0.05 if additive else 0.06, why="forced" if additive else "")
 
     monkeypatch.setattr(_workflow, "_propose", propose)
     monkeypatch.setattr(_round, "_confirm", confirm_forced)
@@ -1176,7 +1182,7 @@ def test_every_confirmed_inputs_term_logs_the_p_of_the_way_it_was_chosen(monkeyp
     d = discovery_config(seeds=1, folds=3, max_effects=1, offset_step_s=0.5)
     res = discover(small_discovery, ExperimentConfig(train=TrainConfig(max_steps=100), discovery=d),
                    log=lambda m: None)
-    rows = res.rounds[res.rounds["round"] == 1]
+    rows = res.tries[res.tries["round"] == 1]
     assert list(rows.augment) == ["additive", "input"] * 2 and rows.proposal.nunique() == 2
     assert rows.p_input_better.notna().tolist() == [True, False, True, False]
     assert list(rows[rows.chosen].augment) == ["additive"]  # 0.05 against 0.06: within shrink_noise
@@ -1236,8 +1242,9 @@ def test_of_two_tied_channels_the_term_that_keeps_more_on_top_of_the_other_is_na
     confirm = _round._confirm
 
     def confirm_forced(ctx, current, trial, c, where, d, slack=0.0):
-        _, out = confirm(ctx, current, trial, c, where, d, slack)
-        return True, {**out, "shrink": {"proposal": 0.10, "rival": 0.095}[who["*".join(c.channels)]], "why": ""}
+        out = confirm(ctx, current, trial, c, where, d, slack)
+        shrink = {"proposal": 0.10, "rival": 0.095}[who["*".join(c.channels)]]
+        return replace(out, confirmed=True, shrink=shrink, why="")
 
     calls = []
 
@@ -1254,10 +1261,10 @@ def test_of_two_tied_channels_the_term_that_keeps_more_on_top_of_the_other_is_na
     d = discovery_config(seeds=1, folds=3, max_effects=1, offset_step_s=0.5)
     res = discover(small_discovery, ExperimentConfig(train=TrainConfig(max_steps=100), discovery=d),
                    log=lambda m: None)
-    tries = res.rounds[res.rounds["round"] == 1]
+    tries = res.tries[res.tries["round"] == 1]
     assert len(tries) == 2 and tries.confirmed.all() and tries.chosen.sum() == 1
     assert who[tries[tries.chosen].iloc[0].channels] == named
-    assert [e["key"] for e in res.effects] == list(tries[tries.chosen].candidate)
+    assert [e.key for e in res.effects] == list(tries[tries.chosen].candidate)
     assert sorted(calls) == ["proposal", "rival"]
     rival = tries[[who[ch] == "rival" for ch in tries.channels]].iloc[0]
     assert (rival.kept_on_top, rival.named_kept_on_top) == (kept[1], kept[0])

@@ -8,6 +8,7 @@ import pytest
 from conftest import discovery_config
 
 from pvvjax.discovery import _confirm, _lag, _model, _rules, delag
+from pvvjax.discovery._results import Predicted
 
 _lag_windows, _Windows = _model._lag_windows, _model._Windows
 
@@ -47,7 +48,7 @@ def test_sign_flip_test_against_exact_enumeration():
     eb = ea * (1.0 - 0.4 * rng.random(len(rows)) + 0.2 * (rows.counter.to_numpy() < 3))
 
     def trial(e):
-        return dict(win=_Windows(rows, (10, 5), (), None), pred=np.stack([e, e + 1e-9, e - 1e-9]))
+        return Predicted(np.stack([e, e + 1e-9, e - 1e-9]), _Windows(rows, (10, 5), (), None))
 
     p, explained = _paired_sign_flip(trial(ea), trial(eb), 20000, 0)
     dc = pd.Series(ea**2 - eb**2).groupby(rows.condition).sum().to_numpy()
@@ -165,7 +166,7 @@ def test_discover_names_a_long_lag_first_with_nets_trained_through_it(monkeypatc
                                                       lag_test=True))
     res = D.discover(camp, cfg, log=lambda m: None)
     js = D.summary(res)
-    assert [e["operator"] for e in js["effects"]] == ["lag"], (res.lag_test, res.rounds.iloc[0])
+    assert [e["operator"] for e in js["effects"]] == ["lag"], (res.lag_test, res.tries.iloc[0])
     params = js["effects"][0]["parameters"]
     assert params["tau_s"] == 3.0 and 0.0 < js["effects"][0]["p_value"] <= 1.0
     base, learned, t = res.lag_test.iloc[0], res.lag_test.iloc[1], res.lag_test.iloc[2:].reset_index(drop=True)
@@ -179,7 +180,7 @@ def test_discover_names_a_long_lag_first_with_nets_trained_through_it(monkeypatc
         1 - base.ensemble_rms_g / t.ensemble_rms_g[0])
     assert res.baseline.through_lag and res.baseline.lag_tau_s == 0.0
     assert res.final.through_lag and res.final.lag_tau_s == 3.0 and res.final.offset_s == t.offset_s[1]
-    row = res.rounds.iloc[0]
+    row = res.tries.iloc[0]
     assert row["round"] == 0 and row.confirmed and row.chosen
     assert row.ensemble_rms_after_g == pytest.approx(t.ensemble_rms_g[1])
     assert res.after["rms_g"] < res.before["rms_g"]

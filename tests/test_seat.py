@@ -115,5 +115,5 @@ def test_the_discovery_on_the_lateral_axis_names_sideslip(default_campaign):
     cfg = cfg.with_(analysis=dataclasses.replace(cfg.analysis, axis="ay_g"),
                     discovery=dataclasses.replace(cfg.discovery, max_effects=1))
     res = discover(default_campaign, cfg, log=lambda *a: None)
-    assert res.effects and "sideslip_deg" in res.effects[0]["channels"]
+    assert res.effects and "sideslip_deg" in res.effects[0].channels
     assert res.after["rms_g"] < 0.7 * res.before["rms_g"]

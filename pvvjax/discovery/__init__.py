@@ -34,7 +34,8 @@ block-permutation test), `residuals` (where the residual concentrates) and `repo
 (discovery.json, report.md, figures). Its private modules, one concept each: `_model` (the nets, the replay windows, the
 predictions and metrics), `_fits` (least-squares fits of a lag, a knee or band, the offset),
 `_propose` (the candidate matrix, the floor covariates and the selection's proposals),
-`_confirm` (add a candidate, retrain, compare by condition, name), `_round` (one round's
+`_confirm` (add a candidate, retrain, compare by condition, name), `_results` (the typed
+outcome: a trial's `Confirmation`, an `Effect`, a `Round`), `_round` (one round's
 tries, each way, judged and one named), `_lag` (the lag test) and `_workflow` (`discover`,
 `summary`).
 """
@@ -42,6 +43,7 @@ tries, each way, judged and one named), `_lag` (the lag test) and `_workflow` (`
 from . import effects
 from ._model import Model, delag, fit_ensemble, floor_features, gain_apply, metrics
 from ._propose import knn_floor
+from ._results import Confirmation, Effect, Round
 from ._workflow import Discovery, Residual, discover, selection_gain, summary
 from .candidates import Candidate, describe, from_key, library, window_table, window_tables
 from .report import write_discovery
@@ -50,9 +52,12 @@ from .selection import Selected, forward_select
 
 __all__ = [
     "Candidate",
+    "Confirmation",
     "Discovery",
+    "Effect",
     "Model",
     "Residual",
+    "Round",
     "Selected",
     "delag",
     "describe",

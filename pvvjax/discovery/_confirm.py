@@ -25,6 +25,7 @@ from ._model import (
     predictions,
     source_channels,
 )
+from ._results import Confirmation
 from .candidates import Candidate, values
 
 
@@ -97,7 +98,7 @@ def _active_kinds(v, maneuver) -> list[str]:
 
 
 def _confirm(ctx: _Ctx, current: Model, trial: Model, c: Candidate, where: str, d,
-             slack: float = 0.0) -> tuple[bool, dict]:
+             slack: float = 0.0) -> Confirmation:
     """Whether a trial model confirms its effect: the held-out RMS of the ensemble's
     prediction (the median over seeds, whose residual the selection explained) drops by
     `min_shrink` where the effect acts and does not rise over all windows (or by twice
@@ -117,8 +118,8 @@ def _confirm(ctx: _Ctx, current: Model, trial: Model, c: Candidate, where: str, 
     vibration lags: a smoother, not a measured lag.
 
     Returns:
-        (confirmed, dict of the trial's predictions and windows, metrics, shrinks, region,
-        the ensemble's RMS over all windows before and after, and `why` it is not confirmed).
+        The `Confirmation`: whether it confirms and why not, the trial's predictions and
+        windows, metrics, shrinks, region and the ensemble's RMS before and after.
     """
     twin = _replay(ctx, trial.offset_s)
     tpred = predictions(ctx, trial, twin)
@@ -143,8 +144,7 @@ def _confirm(ctx: _Ctx, current: Model, trial: Model, c: Candidate, where: str, 
     why = "" if where_it_acts or shrink >= 2 * d.min_shrink else "too small a shrink"
     if c.operator == "lag" and not _lag_identified(trial.lag_tau_s, _rules.LAG_TAUS):
         why = f"time constant at the grid's largest, {max(_rules.LAG_TAUS):g} s: a smoother, not a lag"
-    return not why, dict(pred=tpred, win=twin, metrics=metrics(tpred, twin), shrink=shrink, local=local,
-                         region=region, judged_in=", ".join(kinds), ensemble=ens, why=why)
+    return Confirmation(not why, why, tpred, twin, metrics(tpred, twin), shrink, local, region, ", ".join(kinds), ens)
 
 
 def _control_refinements(refinements, c: Candidate) -> tuple:
@@ -179,17 +179,18 @@ def _floor_control(ctx: _Ctx, current: Model, refinements) -> Model | None:
     return control._replace(params=_train_model(ctx, control))
 
 
-def _paired_errors(a: dict, b: dict) -> pd.DataFrame:
+def _paired_errors(a, b) -> pd.DataFrame:
     """The squared errors of trials `a`'s and `b`'s ensembles (the median over seeds) on the
-    windows both hold in full: counter, window, condition, maneuver, e2_a, e2_b."""
+    windows both hold in full: counter, window, condition, maneuver, e2_a, e2_b. A trial is
+    anything with `pred` and `win` (`Predicted`, `Confirmation`)."""
     def table(t):
-        full = t["win"].table.weight.to_numpy() >= 0.999
-        e2 = (np.median(t["pred"], axis=0) - t["win"].table.measured_g.to_numpy()) ** 2
-        return t["win"].table.loc[full, ["counter", "window", "condition", "maneuver"]].assign(e2=e2[full])
+        full = t.win.table.weight.to_numpy() >= 0.999
+        e2 = (np.median(t.pred, axis=0) - t.win.table.measured_g.to_numpy()) ** 2
+        return t.win.table.loc[full, ["counter", "window", "condition", "maneuver"]].assign(e2=e2[full])
     return table(a).merge(table(b), on=["counter", "window", "condition", "maneuver"], suffixes=("_a", "_b"))
 
 
-def _paired_sign_flip(a: dict, b: dict, permutations: int, seed: int) -> tuple[float, float]:
+def _paired_sign_flip(a, b, permutations: int, seed: int) -> tuple[float, float]:
     """Whether trial `b`'s ensemble predicts the measured windows better than `a`'s, on the
     windows both hold in full: per condition, the sum of the difference of their squared
     errors; their total against random sign flips (conditions are the independent units,

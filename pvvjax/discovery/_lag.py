@@ -11,6 +11,7 @@ from ._confirm import _SIGN_FLIPS, _active_kinds, _paired_errors, _paired_sign_f
 from ._fits import _fit_offset
 from ._learned import fit_learned_lag
 from ._model import Model, _Ctx, _inputs, _lag_windows, _replay, _Windows, metrics, predictions, window_layout
+from ._results import Effect, Predicted
 from .candidates import Candidate
 
 
@@ -156,13 +157,14 @@ def _lag_test(ctx: _Ctx, delta: float, log, always_trials: bool = False) -> dict
     ref = min((t for t in trials if t["tau_s"] <= _rules.LAG_FAST_S), key=lambda t: t["ensemble_rms_g"])
     slow = min((t for t in trials if t["tau_s"] > _rules.LAG_FAST_S), key=lambda t: t["ensemble_rms_g"])
     drop = 1.0 - slow["ensemble_rms_g"] / ref["ensemble_rms_g"]
-    p, explained = _paired_sign_flip(ref, slow, _SIGN_FLIPS, ctx.cfg.seed)
+    p, explained = _paired_sign_flip(Predicted(ref["pred"], ref["win"]), Predicted(slow["pred"], slow["win"]),
+                                     _SIGN_FLIPS, ctx.cfg.seed)
     rwin = ref["win"]
     rfull = rwin.table.weight.to_numpy() >= 0.999
     yref = np.median(ref["pred"], axis=0)
     kinds = _active_kinds((_lag_windows(yref[None], rwin, slow["tau_s"])[0] - yref)[rfull],
                           rwin.table.maneuver.to_numpy()[rfull])
-    both = _paired_errors(ref, slow)
+    both = _paired_errors(Predicted(ref["pred"], ref["win"]), Predicted(slow["pred"], slow["win"]))
     there = both[both.maneuver.isin(kinds)]
     local = float(1.0 - np.sqrt(there.e2_b.sum() / there.e2_a.sum()))
     table = _lag_table(learned, trials, ref, slow, _rules.LAG_FAST_S)
@@ -196,10 +198,10 @@ def _lag_round(ctx: _Ctx, lag: dict, inputs) -> tuple[dict, dict | None]:
         return row, None
     swin = slow["win"]  # the effect's region: the reference re-predicted on the slow lag's windows
     region = _region(swin, swin.table.weight.to_numpy() >= 0.999, predictions(ctx, ref["model"], swin), slow["pred"])
-    return row, dict(rank=1, round=0, name=c.name, operator="lag", channels=list(inputs),
-                     parameters={"tau_s": slow["tau_s"], "learned_tau_s": lag["learned"]["tau_median_s"]},
-                     explained_fraction=lag["explained_fraction"],
-                     p_value=lag["p_value"], region=region, key=c.key, candidate=c, found_in="all")
+    return row, Effect(rank=1, round=0, name=c.name, operator="lag", channels=tuple(inputs),
+                       parameters={"tau_s": slow["tau_s"], "learned_tau_s": lag["learned"]["tau_median_s"]},
+                       explained_fraction=lag["explained_fraction"], p_value=lag["p_value"], region=region,
+                       key=c.key, candidate=c, found_in="all")
 
 
 def _lag_candidates(yhat, win: _Windows, taus) -> tuple[list[Candidate], np.ndarray]:

@@ -248,7 +248,7 @@ def _source_tries(proposals, lib: list[Candidate], M, designs, resid, groups, in
     return out
 
 
-def _source_test(conf: dict, current: dict, seed: int) -> tuple[float, float]:
+def _source_test(conf, current, seed: int) -> tuple[float, float]:
     """The p-value and explained fraction of a source try (`_source_tries`), which the
     selection gives none, from its retraining: p that the retrained ensemble predicts better
     than the current one by condition where it acts (`judged_in`), one-sided sign flips.
@@ -258,11 +258,11 @@ def _source_test(conf: dict, current: dict, seed: int) -> tuple[float, float]:
         (p, 1 − the trial's squared error / the current model's over all windows).
     """
     both = _paired_errors(current, conf)
-    where = both[both.maneuver.isin(conf["judged_in"].split(", "))]
+    where = both[both.maneuver.isin(conf.judged_in.split(", "))]
     return _sign_flip_p(where if len(where) else both, _SIGN_FLIPS, seed), _explained(both)
 
 
-def _probe_test(conf: dict, current: dict, c: Candidate, seed: int, alpha: float) -> tuple[float, float, str]:
+def _probe_test(conf, current, c: Candidate, seed: int, alpha: float) -> tuple[float, float, str]:
     """The p-value and explained fraction of a probe's band (`_resonance_probe`), which the
     selection gives none, from its retraining. p: that the retrained ensemble predicts better
     than the current one by condition where the band acts (its value ≥ 0.5: a mode magnifies
@@ -271,8 +271,8 @@ def _probe_test(conf: dict, current: dict, c: Candidate, seed: int, alpha: float
     stays above `alpha`, while a band without a mode scores far above either.
 
     Args:
-        conf: `_confirm`'s (the trial's predictions and windows). current: the current
-            model's predictions (`pred`) and windows (`win`). c: the band. seed: of the flips.
+        conf: `_confirm`'s `Confirmation` (the trial's predictions and windows). current: the
+            current model's (`Predicted`). c: the band. seed: of the flips.
         alpha: the level p must reach (`probe_alpha`).
 
     Returns:
@@ -280,7 +280,7 @@ def _probe_test(conf: dict, current: dict, c: Candidate, seed: int, alpha: float
         is not confirmed: "" if p ≤ alpha).
     """
     both = _paired_errors(current, conf).merge(
-        conf["win"].table[["counter", "window"]].assign(band=conf["win"].values(c)), on=["counter", "window"])
+        conf.win.table[["counter", "window"]].assign(band=conf.win.values(c)), on=["counter", "window"])
     p = _sign_flip_p(both[both.band >= 0.5], _SIGN_FLIPS, seed)
     why = "" if p <= alpha else f"its retraining's p = {p:.3f} by condition where it acts, above probe_alpha {alpha:g}"
     return p, _explained(both), why

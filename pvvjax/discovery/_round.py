@@ -26,6 +26,7 @@ from ._confirm import (
 from ._fits import _fit_offset, _keep_better, _refine
 from ._model import Model, _Ctx, _gain_unit, _Windows, metrics, predictions, source_channels
 from ._propose import _probe_test, _source_test, _unaligned_key
+from ._results import Confirmation, Predicted
 from .candidates import Candidate
 from .selection import Selected
 
@@ -40,7 +41,7 @@ class _Confirmed(NamedTuple):
     selected: Selected  # the selection's (p-value and explained fraction as confirmed)
     candidate: Candidate  # as tried (fitted parameters added)
     trial: Model
-    conf: dict  # `_confirm`'s
+    conf: Confirmation
     proposal: str  # the key of the proposal it tries (its term and input share it)
     control_shrink: float  # on top of its floor control, over all windows; NaN without one
 
@@ -118,61 +119,62 @@ class _Round:
         alts = "; ".join(f"{lib[a].name} ({g:.3f})" for a, g in s.alternatives)
         for mode in _modes(refined.operator, d):
             c, trial, added = self._trial(refined, mode, s)
-            ok, conf = _confirm(ctx, self.current, trial, c, where, d)
-            p_value, explained = s.p_value, s.explained_fraction
+            conf = _confirm(ctx, self.current, trial, c, where, d)
+            ok, p_value, explained = conf.confirmed, s.p_value, s.explained_fraction
             if s.source == "probe":  # no selection p: its retraining's, by condition
-                p_value, explained, why = _probe_test(conf, dict(pred=self.pred, win=win), c, self.seed,
+                p_value, explained, why = _probe_test(conf, Predicted(self.pred, win), c, self.seed,
                                                       _rules.PROBE_ALPHA)
                 if ok and why:
-                    ok, conf["why"] = False, why
+                    ok, conf = False, replace(conf, confirmed=False, why=why)
             elif s.source == "source":  # no selection p either: its retraining's, reported
-                p_value, explained = _source_test(conf, dict(pred=self.pred, win=win), self.seed)
-            unset = dict(shrink=np.nan, local=np.nan)
+                p_value, explained = _source_test(conf, Predicted(self.pred, win), self.seed)
+            unset = Confirmation.not_run()
             on_control, over_control, control, kept = unset, unset, None, ()
             if ok and self.refinements and mode != "lag":
                 control, kept = self._control_for(added)
             if control is not None:  # the same try on top of the floor control
-                ok, on_control = _confirm(ctx, control, _augment(ctx, control, added, mode), added, where, d,
-                                          slack=_rules.SHRINK_NOISE)
+                on_control = _confirm(ctx, control, _augment(ctx, control, added, mode), added, where, d,
+                                      slack=_rules.SHRINK_NOISE)
+                ok = on_control.confirmed
                 # Or the try alone beats the control (`_floor_control`), where the control predicts
                 # at least as well as the current model: beating a worse one, the try has shown
                 # nothing its first confirmation had not.
-                control_worse = on_control["ensemble"][0] > conf["ensemble"][0]
+                control_worse = on_control.ensemble[0] > conf.ensemble[0]
                 if not ok and not control_worse:
-                    ok, over_control = _confirm(ctx, control, trial, added, where, d, slack=_rules.SHRINK_NOISE)
+                    over_control = _confirm(ctx, control, trial, added, where, d, slack=_rules.SHRINK_NOISE)
+                    ok = over_control.confirmed
                 if not ok:
                     alone = ("the control predicts worse than the current model (ensemble's RMS "
-                             f"{on_control['ensemble'][0]:.4f} against {conf['ensemble'][0]:.4f} g)" if control_worse
-                             else f"nor better than it alone ({over_control['shrink']:+.1%}, "
-                                  f"{over_control['local']:+.1%})")
-                    conf["why"] = (f"not confirmed on top of the floor control: {on_control['why']} (shrink "
-                                   f"{on_control['shrink']:+.1%} (all), {on_control['local']:+.1%} "
-                                   f"({on_control['judged_in']})), {alone}")
+                             f"{on_control.ensemble[0]:.4f} against {conf.ensemble[0]:.4f} g)" if control_worse
+                             else f"nor better than it alone ({over_control.shrink:+.1%}, {over_control.local:+.1%})")
+                    conf = replace(conf, confirmed=False, why=(
+                        f"not confirmed on top of the floor control: {on_control.why} (shrink "
+                        f"{on_control.shrink:+.1%} (all), {on_control.local:+.1%} ({on_control.judged_in})), {alone}"))
                 elif over_control is not unset:
                     self.log(f"  {c.name} ({mode}): not confirmed on top of the floor control (shrink "
-                             f"{on_control['shrink']:+.1%} (all), {on_control['local']:+.1%}), but better than it "
-                             f"alone ({over_control['shrink']:+.1%} (all), {over_control['local']:+.1%} "
-                             f"({over_control['judged_in']}))")
+                             f"{on_control.shrink:+.1%} (all), {on_control.local:+.1%}), but better than it "
+                             f"alone ({over_control.shrink:+.1%} (all), {over_control.local:+.1%} "
+                             f"({over_control.judged_in}))")
             m = self.cur_metrics
             self.rounds.append(dict(
                 round=self.rnd + 1, where=where, candidate=c.key, parameters=c.parameters_json, proposal=refined.key,
                 source=s.source, name=c.name, operator=c.operator, channels=",".join(c.channels), augment=mode,
                 p_value=p_value, cv_gain=s.gain, runners_up=alts, explained_fraction=explained,
-                rms_before_g=m["rms_g"], rms_after_g=conf["metrics"]["rms_g"],
-                ensemble_rms_before_g=conf["ensemble"][0], ensemble_rms_after_g=conf["ensemble"][1],
-                floor_terms=self.floor_terms, shrink=conf["shrink"], judged_in=conf["judged_in"],
-                region_shrink=conf["local"], control_shrink=on_control["shrink"],
-                control_region_shrink=on_control["local"], over_control_shrink=over_control["shrink"],
-                over_control_region_shrink=over_control["local"],
+                rms_before_g=m["rms_g"], rms_after_g=conf.metrics["rms_g"],
+                ensemble_rms_before_g=conf.ensemble[0], ensemble_rms_after_g=conf.ensemble[1],
+                floor_terms=self.floor_terms, shrink=conf.shrink, judged_in=conf.judged_in,
+                region_shrink=conf.local, control_shrink=on_control.shrink,
+                control_region_shrink=on_control.local, over_control_shrink=over_control.shrink,
+                over_control_region_shrink=over_control.local,
                 control_terms="; ".join(r.name for r in kept) if control is not None else "",
-                confirmed=ok, why_not=conf["why"], p_best_better=np.nan, p_input_better=np.nan, chosen=False))
-            self.log(f"  {c.name} ({mode}): held-out RMS {m['rms_g']:.4f} -> {conf['metrics']['rms_g']:.4f} "
-                     f"g (median over seeds); ensemble's {conf['ensemble'][0]:.4f} -> {conf['ensemble'][1]:.4f} g, "
-                     f"shrink {conf['shrink']:+.1%} (all), {conf['local']:+.1%} ({conf['judged_in']}): "
-                     f"{'confirmed' if ok else 'not confirmed (' + conf['why'] + ')'}")
-            done = _Confirmed(conf["shrink"], len(self.rounds) - 1, where,
+                confirmed=ok, why_not=conf.why, p_best_better=np.nan, p_input_better=np.nan, chosen=False))
+            self.log(f"  {c.name} ({mode}): held-out RMS {m['rms_g']:.4f} -> {conf.metrics['rms_g']:.4f} "
+                     f"g (median over seeds); ensemble's {conf.ensemble[0]:.4f} -> {conf.ensemble[1]:.4f} g, "
+                     f"shrink {conf.shrink:+.1%} (all), {conf.local:+.1%} ({conf.judged_in}): "
+                     f"{'confirmed' if ok else 'not confirmed (' + conf.why + ')'}")
+            done = _Confirmed(conf.shrink, len(self.rounds) - 1, where,
                               s._replace(p_value=p_value, explained_fraction=explained), c, trial, conf,
-                              refined.key, on_control["shrink"])
+                              refined.key, on_control.shrink)
             self.ways[(refined.key, mode)] = done
             if ok:  # both ways are tried; `_choose`, then `_way`, keeps one
                 self.confirmed.append(done)
@@ -307,15 +309,16 @@ class _Round:
         # confirmed on the peaks cannot be named through it.
         term = named.trial.terms[-1][0]
         w_trial = _augment(self.ctx, self.current, term, "additive", refit="windows")
-        kept, w_conf = _confirm(self.ctx, self.current, w_trial, term, named.where, d)
+        w_conf = _confirm(self.ctx, self.current, w_trial, term, named.where, d)
+        kept = w_conf.confirmed
         coefficient = float(np.median(w_trial.terms[-1][1][:, 1]))
         self.rounds[row].update(window_refit_coefficient=coefficient, window_refit_kept=kept,
-                                window_refit_ensemble_rms_g=w_conf["ensemble"][1])
+                                window_refit_ensemble_rms_g=w_conf.ensemble[1])
         self.log(f"round {self.rnd + 1}: {c.name} refitted on window nets: coefficient "
                  f"{c.parameters['coefficient']:.4g} -> {coefficient:.4g}, ensemble's RMS "
-                 f"{conf['ensemble'][1]:.4f} -> {w_conf['ensemble'][1]:.4f} g, shrink {w_conf['shrink']:+.1%} "
-                 f"(all), {w_conf['local']:+.1%} ({w_conf['judged_in']}): "
-                 + ("kept" if kept else f"not confirmed ({w_conf['why']}), the peaks' refit kept"))
+                 f"{conf.ensemble[1]:.4f} -> {w_conf.ensemble[1]:.4f} g, shrink {w_conf.shrink:+.1%} "
+                 f"(all), {w_conf.local:+.1%} ({w_conf.judged_in}): "
+                 + ("kept" if kept else f"not confirmed ({w_conf.why}), the peaks' refit kept"))
         if not kept:
             return named
         c = replace(c, parameters={**c.parameters, "coefficient": coefficient})

@@ -40,6 +40,7 @@ from ._propose import (
     _source_tries,
     _unaligned_key,
 )
+from ._results import Effect, Round
 from ._round import _Round
 from .candidates import Candidate, sample_series, window_table
 from .residuals import localize
@@ -59,7 +60,7 @@ class Residual(NamedTuple):
     seed: int
 
 
-@dataclass
+@dataclass(frozen=True)
 class Discovery:
     """The outcome of `discover` (`summary` turns it into data-contract §3).
 
@@ -68,8 +69,9 @@ class Discovery:
         baseline, final: the baseline and the final (augmented) `Model`.
         before, after: their held-out metrics (`metrics`: medians over seeds, `rms_by_seed`
             per seed, `ensemble_rms_g` of the median prediction).
-        effects: one dict per confirmed effect, ranked (see `summary`).
-        rounds: every tried proposal (a table).
+        effects: the confirmed effects (`Effect`), in the order named.
+        tries: every tried proposal of every round (a table, one row per proposal and way).
+        rounds: the rounds (`Round`): each one's tries and the effect it named.
         localized: `residuals.localize` tables of the baseline.
         windows: the baseline replay windows with `predicted_before_g`, `predicted_after_g` and
             `effect_<rank>`, each effect's column as the selection saw it (a resonance times
@@ -91,13 +93,14 @@ class Discovery:
     final: Model
     before: dict
     after: dict
-    effects: list
-    rounds: pd.DataFrame
+    effects: tuple[Effect, ...]
+    tries: pd.DataFrame
     localized: dict
     windows: pd.DataFrame
     seconds: dict
     residual: Residual | None = None
     lag_test: pd.DataFrame | None = None
+    rounds: tuple[Round, ...] = ()
 
 
 def _with_baseline_row(table: pd.DataFrame, offset_s: float, m: dict, reference_rms: float) -> pd.DataFrame:
@@ -300,11 +303,11 @@ def _rounds(ctx: _Ctx, base: _Baseline, clock: Stopwatch, log) -> tuple[list, li
         if named is None:
             break
         c, conf = named.candidate, named.conf
-        effects.append(dict(rank=len(effects) + 1, round=rnd + 1, name=c.name, operator=c.operator,
-                            channels=list(c.channels) or list(current.inputs), parameters=_public_parameters(c),
-                            explained_fraction=named.selected.explained_fraction, p_value=named.selected.p_value,
-                            region=conf["region"], key=c.key, candidate=c, found_in=named.where))
-        current, pred, cur_metrics = named.trial, conf["pred"], conf["metrics"]
+        effects.append(Effect(rank=len(effects) + 1, round=rnd + 1, name=c.name, operator=c.operator,
+                              channels=tuple(c.channels) or tuple(current.inputs), parameters=_public_parameters(c),
+                              explained_fraction=named.selected.explained_fraction, p_value=named.selected.p_value,
+                              region=conf.region, key=c.key, candidate=c, found_in=named.where))
+        current, pred, cur_metrics = named.trial, conf.pred, conf.metrics
     return effects, rounds, current, first
 
 
@@ -381,32 +384,28 @@ def _outcome(ctx: _Ctx, name: str, base: _Baseline, final: Model, effects: list,
     table = table.merge(win.table[["counter", "window"]].assign(predicted_after_g=np.median(final_pred, axis=0)),
                         on=["counter", "window"], how="left")
     for e in effects:  # for its partial-dependence plot
-        c = e["candidate"]
+        c = e.candidate
         if c.operator == "lag":
-            table[f"effect_{e['rank']}"] = _lag_windows(yb[None], base_win, c.parameters["tau_s"])[0] - yb
+            table[f"effect_{e.rank}"] = _lag_windows(yb[None], base_win, c.parameters["tau_s"])[0] - yb
         else:
-            table[f"effect_{e['rank']}"] = _selection_column(c, base_win.values(c), yb)
+            table[f"effect_{e.rank}"] = _selection_column(c, base_win.values(c), yb)
     log(f"final: {len(effects)} effect(s); held-out RMS {base.before['rms_g']:.4f} -> {after['rms_g']:.4f} g")
-    return Discovery(name, ctx.cfg.discovery.database, base.model, final, base.before, after, effects,
-                     pd.DataFrame(rounds), localized, table, seconds, first,
-                     None if base.lag is None else base.lag["table"])
+    tries = pd.DataFrame(rounds)
+    by_round = {e.round: e for e in effects}
+    numbers = sorted(set(tries["round"])) if len(tries) else []
+    typed = tuple(Round(int(n), tries[tries["round"] == n].reset_index(drop=True), by_round.get(int(n)))
+                  for n in numbers)
+    return Discovery(name, ctx.cfg.discovery.database, base.model, final, base.before, after, tuple(effects),
+                     tries, localized, table, seconds, first, None if base.lag is None else base.lag["table"], typed)
 
 
 def summary(res: Discovery) -> dict:
     """The data-contract §3 summary (`discovery.json`)."""
     m = lambda x: {k: round(float(x[k]), 6) for k in ("rms_g", "peak_error_g", "phase_error_s")}  # noqa: E731
-    effects = []
-    for e in res.effects:
-        effects.append({k: e[k] for k in ("rank", "name", "operator", "channels")}
-                       | {"parameters": {k: (round(v, 6) if isinstance(v, float) else v)
-                                         for k, v in e["parameters"].items()},
-                          "explained_fraction": round(float(e["explained_fraction"]), 4),
-                          "p_value": round(float(e["p_value"]), 4),
-                          "region": {k: (round(v, 6) if isinstance(v, float) else v) for k, v in e["region"].items()}})
     return {
         "campaign": res.campaign,
         "baseline": {"database": res.database, "metrics": m(res.before)},
-        "effects": effects,
-        "augmented": {"added": [e["name"] for e in res.effects], "metrics": m(res.after)},
+        "effects": [e.summary() for e in res.effects],
+        "augmented": {"added": [e.name for e in res.effects], "metrics": m(res.after)},
         "gap_shrink": round(1.0 - res.after["rms_g"] / res.before["rms_g"], 4),
     }

@@ -56,7 +56,7 @@ def write_discovery(res: Discovery, out, cfg=None, worst: int = 4) -> Path:
     js = summary(res)
     (out / "discovery.json").write_text(_json_text(js, out / "discovery.json"))
     write_table(res.windows, out / "windows", cfg)
-    res.rounds.to_csv(out / "rounds.csv", index=False)
+    res.tries.to_csv(out / "rounds.csv", index=False)
     if res.lag_test is not None:
         res.lag_test.to_csv(out / "lag_test.csv", index=False)
     for k, t in res.localized.items():
@@ -83,16 +83,16 @@ def _figures(res: Discovery, folder: Path, worst: int) -> list[tuple[str, Path]]
     figs.append(("Where the baseline misses", plots.save(fig, folder / "residual_map.png")))
     w = res.windows[res.windows.weight >= 0.999]
     for e in res.effects:
-        col = f"effect_{e['rank']}"
+        col = f"effect_{e.rank}"
         if col not in w:
             continue
         ok = w.predicted_after_g.notna()
-        unit = " × prediction, g" if e["operator"] == "resonance" else ""
+        unit = " × prediction, g" if e.operator == "resonance" else ""
         fig = plots.partial_dependence(w[col][ok], (w.measured_g - w.predicted_before_g)[ok],
                                        (w.predicted_after_g - w.predicted_before_g)[ok],
-                                       f"effect {e['rank']}: {e['name']}", f"{e['name']} (window value{unit})")
-        figs.append((f"Partial dependence of effect {e['rank']}",
-                     plots.save(fig, folder / f"effect_{e['rank']}.png")))
+                                       f"effect {e.rank}: {e.name}", f"{e.name} (window value{unit})")
+        figs.append((f"Partial dependence of effect {e.rank}",
+                     plots.save(fig, folder / f"effect_{e.rank}.png")))
     rms = w.groupby("counter").apply(lambda g: float(np.sqrt(np.mean((g.measured_g - g.predicted_before_g) ** 2))),
                                      include_groups=False).sort_values(ascending=False)
     for counter in rms.index[:worst]:
@@ -133,7 +133,7 @@ def _effect_lines(res: Discovery, js: dict) -> list[str]:
                              explained_fraction=e["explained_fraction"], p_value=e["p_value"],
                              region=e["region"]["where"], region_before_rms_g=e["region"]["before_rms_g"],
                              region_after_rms_g=e["region"]["after_rms_g"],
-                             also_confirmed=_also_confirmed(res.rounds, r["round"], e["name"]))
+                             also_confirmed=_also_confirmed(res.tries, r.round, e["name"]))
                         for e, r in zip(js["effects"], res.effects)])
     return [_md(eff), "",
               "`also_confirmed`: the other tries of the same round that confirmed, with the drop of the held-out "
@@ -156,11 +156,11 @@ def _lag_lines(res: Discovery) -> list[str]:
 
 
 def _round_lines(res: Discovery) -> list[str]:
-    if res.rounds.empty:
+    if res.tries.empty:
         return []
-    controlled = "control_shrink" in res.rounds and bool(res.rounds.control_shrink.notna().any())
-    refit = "window_refit_kept" in res.rounds
-    way_tie = "p_input_better" in res.rounds and bool(res.rounds.p_input_better.notna().any())
+    controlled = "control_shrink" in res.tries and bool(res.tries.control_shrink.notna().any())
+    refit = "window_refit_kept" in res.tries
+    way_tie = "p_input_better" in res.tries and bool(res.tries.p_input_better.notna().any())
     lines = ["## Every proposal tried", "",
               "A round proposes the candidates the selection cannot tell apart (held-out errors within one "
               "standard error of the best's: the simplest, the one that explains most, then the others); each is "
@@ -190,7 +190,7 @@ def _round_lines(res: Discovery) -> list[str]:
                   " `p_input_better` (on a term's row): that its proposal's "
                   "input, confirmed, predicts better than the term (by condition); where the named input's "
                   "term ties with it, the term is named, confirmed alone or not." if way_tie else ""), "",
-              _md(res.rounds[["round", "name", *(["source"] if "source" in res.rounds else []), "augment",
+              _md(res.tries[["round", "name", *(["source"] if "source" in res.tries else []), "augment",
                               "p_value", "cv_gain", "rms_before_g", "rms_after_g",
                               "ensemble_rms_before_g", "ensemble_rms_after_g", "shrink", "judged_in",
                               "region_shrink", *(["control_shrink", "control_region_shrink", "over_control_shrink",
@@ -201,10 +201,10 @@ def _round_lines(res: Discovery) -> list[str]:
                                  "window_refit_kept"] if refit else [])]]), "",
               "Runners-up of each proposal (held-out gain):", ""]
     lines += [f"- round {r.round}, {r.name} ({r.cv_gain:.3f}): {r.runners_up}"
-              for r in res.rounds.drop_duplicates(["round", "name"]).itertuples()
+              for r in res.tries.drop_duplicates(["round", "name"]).itertuples()
               if isinstance(r.runners_up, str) and r.runners_up]
     lines += [""]
-    first = res.rounds.drop_duplicates("round")
+    first = res.tries.drop_duplicates("round")
     floor = [(r, t) for r, t in zip(first["round"], first.get("floor_terms", [""] * len(first)))
              if isinstance(t, str) and t]
     if floor:
