@@ -134,10 +134,11 @@ def _truth(fam: Family, drawn: dict, cfg) -> dict:
 
 def worlds(plan: Plan, fresh: bool = False) -> list[dict]:
     """The worlds of the tuning (or fresh) seeds, each seed's null before its hidden
-    worlds: each a scenario of `discovery_benchmark.py` (name, seed, database, truth,
-    synth, drawn) with its `SynthConfig` and its draws. A two-effect world's truth holds
-    the second family under `also`, in the order dealt: which of the two is the larger is
-    measured when it is scored."""
+    worlds: each a dict of name, seed, database, truth (None for a null), synth (its
+    `SynthConfig`), drawn (its draws) and alone. A two-effect world's truth holds the second
+    family under `also`, in the order dealt, and `alone` the world with each family alone
+    (family name -> `SynthConfig`): which of the two is the larger is measured when it is
+    scored."""
     seeds = (plan.protocol.fresh if fresh else plan.protocol.tuning).range()
     p = plan.protocol
     n_hidden = len(seeds) * p.hidden_per_seed
@@ -147,7 +148,7 @@ def worlds(plan: Plan, fresh: bool = False) -> list[dict]:
     out, k = [], 0
     for seed in seeds:
         cfg, drawn = draw_campaign(plan.world, seed, name=f"null-{seed}")
-        out.append(dict(name=f"null-{seed}", seed=seed, database="db1", truth=None, synth=cfg, drawn=drawn))
+        out.append(dict(name=f"null-{seed}", seed=seed, database="db1", truth=None, synth=cfg, drawn=drawn, alone={}))
         for _ in range(p.hidden_per_seed):
             fams = [deck[k]]
             if every and (k + 1) % every == 0:
@@ -157,9 +158,12 @@ def worlds(plan: Plan, fresh: bool = False) -> list[dict]:
             name = "+".join(f.name for f in fams) + f"-{seed}"
             cfg, drawn = draw_campaign(plan.world, seed, [f.planted for f in fams], name=name)
             truth = _truth(fams[0], drawn, cfg)
+            alone = {}
             if len(fams) > 1:
                 truth["also"] = _truth(fams[1], drawn, cfg)
-            out.append(dict(name=name, seed=seed, database=fams[0].database, truth=truth, synth=cfg, drawn=drawn))
+                alone = {f.name: draw_campaign(plan.world, seed, [f.planted])[0] for f in fams}
+            out.append(dict(name=name, seed=seed, database=fams[0].database, truth=truth, synth=cfg, drawn=drawn,
+                            alone=alone))
     return out
 
 

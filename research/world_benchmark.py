@@ -1,0 +1,195 @@
+"""The discovery benchmark on worlds drawn at random (research/benchmark_worlds.py), run with
+`pvvjax discover`'s defaults: what a user gets is what the table measures.
+
+Each world is generated, its truth file written (the generator's ground truth, the draws and
+the judged truth), and `discover` runs on the campaign alone. A world is scored against its
+truth and the null world of its seed:
+
+- right first: the first named effect is the truth (on a two-effect world, the larger of the
+  two: the one whose vibration differs more from the null's, RMS over every sample);
+- both named (two-effect worlds): each truth among the named effects;
+- clean (null worlds): nothing named;
+- spurious: an effect named that no planted family accepts;
+- attributable shrink: (before − after) / (before − the null's before) on the family's gap
+  metric (the ensemble's held-out RMS, or the peak error for a lag or mode);
+- parameter error: |fitted − true| / true of the first right effect's parameter.
+
+    python research/world_benchmark.py research/configs/worlds.toml [--fresh] [--only a,b] [--out DIR]
+        [--docs]   # also the table into research/discovery-benchmark.md (fresh seeds only)
+
+Resumes: a world whose row is in OUT/rows.csv is read back, not run again.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import json
+import platform
+import subprocess
+import sys
+import time
+from datetime import date
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from pvvjax.config import DiscoveryConfig, ExperimentConfig, from_dict
+from pvvjax.data.campaign import campaign_from_frames
+from pvvjax.discovery import discover, summary
+from pvvjax.experiment import enable_compilation_cache
+from pvvjax.io import markdown_table
+from pvvjax.synth import generate
+
+ROOT = Path(__file__).resolve().parents[1]
+_spec = importlib.util.spec_from_file_location("benchmark_worlds", ROOT / "research" / "benchmark_worlds.py")
+bw = importlib.util.module_from_spec(_spec)
+sys.modules["benchmark_worlds"] = bw
+_spec.loader.exec_module(bw)
+
+
+def matches(effect: dict, accept) -> bool:
+    """Whether a named effect (a `discovery.json` entry) is one of the accepted
+    operator[:channel] forms."""
+    for a in accept:
+        op, _, ch = a.partition(":")
+        if effect["operator"] == op and (not ch or ch in effect["channels"]):
+            return True
+    return False
+
+
+def effect_size(world: dict, family: str, null) -> float:
+    """RMS over every sample of the vertical acceleration that one family of a two-effect
+    world adds to its base (the world with that family alone, minus the null world of its
+    seed, `null` its `SynthConfig`): which of the two effects is the larger."""
+    with_it, without = generate(world["alone"][family])[1], generate(null)[1]
+    d = np.concatenate([(with_it[k].az_g - without[k].az_g).to_numpy() for k in with_it])
+    return float(np.sqrt(np.mean(d**2)))
+
+
+def run_world(world: dict, out: Path) -> dict:
+    """Generate a world, write its truth file, run `discover` with the defaults; the row of
+    what scoring needs (the named effects as JSON, the metrics before and after, seconds)."""
+    (out / "truth").mkdir(parents=True, exist_ok=True)
+    (out / "truth" / f"{world['name']}.truth.json").write_text(json.dumps(bw.world_truth(world), indent=1))
+    t0 = time.perf_counter()
+    counters, records, _ = generate(world["synth"])
+    campaign = campaign_from_frames(counters, records, aircraft=world["synth"].aircraft_constants(),
+                                    source=world["name"])
+    cfg = ExperimentConfig(name=world["name"], discovery=from_dict(DiscoveryConfig, {"database": world["database"]}))
+    res = discover(campaign, cfg, name=world["name"], log=lambda m: None)
+    js = summary(res)
+    row = dict(world=world["name"], seed=world["seed"], database=world["database"],
+               family=world["truth"]["effect"] if world["truth"] else "none",
+               also=world["truth"].get("also", {}).get("effect", "") if world["truth"] else "",
+               aircraft=world["drawn"]["aircraft"], conditions=world["drawn"]["conditions"],
+               named=" > ".join(e["name"] for e in js["effects"]) or "none", effects=json.dumps(js["effects"]),
+               seconds=time.perf_counter() - t0)
+    for k in ("ensemble_rms_g", "peak_error_g", "rms_g"):
+        row[f"{k}_before"], row[f"{k}_after"] = float(res.before[k]), float(res.after[k])
+    return row
+
+
+def score(rows: pd.DataFrame, worlds: list[dict]) -> pd.DataFrame:
+    """Each world's row with its scores (see the module docstring)."""
+    by = {w["name"]: w for w in worlds}
+    null_cfg = {w["seed"]: w.get("synth") for w in worlds if w["truth"] is None}
+    nulls = {r.seed: r for r in rows.itertuples() if r.family == "none"}
+    out = []
+    for r in rows.to_dict("records"):
+        w, effects = by[r["world"]], json.loads(r["effects"])
+        t = w["truth"]
+        s = dict(right_first=np.nan, both_named=np.nan, clean=np.nan, spurious=np.nan, attributable=np.nan,
+                 parameter_error=np.nan)
+        if t is None:
+            s["clean"] = not effects
+        else:
+            truths = [t] + ([t["also"]] if "also" in t else [])
+            if len(truths) > 1:
+                sizes = [effect_size(w, x["effect"], null_cfg[w["seed"]]) for x in truths]
+                truths = [truths[i] for i in np.argsort(sizes)[::-1]]
+                s["both_named"] = all(any(matches(e, x["accept"]) for e in effects) for x in truths)
+            first = effects[0] if effects else None
+            s["right_first"] = bool(first and matches(first, truths[0]["accept"]))
+            s["spurious"] = any(not any(matches(e, x["accept"]) for x in truths) for e in effects)
+            null = nulls.get(r["seed"])
+            metric = truths[0]["gap_metric"]
+            if null is not None:
+                gap = r[f"{metric}_before"] - getattr(null, f"{metric}_before")
+                if gap > 0:
+                    s["attributable"] = (r[f"{metric}_before"] - r[f"{metric}_after"]) / gap
+            if s["right_first"] and "parameter" in truths[0]:
+                fitted = first["parameters"].get(truths[0]["parameter"], np.nan)
+                s["parameter_error"] = abs(fitted - truths[0]["value"]) / abs(truths[0]["value"])
+        out.append({**r, **s})
+    return pd.DataFrame(out)
+
+
+def table(df: pd.DataFrame) -> pd.DataFrame:
+    """Per family (a two-effect world under its first family) and overall: the counts and
+    medians of the scores."""
+    def line(name, g):
+        hidden, nulls = g[g.family != "none"], g[g.family == "none"]
+        two = hidden[hidden.also != ""]
+        att = hidden.attributable.dropna()
+        frac = lambda a, b: f"{int(a)} / {int(b)}" if b else ""  # noqa: E731
+        return {"family": name, "worlds": len(g),
+                "right first": frac(hidden.right_first.sum(), len(hidden)),
+                "both named (two effects)": frac(two.both_named.sum(), len(two)),
+                "nulls clean": frac(nulls.clean.sum(), len(nulls)),
+                "median attributable": f"{att.median():.2f}" if len(att) else "",
+                "attributable ≥ 0.5": frac((att >= 0.5).sum(), len(att)),
+                "spurious extra": frac(hidden.spurious.sum(), len(hidden)),
+                "median parameter error": (f"{hidden.parameter_error.median():.1%}"
+                                           if hidden.parameter_error.notna().any() else ""),
+                "median seconds": f"{g.seconds.median():.0f}"}
+    fams = [f for f in df.family.unique() if f != "none"]
+    return pd.DataFrame([line(f, df[df.family == f]) for f in ["none", *sorted(fams)]] + [line("all", df)])
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("config")
+    ap.add_argument("--fresh", action="store_true", help="the fresh seeds (default: the tuning seeds)")
+    ap.add_argument("--only", default="", help="comma-separated world names")
+    ap.add_argument("--out", default=None, help="default runs/world-benchmark/{tuning,fresh}")
+    ap.add_argument("--docs", action="store_true", help="write the table into research/discovery-benchmark.md")
+    args = ap.parse_args()
+    if args.docs and not args.fresh:
+        raise SystemExit("--docs reports the fresh seeds only (--fresh)")
+    enable_compilation_cache()
+    plan = bw.load_plan(args.config)
+    worlds = bw.worlds(plan, args.fresh)
+    if args.only:
+        keep = set(args.only.split(","))
+        worlds = [w for w in worlds if w["name"] in keep]
+    out = Path(args.out or ROOT / "runs" / "world-benchmark" / ("fresh" if args.fresh else "tuning"))
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / "rows.csv"
+    rows = pd.read_csv(path, keep_default_na=False) if path.exists() else pd.DataFrame()
+    done = set(rows.world) if len(rows) else set()
+    for i, w in enumerate(worlds):
+        if w["name"] in done:
+            continue
+        row = run_world(w, out)
+        rows = pd.concat([rows, pd.DataFrame([row])], ignore_index=True)
+        rows.to_csv(path, index=False)
+        print(f"[{i + 1}/{len(worlds)}] {w['name']}: named {row['named']}; {row['seconds']:.0f} s", flush=True)
+    rows = rows[rows.world.isin([w["name"] for w in worlds])]
+    df = score(rows, worlds)
+    df.to_csv(out / "scored.csv", index=False)
+    t = table(df)
+    print(t.to_string(index=False))
+    if args.docs:
+        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
+                                cwd=ROOT).stdout.strip()
+        text = (f"Command: `python research/world_benchmark.py {args.config} --fresh --docs` at {commit}, "
+                f"{date.today()}, {platform.machine()} ({len(worlds)} worlds, one process); `pvvjax discover`'s "
+                f"defaults.\n\n" + markdown_table(t, "{}") + "\n")
+        (out / "table.md").write_text(text)
+        print(f"table: {out / 'table.md'}")
+
+
+if __name__ == "__main__":
+    main()
