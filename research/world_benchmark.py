@@ -68,16 +68,18 @@ def effect_size(world: dict, family: str, null) -> float:
     return float(np.sqrt(np.mean(d**2)))
 
 
-def run_world(world: dict, out: Path) -> dict:
-    """Generate a world, write its truth file, run `discover` with the defaults; the row of
-    what scoring needs (the named effects as JSON, the metrics before and after, seconds)."""
+def run_world(world: dict, out: Path, cfg: ExperimentConfig | None = None) -> dict:
+    """Generate a world, write its truth file, run `discover` with the defaults (`cfg`: other
+    settings, for the test suite's micro run only); the row of what scoring needs (the named
+    effects as JSON, the metrics before and after, seconds)."""
     (out / "truth").mkdir(parents=True, exist_ok=True)
     (out / "truth" / f"{world['name']}.truth.json").write_text(json.dumps(bw.world_truth(world), indent=1))
     t0 = time.perf_counter()
     counters, records, _ = generate(world["synth"])
     campaign = campaign_from_frames(counters, records, aircraft=world["synth"].aircraft_constants(),
                                     source=world["name"])
-    cfg = ExperimentConfig(name=world["name"], discovery=from_dict(DiscoveryConfig, {"database": world["database"]}))
+    cfg = cfg or ExperimentConfig(name=world["name"],
+                                  discovery=from_dict(DiscoveryConfig, {"database": world["database"]}))
     res = discover(campaign, cfg, name=world["name"], log=lambda m: None)
     js = summary(res)
     row = dict(world=world["name"], seed=world["seed"], database=world["database"],

@@ -80,3 +80,25 @@ def test_of_two_effects_the_larger_must_come_first_and_both_be_named(wb):
         assert (s.right_first, s.both_named, s.spurious) == (right, both_named, False)
         if right:  # the larger effect's parameter
             assert s.parameter_error == pytest.approx(1 / 40)
+
+
+def test_a_micro_world_runs_end_to_end_and_writes_its_truth(wb, tmp_path):
+    """The runner's path on a few conditions with short trainings (the table runs the
+    defaults on 80-300 conditions)."""
+    from conftest import discovery_config
+
+    from pvvjax.config import ExperimentConfig, TrainConfig
+
+    cids = ("11022", "T1-level-135", "T1-descent-160", "T1-climb-62", "T1-turn45-145", "LS15k-060", "LS15k-120",
+            "LS20k-080", "LS20k-140")
+    synth = SynthConfig(name="micro", conditions=cids)
+    world = dict(name="micro", seed=0, database="db1", truth=None, synth=synth, alone={},
+                 drawn={"aircraft": "uh60a", "conditions": len(cids)})
+    cfg = ExperimentConfig(train=TrainConfig(max_steps=50),
+                           discovery=discovery_config(seeds=1, folds=3, max_effects=1, offset_step_s=0.5))
+    row = wb.run_world(world, tmp_path, cfg)
+    truth = json.loads((tmp_path / "truth" / "micro.truth.json").read_text())
+    assert truth["drawn"] == world["drawn"] and truth["judged"] is None
+    assert row["family"] == "none" and row["ensemble_rms_g_before"] > 0 and row["seconds"] > 0
+    s = wb.score(pd.DataFrame([row]), [world]).iloc[0]
+    assert s.clean == (row["named"] == "none")
