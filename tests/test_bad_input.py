@@ -104,6 +104,11 @@ def _horizontal_in_m_s2(df):
     return df
 
 
+def _horizontal_large(df):
+    df["ay_g"] = 4.5 * (df["az_g"] - 1.0)  # a lateral vibration 4.5x the vertical's, in g: a steep turn's
+    return df
+
+
 def _azimuth(fn):
     """A record given the azimuth its rotor speed integrates to, as `fn(degrees)` writes it."""
     def edit(df):
@@ -161,6 +166,8 @@ CAMPAIGN = {
     "axes swapped: the lateral carrying the vertical's 1 g": (_records(_swapped_axes), 1, "C1.csv", "ay_g",
                                                               "axes swapped"),
     "a horizontal axis in m/s²": (_records(_horizontal_in_m_s2), 1, "C1.csv", "ax_g", "m/s²"),
+    "a horizontal axis 4.5x the vertical (a warning)": (_records(_horizontal_large), 0, "C1.csv", "ay_g",
+                                                        "warning"),
     "a horizontal axis that carries no vibration": (_records(_set("ax_g", 0.0)), 1, "C1.csv", "ax_g",
                                                     "carries no vibration"),
     "one stick a fraction, the others in % (a warning)": (_records(_one_stick_fraction), 0, "C1.csv", "lateral_pct",
