@@ -17,7 +17,7 @@ effect: the scenario's `reference_world`).
 
 Writes runs/discovery-benchmark/ (results table, each scenario's discovery.json and
 report; seed offset N in runs/discovery-benchmark/seed+N/); with --docs also
-research/discovery-benchmark.md.
+research/discovery-benchmark-fixed.md.
 """
 
 from __future__ import annotations
@@ -391,7 +391,7 @@ def main():
     ap.add_argument("config")
     ap.add_argument("--only", default="", help="comma-separated scenario names")
     ap.add_argument("--out", default="runs/discovery-benchmark")
-    ap.add_argument("--docs", action="store_true", help="also write research/discovery-benchmark.md")
+    ap.add_argument("--docs", action="store_true", help="also write research/discovery-benchmark-fixed.md")
     ap.add_argument("--exclude", nargs="+", default=[], metavar="CHANNEL",
                     help="channels left out of the candidates (added to [discovery] exclude_channels)")
     ap.add_argument("--set", nargs="+", action="extend", default=[], metavar="KEY=VALUE", dest="settings",
@@ -591,7 +591,7 @@ Worlds on the other side of 0.5 ({len(flipped)}):
 
 
 def write_docs(tables: dict, config: str, offsets: str, found: dict | None = None, settings=()):
-    """research/discovery-benchmark.md from the offsets' tables; `settings`: the run's `--set`
+    """research/discovery-benchmark-fixed.md from the offsets' tables; `settings`: the run's `--set`
     items, which its command line repeats."""
     tables = {off: _blank(t) for off, t in tables.items()}
     sets = "".join(f" --set {v}" for v in settings)
@@ -620,7 +620,9 @@ def write_docs(tables: dict, config: str, offsets: str, found: dict | None = Non
 
 {markdown_table(t[[c for c in rep_cols if c in t.columns]], "{:.3g}", nan="")}
 """ for off, t in reps.items())
-    text = f"""# Discovery: hidden-effect benchmark
+    text = f"""# Discovery: the first hidden-effect benchmark, on fixed worlds
+
+Superseded by the drawn worlds of [discovery-benchmark.md](discovery-benchmark.md).
 
 Command: `python research/discovery_benchmark.py {config} --seed-offsets {offsets}{sets} --docs`
 (2-core VM, {time.strftime('%Y-%m-%d')}; `seconds` is the wall time of each scenario:
@@ -682,8 +684,8 @@ null scenario, "right first" counts the worlds where nothing was named).
 The same scenarios, every seed shifted (other conditions, pilot inputs and scatter; the
 same physics and discovery settings).
 {replication}""" if reps else "") + _remeasured_section(found or {}) + _FAST_SUBSET
-    (ROOT / "research" / "discovery-benchmark.md").write_text(text)
-    print(f"wrote {ROOT / 'research' / 'discovery-benchmark.md'}")
+    (ROOT / "research" / "discovery-benchmark-fixed.md").write_text(text)
+    print(f"wrote {ROOT / 'research' / 'discovery-benchmark-fixed.md'}")
 
 
 if __name__ == "__main__":
