@@ -44,20 +44,19 @@ from pvvjax.io import markdown_table
 from pvvjax.synth import generate
 
 ROOT = Path(__file__).resolve().parents[1]
-_spec = importlib.util.spec_from_file_location("benchmark_worlds", ROOT / "research" / "benchmark_worlds.py")
-bw = importlib.util.module_from_spec(_spec)
-sys.modules["benchmark_worlds"] = bw
-_spec.loader.exec_module(bw)
 
 
-def matches(effect: dict, accept) -> bool:
-    """Whether a named effect (a `discovery.json` entry) is one of the accepted
-    operator[:channel] forms."""
-    for a in accept:
-        op, _, ch = a.partition(":")
-        if effect["operator"] == op and (not ch or ch in effect["channels"]):
-            return True
-    return False
+def _research(name: str):
+    """A script of research/ as a module (research/ is not a package)."""
+    spec = importlib.util.spec_from_file_location(name, ROOT / "research" / f"{name}.py")
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[name] = mod  # its dataclasses' annotations resolve in their module
+    spec.loader.exec_module(mod)
+    return mod
+
+
+bw = _research("benchmark_worlds")
+matches = _research("discovery_benchmark").matches  # a named effect against the accepted forms
 
 
 def effect_size(world: dict, family: str, null) -> float:
