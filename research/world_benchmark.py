@@ -59,12 +59,13 @@ bw = _research("benchmark_worlds")
 matches = _research("discovery_benchmark").matches  # a named effect against the accepted forms
 
 
-def effect_size(world: dict, family: str, null) -> float:
+def effect_size(world: dict, family: str, null: dict) -> float:
     """RMS over every sample of the vertical acceleration that one family of a two-effect
     world adds to its base (the world with that family alone, minus the null world of its
-    seed, `null` its `SynthConfig`): which of the two effects is the larger."""
-    with_it, without = generate(world["alone"][family])[1], generate(null)[1]
-    d = np.concatenate([(with_it[k].az_g - without[k].az_g).to_numpy() for k in with_it])
+    seed, `null` its records: counter -> time series): which of the two effects is the
+    larger."""
+    with_it = generate(world["alone"][family])[1]
+    d = np.concatenate([(with_it[k].az_g - null[k].az_g).to_numpy() for k in with_it])
     return float(np.sqrt(np.mean(d**2)))
 
 
@@ -97,6 +98,7 @@ def score(rows: pd.DataFrame, worlds: list[dict]) -> pd.DataFrame:
     """Each world's row with its scores (see the module docstring)."""
     by = {w["name"]: w for w in worlds}
     null_cfg = {w["seed"]: w.get("synth") for w in worlds if w["truth"] is None}
+    null_records = {}  # seed -> its null world's records, generated once for the two-effect worlds
     nulls = {r.seed: r for r in rows.itertuples() if r.family == "none"}
     out = []
     for r in rows.to_dict("records"):
@@ -109,7 +111,9 @@ def score(rows: pd.DataFrame, worlds: list[dict]) -> pd.DataFrame:
         else:
             truths = [t] + ([t["also"]] if "also" in t else [])
             if len(truths) > 1:
-                sizes = [effect_size(w, x["effect"], null_cfg[w["seed"]]) for x in truths]
+                if w["seed"] not in null_records:
+                    null_records[w["seed"]] = generate(null_cfg[w["seed"]])[1]
+                sizes = [effect_size(w, x["effect"], null_records[w["seed"]]) for x in truths]
                 truths = [truths[i] for i in np.argsort(sizes)[::-1]]
                 s["both_named"] = all(any(matches(e, x["accept"]) for e in effects) for x in truths)
             first = effects[0] if effects else None

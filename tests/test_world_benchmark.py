@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pvvjax.synth import EffectConfig, SynthConfig
+from pvvjax.synth import EffectConfig, SynthConfig, generate
 
 ROOT = Path(__file__).parents[1]
 
@@ -71,7 +71,8 @@ def test_of_two_effects_the_larger_must_come_first_and_both_be_named(wb):
                  alone={"yaw-rate": SynthConfig(conditions=("11022",), noise_g=0.0, effects=small),
                         "collective-knee": SynthConfig(conditions=("11022",), noise_g=0.0, effects=big)})
     worlds = [dict(name="null-1", seed=1, truth=None, synth=base), world]
-    assert wb.effect_size(world, "collective-knee", base) > wb.effect_size(world, "yaw-rate", base) > 0
+    null = generate(base)[1]
+    assert wb.effect_size(world, "collective-knee", null) > wb.effect_size(world, "yaw-rate", null) > 0
     knee, yaw = _effect("threshold", ["collective_pct"], knee=41.0), _effect("input", ["yaw_rate_dps"])
     for effects, right, both_named in (([knee, yaw], True, True), ([yaw, knee], False, True), ([knee], True, False)):
         rows = pd.DataFrame([_row("null-1", 1, "none", [], 0.03, 0.03),
