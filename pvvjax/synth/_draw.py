@@ -18,7 +18,7 @@ from typing import Sequence
 import numpy as np
 
 from ._conditions import DEFAULT_COUNTS, NAMED, SWEEP_SPEEDS, SWEEP_WEIGHTS
-from ._generate import EffectConfig, SynthConfig
+from ._generate import EffectConfig, SynthConfig, _min_sample_rate_hz
 from ._vibration import EFFECTS
 
 __all__ = ["Planted", "Span", "CampaignDraw", "draw_campaign", "law_effects"]
@@ -173,7 +173,7 @@ def draw_campaign(draw: CampaignDraw, seed: int, planted: Sequence[Planted] = ()
             drawn[f"planted.{plant.effect}.scale"] = scale
         effects[plant.effect] = EffectConfig(enabled=True, scale=scale, params=params)
     rpm = aircraft.get("nominal_rpm", SynthConfig().aircraft_constants().nominal_rpm)
-    rate = max(base.sample_rate_hz, 10.0 * math.ceil(64 * 1.15 * rpm / 60 / 10.0))  # 64 samples a rev at 115 %
+    rate = max(base.sample_rate_hz, 10.0 * math.ceil(_min_sample_rate_hz(rpm) / 10.0))
     cfg = SynthConfig(name=name or f"drawn-{seed}", seed=seed, sample_rate_hz=rate,
                       dynamics_rate_hz=base.dynamics_rate_hz, noise_g=noise, scatter=scatter, format=base.format,
                       maneuvers=base.maneuvers, counts=counts, effects=effects,

@@ -36,6 +36,12 @@ GENERATOR_VERSION = "2"
 MAX_RATE_HZ = 20000.0  # the highest sample or dynamics rate a generator config may ask for
 
 
+def _min_sample_rate_hz(rpm: float) -> float:
+    """The lowest sample rate a campaign of a rotor at `rpm` nominal may have: 64 samples a
+    revolution at 115 % of it (the analysis's harmonics up to 2N/rev, in overspeed)."""
+    return 64 * 1.15 * rpm / 60
+
+
 @dataclass(frozen=True)
 class EffectConfig:
     """Switch, scale and parameter overrides of one named effect (`None`: its default)."""
@@ -116,9 +122,9 @@ class SynthConfig:
                 raise ValueError(f"aircraft.{key}: must be {'a whole number ' if key == 'blades' else ''}> 0, "
                                  f"got {value}")
         rpm = self.aircraft_constants().nominal_rpm
-        if self.sample_rate_hz < 64 * 1.15 * rpm / 60:
+        if self.sample_rate_hz < _min_sample_rate_hz(rpm):
             raise ValueError(f"sample_rate_hz {self.sample_rate_hz} gives fewer than 64 samples per revolution at "
-                             f"115 % of {rpm:g} rpm (at least {64 * 1.15 * rpm / 60:.0f} Hz)")
+                             f"115 % of {rpm:g} rpm (at least {_min_sample_rate_hz(rpm):.0f} Hz)")
         # Flight-test acquisition runs at 100 Hz to a few kHz; beyond, only the data grows (GBs).
         for name, hi in (("sample_rate_hz", MAX_RATE_HZ), ("dynamics_rate_hz", MAX_RATE_HZ)):
             if not getattr(self, name) <= hi:
