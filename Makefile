@@ -4,7 +4,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: venv demo test bench clean
+.PHONY: venv demo test check bench clean
 
 # Reinstall only when the package metadata changes (the install is editable). uv (from PyPI,
 # into the venv) resolves and installs the same packages as pip in about a quarter of the time
@@ -25,8 +25,17 @@ demo: venv
 # subprocesses): each compiles the sources of jax, pandas and pvvjax again (2 s of 3.6 s per
 # import on 2 cores) where PYTHONDONTWRITEBYTECODE is set. Their bytecode goes to one tree
 # inside the venv instead, never beside the sources.
+PYTEST = PYTHONDONTWRITEBYTECODE= PYTHONPYCACHEPREFIX=$(abspath $(VENV))/pycache $(PY) -m pytest -q -n 2 --dist worksteal
+
+# The newcomer's lane: every unit and integration test, every command on a micro campaign.
 test: venv
-	PYTHONDONTWRITEBYTECODE= PYTHONPYCACHEPREFIX=$(abspath $(VENV))/pycache $(PY) -m pytest -q -n 2 --dist worksteal -m "not slow" --durations=25
+	$(PYTEST) -m "not research" --durations=25
+
+# The research lane: end-to-end runs on full-size campaigns (discovery naming a long lag, the
+# notebooks as written, the main job with networks, JSBSim's full flights), each with a micro
+# twin in `make test`.
+check: venv
+	$(PYTEST) -m research --durations=0
 
 # pip, not uv, for the bench extra: pip finds torch's CPU build on these machines' disk.
 bench: venv

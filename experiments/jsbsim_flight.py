@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import subprocess
 import sys
 import time
 from dataclasses import dataclass, field
@@ -109,6 +108,14 @@ class JSBSimFlightConfig:
     flights: dict[str, Flight] = field(default_factory=dict)
 
 
+def _pvvjax(args: list[str]):
+    """Run a `pvvjax` command (the one a user would type) in this process; an error stops here."""
+    from pvvjax.cli import main as pvvjax
+
+    if pvvjax(args) != 0:
+        raise SystemExit(f"pvvjax {' '.join(args)} failed")
+
+
 def train_element(cfg: JSBSimFlightConfig, out: Path) -> tuple[Path, Path | None]:
     """The aircraft's campaign, nets and element; returns (NumPy element folder, C library or None)."""
     import jsbsim
@@ -133,7 +140,7 @@ def train_element(cfg: JSBSimFlightConfig, out: Path) -> tuple[Path, Path | None
         folder, study, _ = run_study(ecfg.with_(axes=dataclasses.replace(ecfg.axes, discovery=False)),
                                      resolve_campaign(ecfg)[0], campaign, out / "axes")
         print(study.table.drop(columns="fails").round(4).to_string(index=False))
-        export = [sys.executable, "-m", "pvvjax", "export", str(folder), "--element", "--database", cfg.database,
+        export = ["export", str(folder), "--element", "--database", cfg.database,
                   "--offset", repr(cfg.offset_s), "--window", repr(cfg.window_revs), "--hop", repr(cfg.hop_revs)]
     elif cfg.model == "dynamic":
         from pvvjax.dynamics.study import run_dynamic
@@ -141,17 +148,17 @@ def train_element(cfg: JSBSimFlightConfig, out: Path) -> tuple[Path, Path | None
 
         folder, table = run_dynamic(ecfg, resolve_campaign(ecfg)[0], campaign, out / "dynamic")
         print(table[["model", "rms_g", "faa_pass_share", "best"]].to_string(index=False))
-        export = [sys.executable, "-m", "pvvjax", "export", str(folder), "--element", "--database", cfg.database]
+        export = ["export", str(folder), "--element", "--database", cfg.database]
     else:
         _, _, res, sweep = prepare_sweep(ecfg, out / "sweep")
         print(f"{len(res)} nets in {sweep}")
-        export = [sys.executable, "-m", "pvvjax", "export", str(sweep), "--element", "--database", cfg.database,
+        export = ["export", str(sweep), "--element", "--database", cfg.database,
                   "--offset", repr(cfg.offset_s), "--window", repr(cfg.window_revs), "--hop", repr(cfg.hop_revs)]
-    subprocess.run(export + ["--out", str(out / "element")], check=True)
+    _pvvjax(export + ["--out", str(out / "element")])
     if c_compiler() is None:
         print("no C compiler: the C element is left out")
         return out / "element", None
-    subprocess.run(export + ["--format", "c", "--max-rate", "200", "--out", str(out / "c")], check=True)
+    _pvvjax(export + ["--format", "c", "--max-rate", "200", "--out", str(out / "c")])
     return out / "element", compile_shared([out / "c" / "pvv_element.c"], out / "c" / "libpvv_element.so")
 
 

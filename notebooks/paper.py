@@ -35,10 +35,14 @@ import pvvjax
 from pvvjax.analysis.databases import peak_table
 from pvvjax.config import ExperimentConfig, SweepConfig, TrainConfig
 from pvvjax.paper import comparison as paper
-from pvvjax.synth import cached_campaign
+from pvvjax.synth import SynthConfig, cached_campaign
 
+# %% tags=["parameters"]
 FULL = False  # True: the paper's training, as the main job
-campaign = pvvjax.load_campaign(cached_campaign())
+campaign_config = SynthConfig()  # the embedded campaign
+
+# %%
+campaign = pvvjax.load_campaign(cached_campaign(campaign_config))
 out = Path(tempfile.mkdtemp())
 peaks, windows = peak_table(campaign)  # every condition's peak 8-rev window, every window's PVV
 dbs = pvvjax.build_databases(campaign)
@@ -111,7 +115,9 @@ import pandas as pd  # noqa: E402
 
 rows = pd.concat([db_rows, fig_rows, paper.network_checks(pred), paper.replay_checks(tab)], ignore_index=True)
 display(Markdown(paper.comparison_markdown(rows)))
+plt.close("all")
+
+# %% tags=["checks"]
 # The records and databases match the paper by construction of the synthetic campaign:
 peak_rows = fig_rows[fig_rows.item == "peak PVV, g"]
 assert len(peak_rows) == 2 and (peak_rows.agrees == "yes").all()
-plt.close("all")

@@ -22,25 +22,54 @@ os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0")
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 import pytest  # noqa: E402
+from _budget import (  # noqa: E402, F401  (the time budget's hooks, registered by being here)
+    pytest_addoption,
+    pytest_runtest_logreport,
+    pytest_runtest_makereport,
+    pytest_sessionfinish,
+    start_counting,
+)
 
 _COMPILE_EVENTS = ("/jax/core/compile/jaxpr_trace_duration", "/jax/core/compile/jaxpr_to_mlir_module_duration",
                    "/jax/core/compile/backend_compile_duration")
 _compile_seconds: dict = {}
+_current_test = ["(outside a test)"]
+
+
+def _compile_site() -> str:
+    """The innermost frame of pvvjax or the tests that asked for a program (file:line)."""
+    import traceback
+
+    for frame in reversed(traceback.extract_stack()[:-3]):
+        if "/pvvjax/" in frame.filename or "/tests/" in frame.filename:
+            return f"{Path(frame.filename).parent.name}/{Path(frame.filename).name}:{frame.lineno}"
+    return "?"
 
 
 def _record_compile(event, duration, **kw):
     if event in _COMPILE_EVENTS:
         name = kw.get("fun_name", "?")
-        row = _compile_seconds.setdefault(name, [0, 0.0, 0.0, 0.0])
+        if os.environ.get("PVVJAX_COMPILE_SITES") and event == _COMPILE_EVENTS[1]:
+            name = f"{name} @ {_compile_site()}"
+        row = _compile_seconds.setdefault(_current_test[0], {}).setdefault(name, [0, 0.0, 0.0, 0.0])
         i = _COMPILE_EVENTS.index(event)
         row[0] += i == 1  # programs lowered
         row[1 + i] += duration  # seconds tracing, lowering, compiling (or reading the persistent cache)
 
 
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item, nextitem):
+    _current_test[0] = item.nodeid  # the compile report's key: programs by the test that lowered them
+    yield
+    _current_test[0] = "(outside a test)"
+
+
 def pytest_unconfigure(config):
     """With PVVJAX_COMPILE_REPORT=PREFIX, each test process writes PREFIX.<worker>.json: per
-    function name, the programs it lowered and the seconds spent tracing, lowering and
-    compiling them (where a cold suite's time goes; subprocesses are not counted)."""
+    test and function name, the programs it lowered and the seconds spent tracing, lowering
+    and compiling them (where a cold suite's time goes; subprocesses are not counted). With
+    PVVJAX_COMPILE_SITES=1 too, the programs lowered are counted by function name and the
+    line of pvvjax or the tests that asked for them."""
     prefix = os.environ.get("PVVJAX_COMPILE_REPORT")
     if prefix:
         import json
@@ -50,6 +79,7 @@ def pytest_unconfigure(config):
 
 
 def pytest_configure(config):
+    start_counting()
     if not hasattr(config, "workerinput"):  # the controller, once per run: the cache's bound
         from pvvjax._cache import prune_compile_cache
 

@@ -106,28 +106,68 @@ def test_cli_reference_in_the_docs_is_current():
     assert doc.read_text() == cli_reference(), "regenerate with: python experiments/reference_docs.py --docs"
 
 
-@pytest.mark.heavy
-def test_main_job_with_networks_reports_table1_beside_the_paper(tmp_path, small_campaign_dir, small_sweep, capsys):
-    # Its sweep is the shared small sweep, run before into OUT_DIR/NAME/sweep (as `pvvjax
-    # sweep` of the same config leaves it): the job claims the folder and resumes the sweep.
+def _job_config(tmp_path, campaign, small_sweep, studies: bool) -> Path:
+    """The main job's config with networks on the small campaign. Its sweep is the shared
+    small sweep, copied into OUT_DIR/NAME/sweep (as `pvvjax sweep` of the same config leaves
+    it): a command on the config claims the folder and resumes the sweep."""
     shutil.copytree(small_sweep, tmp_path / "p" / "sweep")
     cfg = tmp_path / "p.toml"
     cfg.write_text(f'''name = "p"\nout_dir = "{tmp_path.as_posix()}"
-[campaign]\npath = "{small_campaign_dir.as_posix()}"
-[run]\nnetworks = true\nhtml = false
+[campaign]\npath = "{campaign.as_posix()}"
+[run]\nnetworks = true\nhtml = false\nstudies = {str(studies).lower()}
 [sweep]\ndatabases = ["db1", "db3"]\nhidden = [[4]]\nseeds = 1\nfolds = 3\ncpu_devices = 1
 [train]\nmax_steps = 300\nlearning_rate = 0.01
 [replay]\ndatabases = ["db1", "db3"]
 [calibration]\ngrid_offset_step_s = 0.5\ngrid_window_step_revs = 2.0\n''')
+    return cfg
+
+
+def _main_job_with_networks(tmp_path, campaign, small_sweep, capsys, studies: bool):
+    """The main job with networks on the small campaign: its config and report."""
+    cfg = _job_config(tmp_path, campaign, small_sweep, studies)
     assert main(["run", str(cfg)]) == 0
     out = capsys.readouterr().out
-    assert "[4/6] networks" in out and "6 already finished, 0 to train" in out
+    assert f"[4/{5 + studies}] networks" in out and "6 already finished, 0 to train" in out
     report = (tmp_path / "p" / "report.md").read_text()
     assert "| zero offset | db1 | 0.000 |" in report and "figures/fig13a_replay_11022.png" in report
     assert "| condition | paper test | test | paper db1 | db1 | paper db3 | db3 |" in report
     assert "| T1-level-135 | 0.100 |" in report and "figures/fig10_correlation_db1.png" in report
     assert (tmp_path / "p" / "figures" / "fig12_correlation_db3.png").exists()
     assert not (tmp_path / "p" / "report.html").exists()
+    return cfg, report
+
+
+@pytest.mark.heavy
+def test_main_job_with_networks_reports_beside_the_paper(tmp_path, small_campaign_dir, small_sweep, capsys):
+    # The micro twin of the research check below, without the studies (their twin:
+    # tests/test_replay.py): the report beside the paper; the replay folder is the job's.
+    cfg, report = _main_job_with_networks(tmp_path, small_campaign_dir, small_sweep, capsys, studies=False)
+    checks = pd.read_csv(tmp_path / "p" / "paper_comparison.csv")
+    assert checks[checks.item == "peak PVV, g"].iloc[0].agrees == "yes" and "## Window length" not in report
+    assert main(["replay", str(cfg), "--offset", "0.5", "--plots", "1"]) == 2
+    assert "part of the results folder" in capsys.readouterr().err
+
+
+@pytest.mark.heavy
+def test_replay_and_calibrate_commands_on_the_jobs_config(tmp_path, small_campaign_dir, small_sweep):
+    # The research check's replay and calibrate commands, on the job's config without the job:
+    # a replay at a given offset, one offset per maneuver kind, into folders of their own.
+    cfg = _job_config(tmp_path, small_campaign_dir, small_sweep, studies=False)
+    assert main(["replay", str(cfg), "--offset", "0.5", "--plots", "1", "--out", str(tmp_path / "replay")]) == 0
+    summary = pd.read_csv(tmp_path / "replay" / "summary.csv")
+    kinds = {"pullup", "pushover", "roll", "autorotation", "flare"}
+    assert set(summary.maneuver) == kinds and (summary.offset_s == 0.5).all()
+    assert set(summary.database) == {"db1", "db3"} and len(list((tmp_path / "replay").glob("replay_*.png"))) == 1
+    assert main(["calibrate", str(cfg), "--groups", "maneuver", "--free", "offset_s", "--out",
+                 str(tmp_path / "calibration")]) == 0
+    cal = pd.read_csv(tmp_path / "calibration" / "calibration.csv")
+    assert set(cal.group) == kinds and cal.offset_s.between(-1.0, 3.0).all() and cal.within_one_grid_step.all()
+    assert (tmp_path / "calibration" / f"cost_map_db1_{cal.group[0]}.png").exists()
+
+
+@pytest.mark.research
+def test_main_job_with_networks_reports_table1_beside_the_paper(tmp_path, small_campaign_dir, small_sweep, capsys):
+    cfg, report = _main_job_with_networks(tmp_path, small_campaign_dir, small_sweep, capsys, studies=True)
     # Every paper number in one table; Figs 1-9 one file each
     checks = pd.read_csv(tmp_path / "p" / "paper_comparison.csv")
     assert {"databases", "networks (Figs 10-12, Table 1)", "replay of the pull-up 11022 (Figs 13-14)"} <= set(

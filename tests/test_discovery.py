@@ -619,6 +619,31 @@ _BASE = dict(maneuvers=("level", "climb", "descent", "turn", "roll", "pushover",
 
 
 @pytest.mark.heavy
+def test_cli_discovers_on_a_micro_world_and_writes_its_summary_and_report(tmp_path):
+    # The micro twin of the research check below: the same command on a fifth of the null
+    # world's conditions with a few hundred training steps. What it names is not asserted
+    # (too few peaks for a verdict); what it writes is.
+    from pvvjax.cli import main
+    from pvvjax.config import from_dict
+    from pvvjax.data.campaign import write_campaign
+    from pvvjax.synth import SynthConfig, generate
+
+    micro = dict(level=8, climb=2, descent=3, turn=2, roll=2, pushover=1, pullup=2, flare=1)
+    counters, records, _ = generate(from_dict(SynthConfig, {**_BASE, "counts": micro, "name": "null", "seed": 51}))
+    folder = write_campaign(tmp_path / "campaign", counters, records)
+    (tmp_path / "cfg.toml").write_text("[train]\nmax_steps = 200\n[discovery]\nmax_effects = 1\n"
+                                       "[discovery.ensemble]\nseeds = 1\nfolds = 3\n[discovery.selection]\n"
+                                       "proposals = 1\n[discovery.offset]\nstep_s = 0.5\n")
+    assert main(["discover", "--campaign", str(folder), "--out", str(tmp_path / "out"),
+                 "--config", str(tmp_path / "cfg.toml")]) == 0
+    js = json.loads((tmp_path / "out" / "discovery.json").read_text())
+    assert set(js) == {"campaign", "baseline", "effects", "augmented", "gap_shrink"} and len(js["effects"]) <= 1
+    assert set(js["baseline"]["metrics"]) == {"rms_g", "peak_error_g", "phase_error_s"}
+    report = (tmp_path / "out" / "report.md").read_text()
+    assert "figures/residual_map.png" in report and (tmp_path / "out" / "figures" / "residual_map.png").exists()
+
+
+@pytest.mark.research
 def test_cli_on_a_world_without_hidden_effects_names_nothing(tmp_path):
     from pvvjax.cli import main
     from pvvjax.config import from_dict
@@ -989,6 +1014,7 @@ def test_a_weak_name_brings_its_runner_up_on_other_channels_which_is_retrained_a
                    log=lambda m: None)
 
     tries = res.tries[res.tries["round"] == 1]
+    assert tuple(tries.columns) == _round.TRY_COLUMNS
     assert list(tries.source) == (["selection", "rival"] if weak else ["selection"])
     assert tries.confirmed.all() and tries.chosen.sum() == 1
     named = tries[tries.chosen].iloc[0]

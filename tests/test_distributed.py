@@ -21,12 +21,14 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
-@pytest.mark.heavy
-def test_two_processes_give_the_one_process_results_table(tmp_path, small_campaign_dir):
+def _two_processes_and_one(tmp_path, campaign, max_steps: int, databases, hidden, seeds: int) -> int:
+    """The same sweep by one process and by two joined by jax.distributed: the same results
+    table and nets; the number of nets."""
     cfg = tmp_path / "sweep.toml"
     cfg.write_text(tomli_w.dumps(dict(
-        name="dist", campaign=dict(path=str(small_campaign_dir)), train=dict(max_steps=300),
-        sweep=dict(databases=["db1", "db2"], hidden=[[4], [6]], seeds=2, folds=3, test_folds=[0, 1], cpu_devices=1))))
+        name="dist", campaign=dict(path=str(campaign)), train=dict(max_steps=max_steps),
+        sweep=dict(databases=databases, hidden=hidden, seeds=seeds, folds=3, test_folds=[0, 1], cpu_devices=1))))
+    n = len(databases) * len(hidden) * seeds * 2
     sweep = [sys.executable, "-m", "pvvjax", "sweep", str(cfg)]
     one = subprocess.run(sweep + ["--out", str(tmp_path / "one")], capture_output=True, text=True, timeout=300)
     assert one.returncode == 0, one.stderr
@@ -35,11 +37,11 @@ def test_two_processes_give_the_one_process_results_table(tmp_path, small_campai
                               text=True) for i in (1, 0)]
     outs = [p.communicate(timeout=300) for p in procs]
     assert all(p.returncode == 0 for p in procs), [o[1][-2000:] for o in outs]
-    assert all("16 nets in" in o[0] for o in outs)  # both processes report the whole sweep
+    assert all(f"{n} nets in" in o[0] for o in outs)  # both processes report the whole sweep
 
     a, b = (pd.read_parquet(tmp_path / d / "results.parquet").sort_values("net_id").reset_index(drop=True)
             for d in ("one", "two"))
-    assert list(a.net_id) == list(b.net_id) and len(a) == 16
+    assert list(a.net_id) == list(b.net_id) and len(a) == n
     for col in ("database", "architecture", "seed", "test_fold", "steps", "best_step", "config_hash"):
         assert (a[col] == b[col]).all(), col
     # The nets are sharded over two processes' devices, a program XLA partitions into other
@@ -50,3 +52,14 @@ def test_two_processes_give_the_one_process_results_table(tmp_path, small_campai
     for (pa, _), (pb, _) in zip(load_nets(tmp_path / "one", ids), load_nets(tmp_path / "two", ids)):
         for u, v in zip(jax.tree.leaves(pa), jax.tree.leaves(pb)):
             np.testing.assert_allclose(v, u, rtol=0, atol=1e-5)
+    return n
+
+
+def test_two_processes_give_the_one_process_results_table_of_a_micro_sweep(tmp_path, small_campaign_dir):
+    # The research check's micro twin: 4 nets of one database, 100 steps.
+    assert _two_processes_and_one(tmp_path, small_campaign_dir, 100, ["db1"], [[4]], 2) == 4
+
+
+@pytest.mark.research
+def test_two_processes_give_the_one_process_results_table(tmp_path, small_campaign_dir):
+    assert _two_processes_and_one(tmp_path, small_campaign_dir, 300, ["db1", "db2"], [[4], [6]], 2) == 16

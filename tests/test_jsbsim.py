@@ -65,22 +65,71 @@ def test_rotor_constants_read_from_the_model(tmp_path):
         jsbsim_aircraft(root, "c172x")
 
 
+def _fly(tmp_path, monkeypatch, campaign_dir, cfg: dict):
+    """Run experiments/jsbsim_flight.py on `cfg` in `tmp_path`; its results folder."""
+    import tomli_w
+
+    tmp_path.mkdir(parents=True, exist_ok=True)
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("PVVJAX_CACHE", str(campaign_dir.parents[1]))
+    (tmp_path / "flight.toml").write_text(tomli_w.dumps(cfg))
+    assert experiment("jsbsim_flight").main(["flight.toml"]) == 0
+    return tmp_path / "runs" / cfg["name"]
+
+
+# 40 s of a pitch pulse: the micro twins' flight.
+_PULSE = {"pitch-pulse": dict(variant=1, end_s=40.0, pulse_at_s=25.0, pulse_s=3.0, pulse_rad=0.3)}
+
+
 @pytest.mark.heavy
+def test_the_example_flies_the_ah1s_briefly_with_the_axes_element(tmp_path, monkeypatch, small_campaign_dir):
+    """The micro twin of the research check below: the axes element (nets of a hundred steps)
+    through a short pitch pulse; every seat axis written, the C element equal where there is
+    a compiler."""
+    import pandas as pd
+
+    out = _fly(tmp_path, monkeypatch, small_campaign_dir,
+               dict(name="ah1s", out_dir="runs", counts=SMALL_COUNTS, model="axes",
+                    axes=dict(hidden=[4], seeds=1, folds=3), train=dict(max_steps=100), flights=_PULSE))
+    table = pd.read_csv(out / "flights.csv").set_index("flight")
+    assert list(table.index) == ["pitch-pulse"] and (table.rejected == 0).all()
+    assert (table.frame_rate_hz.round(1) == 133.3).all()
+    flight = pd.read_parquet(out / "pitch-pulse.parquet")
+    assert flight.ready.any() and np.isfinite(flight.shake_g).all() and (out / "flights.png").is_file()
+    assert {"pvv_x_g", "pvv_y_g", "pvv_z_g", "shake_y_g"} <= set(flight.columns)
+    assert flight[flight.time_s > 25.0].pitch_rate_dps.max() > 4.0
+    if "c_minus_numpy_g" in table:
+        assert (table.c_minus_numpy_g < 1e-6).all()
+
+
+@pytest.mark.heavy
+def test_the_example_flies_the_ah1s_briefly_with_the_dynamic_model(tmp_path, monkeypatch, small_campaign_dir):
+    """The micro twin of the research check below, through the same short pitch pulse."""
+    import pandas as pd
+
+    out = _fly(tmp_path, monkeypatch, small_campaign_dir,
+               dict(name="ah1s-dyn", out_dir="runs", counts=SMALL_COUNTS, model="dynamic", train=dict(max_steps=100),
+                    dynamic=dict(models=["window_static", "dynamic"], seeds=1, folds=3, kind_holdout=False),
+                    flights=_PULSE))
+    spec = __import__("json").loads((out / "element" / "element.json").read_text())
+    best = pd.read_csv(out / "dynamic" / "comparison.csv").query("best").model.iloc[0]
+    assert ("response" in spec) == (best == "dynamic")
+    flight = pd.read_parquet(out / "pitch-pulse.parquet")
+    assert flight.ready.any() and np.isfinite(flight.pvv_g).all() and (~flight.rejected).all()
+    if "c_pvv_g" in flight:
+        assert np.abs(flight.c_pvv_g - flight.pvv_g).max() < 1e-6
+
+
+@pytest.mark.research
 def test_the_example_flies_the_ah1s_with_the_element_in_the_loop(tmp_path, monkeypatch, small_campaign_dir):
     """`model = "axes"` (the shipped config's): `pvvjax axes` on the AH-1S campaign, its nets of three
     outputs as the element, three flights; every seat axis written, the C element equal on each."""
-    import tomli_w
-
-    monkeypatch.chdir(tmp_path)
-    monkeypatch.setenv("PVVJAX_CACHE", str(small_campaign_dir.parents[1]))
-    cfg = dict(name="ah1s", out_dir="runs", counts=SMALL_COUNTS, model="axes",
-               axes=dict(hidden=[4], seeds=1, folds=3), train=dict(max_steps=200),
-               flights={"flight-test": dict(variant=1, end_s=200.0),
-                        "pitch-pulse": dict(variant=1, end_s=200.0, pulse_at_s=180.0, pulse_s=3.0, pulse_rad=0.3),
-                        "autorotation": dict(variant=3, end_s=300.0)})
-    (tmp_path / "small.toml").write_text(tomli_w.dumps(cfg))
-    assert experiment("jsbsim_flight").main(["small.toml"]) == 0
-    out = tmp_path / "runs" / "ah1s"
+    out = _fly(tmp_path, monkeypatch, small_campaign_dir,
+               dict(name="ah1s", out_dir="runs", counts=SMALL_COUNTS, model="axes",
+                    axes=dict(hidden=[4], seeds=1, folds=3), train=dict(max_steps=200),
+                    flights={"flight-test": dict(variant=1, end_s=200.0),
+                             "pitch-pulse": dict(variant=1, end_s=200.0, pulse_at_s=180.0, pulse_s=3.0, pulse_rad=0.3),
+                             "autorotation": dict(variant=3, end_s=300.0)}))
     import pandas as pd
 
     table = pd.read_csv(out / "flights.csv").set_index("flight")
@@ -103,22 +152,18 @@ def test_the_example_flies_the_ah1s_with_the_element_in_the_loop(tmp_path, monke
     assert (out / "flights.png").is_file()
 
 
-@pytest.mark.heavy
+@pytest.mark.research
 def test_the_example_flies_the_ah1s_with_the_dynamic_model(tmp_path, monkeypatch, small_campaign_dir):
     """`model = "dynamic"`: `pvvjax dynamic` on the AH-1S campaign, its `best` model (the
     window map or the physics-shaped model) exported as the element, through a pitch
     pulse; the C element, where there is a compiler, equals it."""
     import pandas as pd
-    import tomli_w
 
-    monkeypatch.chdir(tmp_path)
-    monkeypatch.setenv("PVVJAX_CACHE", str(small_campaign_dir.parents[1]))
-    cfg = dict(name="ah1s-dyn", out_dir="runs", counts=SMALL_COUNTS, model="dynamic", train=dict(max_steps=100),
-               dynamic=dict(models=["window_static", "dynamic"], seeds=1, folds=3, kind_holdout=False),
-               flights={"pitch-pulse": dict(variant=1, end_s=200.0, pulse_at_s=180.0, pulse_s=3.0, pulse_rad=0.3)})
-    (tmp_path / "dyn.toml").write_text(tomli_w.dumps(cfg))
-    assert experiment("jsbsim_flight").main(["dyn.toml"]) == 0
-    out = tmp_path / "runs" / "ah1s-dyn"
+    out = _fly(tmp_path, monkeypatch, small_campaign_dir,
+               dict(name="ah1s-dyn", out_dir="runs", counts=SMALL_COUNTS, model="dynamic", train=dict(max_steps=100),
+                    dynamic=dict(models=["window_static", "dynamic"], seeds=1, folds=3, kind_holdout=False),
+                    flights={"pitch-pulse": dict(variant=1, end_s=200.0, pulse_at_s=180.0, pulse_s=3.0,
+                                                 pulse_rad=0.3)}))
     spec = __import__("json").loads((out / "element" / "element.json").read_text())
     best = pd.read_csv(out / "dynamic" / "comparison.csv").query("best").model.iloc[0]
     assert ("response" in spec) == (best == "dynamic")

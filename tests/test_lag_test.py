@@ -136,7 +136,47 @@ def test_lag_test_is_judged_by_the_learned_tau_and_adds_the_slow_lag_against_the
     assert got["confirmed"] and got["drop"] < 0.0
 
 
+# A micro world with the research check's lag (tests/test_discovery.py's base world, a
+# fifth of its conditions).
+_MICRO = dict(level=8, climb=2, descent=3, turn=2, roll=2, pushover=1, pullup=2, flare=1)
+
+
 @pytest.mark.heavy
+def test_the_lag_test_runs_end_to_end_on_a_micro_world(monkeypatch, tmp_path):
+    # The micro twin of the research check below: the same code path (the learned lag, the
+    # trainings through lags against the reference, the report and its table) with a few
+    # hundred steps on a fifth of the conditions. Its verdict is not asserted (too few
+    # windows); what every lag test writes is.
+    from test_discovery import _BASE
+
+    from pvvjax import discovery as D
+    from pvvjax.config import ExperimentConfig, TrainConfig, from_dict
+    from pvvjax.data.campaign import campaign_from_frames
+    from pvvjax.discovery.report import write_discovery
+    from pvvjax.synth import SynthConfig, generate
+
+    effects = {**_BASE["effects"], "dynamic_lag": {"params": {"tau_s": 2.0}}}
+    camp = campaign_from_frames(*generate(from_dict(SynthConfig, {**_BASE, "counts": _MICRO, "effects": effects,
+                                                                  "name": "lag", "seed": 31}))[:2])
+    monkeypatch.setattr(_lag, "_LAG_REFERENCE_OFFSETS", ())
+    monkeypatch.setattr(_rules, "TRAIN_STRIDE", 16)
+    monkeypatch.setattr(_rules, "LAG_TEST_TAUS", (3.0,))
+    monkeypatch.setattr(_rules, "LAG_LEARN_STEPS", 100)
+    cfg = ExperimentConfig(train=TrainConfig(max_steps=200),
+                           discovery=discovery_config(seeds=1, folds=3, proposals=1, max_effects=1, offset_step_s=0.5,
+                                                      lag_test=True))
+    res = D.discover(camp, cfg, log=lambda m: None, lag_trials=True)
+    base, learned, t = res.lag_test.iloc[0], res.lag_test.iloc[1], res.lag_test.iloc[2:].reset_index(drop=True)
+    assert base.role == "baseline" and learned.role == "learned" and list(t.tau_s) == [0.0, 3.0]
+    assert learned.tau_min_s <= learned.tau_s <= learned.tau_max_s
+    assert base["drop"] == pytest.approx(1 - base.ensemble_rms_g / t.ensemble_rms_g[0])
+    named_lag = [e.operator for e in res.effects][:1] == ["lag"]
+    assert res.final.through_lag == named_lag and (res.final.lag_tau_s == 3.0) == named_lag
+    report = write_discovery(res, tmp_path, cfg).read_text()
+    assert "## Lag test (round 0)" in report and pd.read_csv(tmp_path / "lag_test.csv").shape == (4, 12)
+
+
+@pytest.mark.research
 def test_discover_names_a_long_lag_first_with_nets_trained_through_it(monkeypatch, tmp_path):
     # A world whose vibration lags its state by 2 s: the lag learned inside one training
     # (τ above lag_slow_s: the slow lag plus the delay and the fast dynamics) names the lag

@@ -3,6 +3,8 @@ linear interpolant, the block path, numpy.searchsorted), gradients in offset and
 length against finite differences (at whole-sample offsets too), and agreement with the
 databases at the peak window."""
 
+from pathlib import Path
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -321,3 +323,46 @@ def test_campaigns_of_different_sizes_in_one_bucket_share_the_compiled_analysis_
             jax.tree.map(lambda a: a[-1], model), jax.tree.map(lambda a: a[-1], recs))
         np.testing.assert_allclose(np.asarray(rep.predicted[-1]), one.predicted, rtol=1e-6, atol=1e-7)
         np.testing.assert_allclose(np.asarray(rep.measured[-1]), one.measured, rtol=1e-6, atol=1e-7)
+
+
+@pytest.fixture(scope="module")
+def small_sweep_replay(small_campaign_dir, small_sweep):
+    """The shared small sweep's replay set of the transient maneuvers (db1, db3), its common
+    offset and the calibration settings of the main job's research check."""
+    from pvvjax.config import CalibrationConfig
+    from pvvjax.replay import studies
+    from pvvjax.replay.tables import load_replay_set
+
+    camp = load_campaign(small_campaign_dir)
+    counters = camp.counters[camp.counters.maneuver.isin(["pullup", "pushover", "roll", "autorotation", "flare"])]
+    rset = load_replay_set(camp, list(counters.index), small_sweep, ["db1", "db3"])
+    cc = CalibrationConfig(grid_offset_step_s=0.5, grid_window_step_revs=2.0)
+    return rset, cc, studies.one_offset(*rset, cc, log=lambda *a: None)
+
+
+# The main job's studies (its research check: tests/test_cli.py) on the shared small sweep's
+# held-out nets.
+
+
+@pytest.mark.heavy
+def test_each_kinds_own_offset_does_at_least_as_well_on_it_as_the_common_one(small_sweep_replay, tmp_path):
+    from pvvjax.replay import studies
+
+    rset, cc, common = small_sweep_replay
+    kinds = studies.offset_per_kind(*rset, cc, common, tmp_path, log=lambda *a: None).tables["offset_per_kind"]
+    cost = kinds.pivot_table(index=["database", "maneuver"], columns="offsets", values="cost")
+    assert (cost["one per kind"] <= cost["one for all"] * 1.01 + 1e-6).all()
+
+
+@pytest.mark.heavy
+def test_the_window_length_study_and_the_stick_lag(small_sweep_replay, tmp_path):
+    # The gradient optimum of (offset, window length) is no worse than the brute-force grid's
+    # best point; the stick lag replays the pull-up with and without it.
+    from pvvjax.replay import studies
+
+    rset, cc, common = small_sweep_replay
+    wl = studies.window_length(*rset, cc, tmp_path, log=lambda *a: None)
+    assert (wl.tables["window_length"].gradient_cost <= wl.tables["window_length"].grid_cost * 1.02).all()
+    assert len(wl.tables["window_length"]) == 4 and wl.markdown.startswith("## Window length")
+    lag = studies.stick_lag(*rset, cc, common, "11022", tmp_path, log=lambda *a: None)
+    assert lag.markdown.startswith("## A separate lag") and all(Path(f).exists() for f in lag.figures)

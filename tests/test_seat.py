@@ -101,11 +101,11 @@ def test_an_axis_that_carries_no_vibration_is_said_so_never_scored_as_failing():
     assert "carries no vibration" in needs.text["ax_g"] and "no database suffices" in needs.text["az_g"]
 
 
-@pytest.mark.slow
+@pytest.mark.research
 def test_the_discovery_on_the_lateral_axis_names_sideslip(default_campaign):
     """Kottapalli's finding on the embedded campaign: db1's inputs fail the lateral axis, and the
     discovery run on it names sideslip first (the generator's lateral_sideslip effect). About a
-    minute on 2 cores (`-m slow`); the main job's report shows the same on every `make demo`."""
+    minute on 2 cores (`make check`); the main job's report shows the same on every `make demo`."""
     import dataclasses
 
     from pvvjax.config import ExperimentConfig

@@ -67,6 +67,16 @@ def _kept_on_top(ctx: _Ctx, first: Model, term: tuple) -> float:
     return float(np.median(m.terms[-1][1][:, 1]) / np.median(alone[:, 1]))
 
 
+# The columns of a try's row (`Discovery.tries`): a campaign where nothing is proposed still
+# gets its (empty) table with them.
+TRY_COLUMNS = ("round", "where", "candidate", "parameters", "proposal", "source", "name", "operator", "channels",
+               "augment", "p_value", "cv_gain", "runners_up", "explained_fraction", "rms_before_g", "rms_after_g",
+               "ensemble_rms_before_g", "ensemble_rms_after_g", "floor_terms", "shrink", "judged_in",
+               "region_shrink", "control_shrink", "control_region_shrink", "over_control_shrink",
+               "over_control_region_shrink", "control_terms", "confirmed", "why_not", "p_best_better",
+               "p_input_better", "chosen")
+
+
 class _Round:
     """The tries of one round on the current model.
 

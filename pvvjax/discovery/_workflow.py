@@ -41,7 +41,7 @@ from ._propose import (
     _unaligned_key,
 )
 from ._results import Effect, Round
-from ._round import _Round
+from ._round import TRY_COLUMNS, _Round
 from .candidates import Candidate, sample_series, window_table
 from .residuals import localize
 from .selection import gain as _selection_gain
@@ -390,7 +390,7 @@ def _outcome(ctx: _Ctx, name: str, base: _Baseline, final: Model, effects: list,
         else:
             table[f"effect_{e.rank}"] = _selection_column(c, base_win.values(c), yb)
     log(f"final: {len(effects)} effect(s); held-out RMS {base.before['rms_g']:.4f} -> {after['rms_g']:.4f} g")
-    tries = pd.DataFrame(rounds)
+    tries = pd.DataFrame(rounds) if rounds else pd.DataFrame(columns=list(TRY_COLUMNS))
     by_round = {e.round: e for e in effects}
     numbers = sorted(set(tries["round"])) if len(tries) else []
     typed = tuple(Round(int(n), tries[tries["round"] == n].reset_index(drop=True), by_round.get(int(n)))
