@@ -70,6 +70,7 @@ def _signature(name: str, obj) -> str:
     except (TypeError, ValueError):
         return name
     sig = re.sub(r" at 0x[0-9a-f]+", "", sig)  # reprs of default callables carry addresses
+    sig = re.sub(r"<PjitFunction of (<function [\w.]+>)>", r"\1", sig)  # a jitted default: its function
     return f"{name}{sig}"
 
 

@@ -56,8 +56,8 @@ def _two_processes_and_one(tmp_path, campaign, max_steps: int, databases, hidden
 
 
 def test_two_processes_give_the_one_process_results_table_of_a_micro_sweep(tmp_path, small_campaign_dir):
-    # The research check's micro twin: 4 nets of one database, 100 steps.
-    assert _two_processes_and_one(tmp_path, small_campaign_dir, 100, ["db1"], [[4]], 2) == 4
+    # The research check's micro twin: 2 nets of one database, 100 steps.
+    assert _two_processes_and_one(tmp_path, small_campaign_dir, 100, ["db1"], [[4]], 1) == 2
 
 
 @pytest.mark.research

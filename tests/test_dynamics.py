@@ -52,6 +52,7 @@ def test_gradients_of_frequency_damping_and_delay_match_finite_differences():
         w, z, d = p
         return jnp.mean((second_order(delayed(u, t, d), t, w, z) - target) ** 2)
 
+    loss = jax.jit(loss)
     with jax.enable_x64(True):
         p = jnp.array([3.0, 0.45, 0.37])
         g = np.asarray(jax.grad(loss)(p))

@@ -97,7 +97,7 @@ def test_the_flax_modules_own_their_variables_and_apply_as_the_functions_do():
         MLP(8, (4, 5), (8, 5)).apply(variables, x)
     r = rbf_fit(jax.random.key(2), x, x[:, 0] ** 2, 6)
     assert RBF(6, 8).init(jax.random.key(0), x)["params"]["centers"].shape == (6, 8)
-    np.testing.assert_array_equal(rbf_apply(r, x), RBF(6, 8).apply(
+    np.testing.assert_array_equal(rbf_apply(r, x), jax.jit(RBF(6, 8).apply)(  # rbf_apply is jitted: the same program
         {"params": {k: r[k] for k in ("centers", "log_width", "w", "b")},
          "constants": {k: r[k] for k in ("in_mask", "x_shift", "x_scale", "y_shift", "y_scale")}}, x))
 

@@ -179,7 +179,7 @@ def _peak_windows(campaign: Campaign, amplitude, valid, counters):
     cond_names, _ = _counters(campaign)
     cond_ids = np.array([cond_names.index(campaign.counters.loc[c, "condition"]) for c in counters])
     # Conditions counted in buckets (an empty condition's peak is -inf, and it is sliced off).
-    pk = condition_peaks(amplitude, valid, jnp.asarray(cond_ids), num_conditions=bucket_size(len(cond_names)))
+    pk = condition_peaks(amplitude, valid, np.asarray(cond_ids), num_conditions=bucket_size(len(cond_names)))
     pk = jax.tree.map(lambda a: np.asarray(a)[: len(cond_names)], pk)
     return pk.counter, pk.window, pk.value
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from typing import Mapping
 
+import jax
 import jax.numpy as jnp
 
 from .constants import DEG_TO_RAD, KT_TO_FT_S, RPM_TO_RAD_S, UH60A, Aircraft
@@ -66,6 +67,16 @@ def derive_features(ch: Mapping[str, jnp.ndarray], aircraft: Aircraft = UH60A) -
         `advance_ratio`, `mlf`, `thrust_coefficient` and `blade_loading` (both with the
         MLF as load factor).
     """
+    out = _derive({k: ch[k] for k in _SOURCES}, aircraft)
+    return {k: out[k] for k in DERIVED_FEATURES}  # in this order (a program returns its dict's keys sorted)
+
+
+# The channels the derived features are computed from.
+_SOURCES = ("roll_angle_deg", "pitch_rate_dps", "airspeed_kt", "gross_weight_lb", "density_ratio", "rotor_rpm")
+
+
+@jax.jit  # one program per shape (eagerly, each operation would compile one)
+def _derive(ch: dict, aircraft: Aircraft) -> dict:
     mlf = maneuver_load_factor(ch["roll_angle_deg"], ch["pitch_rate_dps"], ch["airspeed_kt"], aircraft)
     args = (ch["gross_weight_lb"], ch["density_ratio"], ch["rotor_rpm"], mlf, aircraft)
     return {

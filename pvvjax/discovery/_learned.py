@@ -48,22 +48,28 @@ def fit_learned_lag(x, y, train_w, layout, folds: int, *, seeds: int, hidden, se
         dict: tau_s (folds, seeds) learned time constants; pred (folds, seeds, n) every
         window's lagged prediction by each net; nets (the parameters, stacked likewise).
     """
-    x, y = jnp.asarray(x, jnp.float32), jnp.asarray(y, jnp.float32)
+    # Host-side set-up in NumPy (eagerly, every JAX operation would compile a program).
+    x, y = np.asarray(x, np.float32), np.asarray(y, np.float32)
     w = np.asarray(train_w, np.float32)
     nets = []
     for f in range(folds):
         on = w[f] > 0
         sc = scaling(x[on], y[on])
         nets += [mlp_init(jax.random.key(seed + s), x.shape[1], tuple(hidden), scale=sc) for s in range(seeds)]
-    nets = jax.tree.map(lambda *a: jnp.stack(a), *nets)
-    trainable = {"layers": nets.pop("layers"), "log_tau": jnp.full(folds * seeds, np.log(tau0_s), jnp.float32)}
-    lay = tuple(jnp.asarray(a) for a in layout)
-    out = _fit_all(trainable, nets, x, y, jnp.asarray(np.repeat(w, seeds, axis=0)), lay, int(steps),
-                   float(learning_rate))
+    nets = jax.tree.map(lambda *a: np.stack([np.asarray(v) for v in a]), *nets)
+    trainable = {"layers": nets.pop("layers"), "log_tau": np.full(folds * seeds, np.log(tau0_s), np.float32)}
+    lay = tuple(np.asarray(a) for a in layout)
+    out = _fit_all(trainable, nets, x, y, np.repeat(w, seeds, axis=0), lay, int(steps), float(learning_rate))
     nets = {**nets, "layers": out["layers"]}
-    tau = jnp.exp(out["log_tau"])
-    pred = jax.vmap(lambda n, t: lagged_windows(mlp_apply(n, x), lay, t))(nets, tau)
+    tau, pred = _predict_lagged(nets, x, lay, out["log_tau"])
     shape = (folds, seeds)
     return dict(tau_s=np.asarray(tau, np.float64).reshape(shape),
                 pred=np.asarray(pred, np.float64).reshape(shape + (len(y),)),
                 nets=jax.tree.map(lambda a: np.asarray(a).reshape(shape + a.shape[1:]), nets))
+
+
+@jax.jit
+def _predict_lagged(nets, x, layout, log_tau):
+    """Every net's τ and lagged window predictions (nets and log τ stacked on the leading axis)."""
+    tau = jnp.exp(log_tau)
+    return tau, jax.vmap(lambda n, t: lagged_windows(mlp_apply(n, x), layout, t))(nets, tau)

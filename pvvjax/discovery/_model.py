@@ -246,9 +246,9 @@ def _replay(ctx: _Ctx, offset: float) -> _Windows:
     d = ctx.cfg.discovery
     N = len(ctx.info)
     L = ctx.cfg.analysis.window_revs
-    theta = jnp.asarray(np.tile([offset, L, 0.0], (N, 1)), jnp.float32)
-    model = dict(params=jax.tree.map(lambda a: jnp.asarray(a[ctx.counter_fold]), ctx.replay_params),
-                 idx=jnp.asarray(np.tile(input_index(d.database, len(DB_INPUTS[d.database])), (N, 1))))
+    theta = np.tile(np.float32([offset, L, 0.0]), (N, 1))  # NumPy: no copy program per shape
+    model = dict(params=jax.device_put(jax.tree.map(lambda a: np.asarray(a)[ctx.counter_fold], ctx.replay_params)),
+                 idx=jax.device_put(np.tile(input_index(d.database, len(DB_INPUTS[d.database])), (N, 1))))
     rep = jax.device_get(replay_all(model, ctx.recs, theta, settings=ctx.settings))
     W = rep.time.shape[1]
     # Input windows in record time: measured window edges (revolutions) -> time -> − offset.
@@ -312,6 +312,7 @@ def window_layout(win: _Windows) -> tuple[np.ndarray, np.ndarray, np.ndarray, np
 _lag_rows = jax.vmap(_first_order_lag, in_axes=(0, 0, None))
 
 
+@jax.jit  # one program per shape, inside another program or not
 def lagged_windows(u, layout, tau_s):
     """u (..., n) per-window values lagged by a first-order lag of τ along each counter's
     windows (zero-order hold between window times), pure and differentiable in τ.
@@ -322,14 +323,12 @@ def lagged_windows(u, layout, tau_s):
     return lag(cells, times, tau_s)[..., i, k]
 
 
-_lagged_windows = jax.jit(lagged_windows)
-
 
 def _lag_windows(pred, win: _Windows, tau: float) -> np.ndarray:
     """A first-order lag of (S, n) window predictions along each counter's window times."""
     if tau <= 0:
         return pred
-    return np.asarray(_lagged_windows(jnp.asarray(pred), window_layout(win), tau), dtype=np.asarray(pred).dtype)
+    return np.asarray(lagged_windows(pred, window_layout(win), tau), dtype=np.asarray(pred).dtype)
 
 
 _lag_grid = jax.jit(_lag_rows)

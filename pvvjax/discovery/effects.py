@@ -42,6 +42,7 @@ OPERATORS = ("input", "rate", "abs_rate", "lag", "threshold", "product", "resona
 BAND_SHAPES = ("gaussian", "lorentzian")
 
 
+@jax.jit  # one program per shape, inside another program or not
 def rate(x, time):
     """dx/dt by central differences on the sample times (one-sided at the ends).
 
@@ -57,12 +58,14 @@ def rate(x, time):
     return (xp[hi] - xp[lo]) / (tp[hi] - tp[lo])
 
 
+@jax.jit  # one program per shape, inside another program or not
 def abs_rate(x, time, smooth=1e-6):
     """|dx/dt|, smoothed at zero (√(r² + s²) − s) so that it is differentiable there."""
     r = rate(x, time)
     return jnp.sqrt(r * r + smooth * smooth) - smooth
 
 
+@jax.jit  # one program per shape, inside another program or not
 def lag(x, time, tau_s):
     """First-order lag y' = (x − y)/τ, started at rest on the first sample.
 

@@ -14,7 +14,6 @@ from __future__ import annotations
 from typing import Callable, NamedTuple
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
 from ..nets import train
@@ -106,7 +105,16 @@ def model_inputs(seq: Sequences, model: str) -> np.ndarray:
 
 
 def _stack(trees):
-    return jax.tree.map(lambda *a: jnp.stack(a), *trees)
+    """Trees of the same structure stacked leaf by leaf on the host (NumPy: no XLA program
+    per leaf shape)."""
+    return jax.tree.map(lambda *a: np.stack([np.asarray(v) for v in a]), *trees)
+
+
+# The chunked training's bookkeeping, each one program per batch layout (eagerly, every
+# leaf and operation would be a program of its own).
+_done = jax.jit(jax.vmap(train.done))
+_results = jax.jit(jax.vmap(train.result))
+_take = jax.jit(lambda tree, idx: jax.tree.map(lambda a: a[idx], tree))
 
 
 def fit_sequence_model(init: Callable, apply: Callable, x, y, mask, split: Split, seeds: int, cfg,
@@ -179,21 +187,21 @@ def _train_chunked(params, data, cfg, apply, progress, chunk_evals: int) -> trai
     finished: dict = {}
     while len(live):
         state = chunk(state, consts, data)
-        done = np.asarray(jax.vmap(train.done)(state))[: len(live)]
+        done = np.asarray(_done(state))[: len(live)]
         if progress is not None:
             progress(int(np.max(state.step)), float(np.median(np.asarray(state.best_val)[: len(live)])),
                      int((~done).sum()))
         if 2 * done.sum() < len(live) and not done.all():
             continue
-        out = jax.vmap(train.result)(state, consts)
+        out = jax.tree.map(np.asarray, _results(state, consts))
         for slot in np.flatnonzero(done):
             finished[int(live[slot])] = jax.tree.map(lambda a, i=slot: a[i], out)
         keep = np.flatnonzero(~done)
         live = live[keep]
         if len(live):
             slots = np.concatenate([keep, np.full(_bucket(len(keep)) - len(keep), keep[0])])
-            state, consts, data = jax.tree.map(lambda a: a[slots], (state, consts, data))
-    return jax.tree.map(lambda *a: jnp.stack(a), *(finished[i] for i in range(n)))
+            state, consts, data = _take((state, consts, data), slots)
+    return _stack([finished[i] for i in range(n)])
 
 
 def _bucket(n: int) -> int:

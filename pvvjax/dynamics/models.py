@@ -10,6 +10,8 @@ as rows, windows along them, the mask as weights)."""
 
 from __future__ import annotations
 
+from functools import partial
+
 import flax.linen as nn
 import jax
 import jax.numpy as jnp
@@ -48,6 +50,7 @@ def dynamic_init(static: dict, *, omega_n: float = 2 * np.pi * 1.0, zeta: float 
     return {**static, "response": response}
 
 
+@jax.jit  # one program per shape, inside another program or not
 def dynamic_apply(params: dict, x):
     """PVV through time.
 
@@ -84,6 +87,7 @@ class Recurrent(nn.Module):
         return nn.Dense(1)(h)[..., 0]
 
 
+@partial(jax.jit, static_argnames=("n_in", "hidden"))  # one program per size (eagerly: one per operation)
 def rnn_init(key, n_in: int, hidden: int = 16, *, scale: dict | None = None) -> dict:
     """A recurrent model's parameters: `rnn` (the `Recurrent` module's variables, `hidden`
     GRU units) and the standardisation `scale` (`nets.scaling`; default identity)."""
@@ -92,6 +96,7 @@ def rnn_init(key, n_in: int, hidden: int = 16, *, scale: dict | None = None) -> 
     return {"rnn": Recurrent(hidden).init(key, jnp.zeros((1, 2, n_in)))["params"], **scale}
 
 
+@jax.jit  # one program per shape, inside another program or not
 def rnn_apply(params: dict, x):
     """PVV through time from a recurrent model.
 

@@ -16,6 +16,7 @@ import jax.numpy as jnp
 __all__ = ["delayed", "second_order"]
 
 
+@jax.jit  # one program per shape, inside another program or not
 def second_order(u: jax.Array, t: jax.Array, omega_n, zeta) -> jax.Array:
     """y'' + 2ζω_n y' + ω_n² y = ω_n² u, from rest at u's first value (y = u[0], y' = 0),
     integrated step by step by the trapezoidal rule (Tustin): exact steady gain 1, stable for
@@ -49,6 +50,7 @@ def second_order(u: jax.Array, t: jax.Array, omega_n, zeta) -> jax.Array:
     return jnp.concatenate([u[..., :1], jnp.moveaxis(ys, 0, -1)], axis=-1)
 
 
+@jax.jit  # one program per shape, inside another program or not
 def delayed(u: jax.Array, t: jax.Array, delay_s) -> jax.Array:
     """u(t − delay) by linear interpolation along each sequence, its first value held before
     it starts: a fractional delay, differentiable in `delay_s`.

@@ -11,10 +11,13 @@ compaction or after a resume.
 
 from __future__ import annotations
 
+from functools import partial
+
 import jax
 import jax.numpy as jnp
 
 
+@partial(jax.jit, static_argnames="axis")  # one program per shape, inside another program or not
 def pairwise_sum(v, axis: int = -1):
     """Sum of `v` over `axis` as a balanced tree of elementwise adds (zero-padded to a power
     of two), the same bits whatever the other axes hold."""
@@ -31,6 +34,7 @@ def pairwise_sum(v, axis: int = -1):
     return jnp.squeeze(v, axis)
 
 
+@jax.jit
 def affine(h, w, b):
     """h @ w + b with the bias inside the matrix product ([h, 1] @ [w; b]), so that its
     gradient is a contraction over the rows like the weights', not a reduction."""

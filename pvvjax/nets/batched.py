@@ -152,7 +152,7 @@ def _pull(state, consts, entries):
     padded to a power of two, so that few programs compile)."""
     g, w = np.array(entries).T
     m = _bucket(len(g), 1)
-    fits = _to_host(_fits(state, consts, jnp.asarray(np.resize(g, m)), jnp.asarray(np.resize(w, m))))
+    fits = _to_host(_fits(state, consts, np.resize(g, m), np.resize(w, m)))
     return jax.tree.map(lambda a: a[: len(g)], fits)
 
 

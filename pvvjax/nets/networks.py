@@ -100,9 +100,10 @@ def mlp_init(key, n_in: int, hidden: Sequence[int], *, max_hidden: Sequence[int]
         masks), in_mask, and the scaling entries.
     """
     max_hidden = tuple(max_hidden or hidden)
-    in_mask = jnp.ones(n_in) if in_mask is None else jnp.asarray(in_mask, jnp.float32)
+    # The constants on the host (NumPy: an XLA program per shape eagerly).
+    in_mask = np.ones(n_in, np.float32) if in_mask is None else np.asarray(in_mask, np.float32)
     layers = _glorot_layers(key, n_in, tuple(hidden), max_hidden, in_mask, n_out)
-    masks = tuple((jnp.arange(m) < h).astype(jnp.float32) for h, m in zip(hidden, max_hidden))
+    masks = tuple((np.arange(m) < h).astype(np.float32) for h, m in zip(hidden, max_hidden))
     return dict(layers=layers, masks=masks, in_mask=in_mask, **(scale or _identity_scaling(n_in, n_out)))
 
 
@@ -120,7 +121,7 @@ def _glorot_layers(key, n_in: int, hidden, max_hidden=(), in_mask=None, n_out: i
     for i, k in enumerate(keys):
         lim = np.sqrt(6.0 / (fan[i] + fan[i + 1]))
         layers.append(dict(w=jax.random.uniform(k, (sizes[i], sizes[i + 1]), minval=-lim, maxval=lim),
-                           b=jnp.zeros(sizes[i + 1])))
+                           b=np.zeros(sizes[i + 1], np.float32)))
     return tuple(layers)
 
 
@@ -129,7 +130,8 @@ _SCALING = ("x_shift", "x_scale", "y_shift", "y_scale")
 
 def _identity_scaling(n_in: int, n_out: int = 1) -> dict:
     y = () if n_out == 1 else (n_out,)
-    return dict(x_shift=jnp.zeros(n_in), x_scale=jnp.ones(n_in), y_shift=jnp.zeros(y), y_scale=jnp.ones(y))
+    return dict(x_shift=np.zeros(n_in, np.float32), x_scale=np.ones(n_in, np.float32), y_shift=np.zeros(y, np.float32),
+                y_scale=np.ones(y, np.float32))
 
 
 def _constants(module: nn.Module, names, defaults) -> dict:
@@ -178,6 +180,7 @@ class MLP(nn.Module):
         return out * c["y_scale"] + c["y_shift"]
 
 
+@jax.jit  # one program per shape, inside another program or not
 def mlp_apply(params: dict, x):
     """Evaluate an MLP (`MLP.apply` on a flat parameter dict as `mlp_init` makes it).
     x: (..., n_in) in physical units -> (...,) peak PVV, g ((..., n_out) for several outputs)."""
@@ -194,17 +197,17 @@ def mlp_pad(params: dict, max_hidden: Sequence[int], n_in: int | None = None) ->
     n_in0 = layers[0]["w"].shape[0]
     n_in = n_in or n_in0
     sizes = (n_in, *max_hidden, layers[-1]["w"].shape[1])
-    new_layers = []
-    for i, layer in enumerate(layers):
-        w = jnp.zeros((sizes[i], sizes[i + 1])).at[: layer["w"].shape[0], : layer["w"].shape[1]].set(layer["w"])
-        b = jnp.zeros(sizes[i + 1]).at[: layer["b"].shape[0]].set(layer["b"])
-        new_layers.append(dict(w=w, b=b))
-    new_masks = tuple(jnp.zeros(m).at[: mk.shape[0]].set(mk) for mk, m in zip(masks, max_hidden))
-    pad_in = n_in - n_in0
-    return dict(layers=tuple(new_layers), masks=new_masks,
-                in_mask=jnp.concatenate([params["in_mask"], jnp.zeros(pad_in)]),
-                x_shift=jnp.concatenate([params["x_shift"], jnp.zeros(pad_in)]),
-                x_scale=jnp.concatenate([params["x_scale"], jnp.ones(pad_in)]),
+    def grown(a, shape, fill=0.0):  # on the host (NumPy: an XLA program per shape eagerly)
+        a = np.asarray(a, np.float32)
+        out = np.full(shape, fill, np.float32)
+        out[tuple(slice(0, n) for n in a.shape)] = a
+        return out
+
+    new_layers = tuple(dict(w=grown(layer["w"], (sizes[i], sizes[i + 1])), b=grown(layer["b"], (sizes[i + 1],)))
+                       for i, layer in enumerate(layers))
+    new_masks = tuple(grown(mk, (m,)) for mk, m in zip(masks, max_hidden))
+    return dict(layers=new_layers, masks=new_masks, in_mask=grown(params["in_mask"], (n_in,)),
+                x_shift=grown(params["x_shift"], (n_in,)), x_scale=grown(params["x_scale"], (n_in,), 1.0),
                 y_shift=params["y_shift"], y_scale=params["y_scale"])
 
 
@@ -306,6 +309,7 @@ class RBF(nn.Module):
         return out * p["y_scale"] + p["y_shift"]
 
 
+@jax.jit  # one program per shape, inside another program or not
 def rbf_apply(params: dict, x):
     """Evaluate an RBF network (`RBF.apply` on `rbf_fit`'s parameter dict).
     x: (..., d) physical units -> (...,) peak PVV, g."""

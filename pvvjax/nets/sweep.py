@@ -25,7 +25,6 @@ import time
 from pathlib import Path
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 import pandas as pd
 
@@ -430,4 +429,4 @@ def heldout_models(out: Path, database: str, conditions, architecture: str | Non
         by_fold[int(fold)] = stack_trees([p for p, _ in load_nets(out, list(g.net_id), res)])
     params = stack_trees([by_fold[fold_of[c]] for c in conditions])
     idx = np.broadcast_to(input_index(database, N_INPUTS), (len(conditions), N_INPUTS))
-    return dict(params=jax.tree.map(jnp.asarray, params), idx=jnp.asarray(idx))
+    return dict(params=jax.device_put(params), idx=jax.device_put(np.asarray(idx)))  # no copy program per shape

@@ -209,6 +209,7 @@ def init_state(params: dict, data: Data, hp: Hyper, apply=mlp_apply) -> TrainSta
                       jnp.asarray(hp.patience, jnp.int32))
 
 
+@jax.jit  # one program per shape, inside another program or not
 def done(state: TrainState) -> jax.Array:
     """Whether training stops: the step budget is spent, validation stopped improving for
     `patience` evaluations, or the loss went non-finite."""

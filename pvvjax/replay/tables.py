@@ -79,7 +79,10 @@ def load_replay_set(campaign: Campaign, counters, sweep_dir, databases, architec
 def take_counters(tree, idx):
     """The counters `idx` of a replay set's arrays (records, models: any PyTree with the
     counter as leading axis)."""
-    return jax.tree.map(lambda a: a[np.asarray(idx)], tree)
+    return _take(tree, np.asarray(idx))
+
+
+_take = jax.jit(lambda tree, idx: jax.tree.map(lambda a: a[idx], tree))  # one program per layout, not per leaf
 
 
 def cost_weights(cfg: CalibrationConfig) -> CostWeights:
