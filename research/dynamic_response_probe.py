@@ -38,7 +38,8 @@ IDENTIFIED = ("f_n_hz", "zeta", "delay_s", "tau_equivalent_s", "tau_slow_pole_s"
 def probe_world(world: dict, seeds: int, out: Path) -> dict:
     """One world's row: the two models' held-out RMS and the identified response."""
     counters, records, _ = generate(world["synth"])
-    campaign = campaign_from_frames(counters, records, source=world["name"])
+    campaign = campaign_from_frames(counters, records, aircraft=world["synth"].aircraft_constants(),
+                                    source=world["name"])
     cfg = ExperimentConfig(dynamic=DynamicConfig(models=("window_static", "dynamic"), seeds=seeds,
                                                  kind_holdout=False))
     t0 = time.perf_counter()
