@@ -125,23 +125,33 @@ def cmd_sweep(args) -> int:
     return 0
 
 
+def _given_sweep(args, cfg) -> Path | None:
+    """The config's replay settings checked and its named sweep (None: the config's own,
+    trained when needed), before any campaign is loaded or folder claimed: a mistake is an
+    error in a second."""
+    from ..nets.sweep import finished_sweep
+
+    cfg.check_replay()
+    if not cfg.replay.sweep:
+        return None
+    sweep = Path(cfg.replay.sweep)
+    try:
+        finished_sweep(sweep)
+    except FileNotFoundError as e:
+        raise FileNotFoundError(f"{args.config}: replay.sweep: {e}") from None
+    return sweep
+
+
 def _replay_inputs(args, cfg):
     """Campaign, counters, held-out models of the config's replay (training the sweep first
     if the config names none)."""
-    from ..nets.sweep import finished_sweep
     from ..replay.tables import load_replay_set, select_counters
 
+    sweep = _given_sweep(args, cfg)
     enable_compilation_cache()
-    cfg.check_replay()
     campaign, _ = resolve_campaign(cfg)
     counters = select_counters(campaign, cfg.replay, getattr(args, "counters", None), "--counters")
-    if cfg.replay.sweep:
-        sweep = Path(cfg.replay.sweep)
-        try:
-            finished_sweep(sweep)
-        except FileNotFoundError as e:
-            raise FileNotFoundError(f"{args.config}: replay.sweep: {e}") from None
-    else:
+    if sweep is None:
         _, _, _, sweep = prepare_sweep(cfg)
     info, batch, recs, models = load_replay_set(campaign, counters, sweep, cfg.replay.databases,
                                                 cfg.replay.architecture, cfg.analysis)
@@ -160,6 +170,7 @@ def cmd_replay(args) -> int:
     tau = rc.offset_s if args.offset is None else args.offset
     L = rc.window_revs if args.window is None else args.window
     out = Path(args.out) if args.out else Path(cfg.out_dir) / cfg.name / "replay"
+    _given_sweep(args, cfg)
     claim_folder(out, dict(config=to_dict(cfg), offset_s=tau, window_revs=L, counters=args.counters), "")
     info, batch, recs, models = _replay_inputs(args, cfg)
     theta = (tau, L, rc.stick_offset_s)
@@ -200,6 +211,7 @@ def cmd_calibrate(args) -> int:
         cc = dataclasses.replace(cc, groups=args.groups or cc.groups, free=tuple(args.free or cc.free))
         cfg = cfg.with_(calibration=cc)
     out = Path(args.out) if args.out else Path(cfg.out_dir) / cfg.name / "calibration"
+    _given_sweep(args, cfg)
     claim_folder(out, dict(config=to_dict(cfg), counters=args.counters), "")
     info, batch, recs, models = _replay_inputs(args, cfg)
     init = (cfg.replay.offset_s, cfg.replay.window_revs, cfg.replay.stick_offset_s)
