@@ -19,7 +19,7 @@ _MISS = "/jax/compilation_cache/cache_misses"
 _misses = [0]
 _start: dict = {}
 _seconds: dict = {}
-_research: set = set()
+_not_judged: set = set()  # research checks and the setup and teardown phases
 _compiled = [0]
 
 
@@ -59,7 +59,7 @@ def pytest_runtest_logreport(report):
     key = report.nodeid if report.when == "call" else f"{report.nodeid} ({report.when})"
     _seconds[key] = _seconds.get(key, 0.0) + report.duration
     if "research" in report.keywords or report.when != "call":
-        _research.add(key)  # not judged
+        _not_judged.add(key)
     if report.when == "teardown":
         _compiled[0] += dict(report.user_properties).get("compile_misses", 0)
 
@@ -68,7 +68,7 @@ def pytest_sessionfinish(session, exitstatus):
     if hasattr(session.config, "workerinput"):  # an xdist worker: the controller judges
         return
     budget = float(session.config.getini("test_budget_s"))
-    late = over_budget(_seconds, _research, budget)
+    late = over_budget(_seconds, _not_judged, budget)
     shared = [(k, s) for k, s in over_budget(_seconds, set(), budget) if k.endswith("(setup)")]
     tr = session.config.pluginmanager.get_plugin("terminalreporter")
 

@@ -28,7 +28,7 @@ def _two_processes_and_one(tmp_path, campaign, max_steps: int, databases, hidden
     cfg.write_text(tomli_w.dumps(dict(
         name="dist", campaign=dict(path=str(campaign)), train=dict(max_steps=max_steps),
         sweep=dict(databases=databases, hidden=hidden, seeds=seeds, folds=3, test_folds=[0, 1], cpu_devices=1))))
-    n = len(databases) * len(hidden) * seeds * 2
+    n = len(databases) * len(hidden) * seeds * 2  # nets: databases x architectures x seeds x test folds
     sweep = [sys.executable, "-m", "pvvjax", "sweep", str(cfg)]
     one = subprocess.run(sweep + ["--out", str(tmp_path / "one")], capture_output=True, text=True, timeout=300)
     assert one.returncode == 0, one.stderr

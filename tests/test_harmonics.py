@@ -177,3 +177,17 @@ def test_sizes_come_in_buckets_of_at_most_a_quarter_padding_and_padding_repeats_
     assert all(isinstance(v, jax.Array) for v in back.values())
     np.testing.assert_array_equal(back["a"], tree["a"])
     np.testing.assert_array_equal(back["b"], tree["b"])
+
+
+def test_take_rows_indexes_every_leaf_as_numpy_does_in_one_program():
+    from conftest import Lowerings
+
+    from pvvjax.data import take_rows
+
+    tree = dict(a=np.arange(12.0).reshape(4, 3), b=(np.arange(4), np.ones((4, 2, 2))))
+    idx = np.array([3, 0, 0])
+    with Lowerings() as lowered:
+        got = take_rows(tree, idx)
+    for u, v in zip(jax.tree.leaves(got), jax.tree.leaves(tree)):
+        np.testing.assert_array_equal(u, v[idx])
+    assert lowered["take_rows"] == 1 and sum(lowered.values()) == 1, dict(lowered)

@@ -6,7 +6,7 @@ its records into arrays with a mask; `features` derives μ, MLF, C_W and C_W/σ�
 converts foreign columns; `constants` holds the aircraft's rotor constants.
 """
 
-from .batch import BLOCK, RecordBatch, bucket_size, pad_rows, sample_widths, to_batch, unpad_rows
+from .batch import BLOCK, RecordBatch, bucket_size, pad_rows, sample_widths, take_rows, to_batch, unpad_rows
 from .campaign import (
     MANEUVERS,
     REQUIRED_CHANNELS,
@@ -70,6 +70,7 @@ __all__ = [
     "sample_widths",
     "tables_fingerprint",
     "thrust_coefficient",
+    "take_rows",
     "tip_speed_ft_s",
     "to_batch",
     "unpad_rows",

@@ -21,7 +21,7 @@ import numpy as np
 
 from .campaign import Campaign
 
-__all__ = ["BLOCK", "RecordBatch", "bucket_size", "pad_rows", "sample_widths", "to_batch", "unpad_rows"]
+__all__ = ["BLOCK", "RecordBatch", "bucket_size", "pad_rows", "sample_widths", "take_rows", "to_batch", "unpad_rows"]
 
 BLOCK = 64  # batches are padded to a multiple of this many samples
 
@@ -51,6 +51,13 @@ def pad_rows(tree, n: int):
         return jax.device_put(out) if isinstance(a, jax.Array) else out
 
     return jax.tree.map(pad, tree)
+
+
+@jax.jit
+def take_rows(tree, idx):
+    """The rows `idx` (an integer array) of every leaf of a PyTree, along its leading axis:
+    one program per tree layout and count of rows (eagerly, every leaf would compile its own)."""
+    return jax.tree.map(lambda a: a[idx], tree)
 
 
 def unpad_rows(tree, n: int):

@@ -12,6 +12,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
+from ..nets import stack_trees
 from ..nets.networks import mlp_apply, mlp_init, scaling
 from ..nets.train import descend
 from ._model import lagged_windows
@@ -56,7 +57,7 @@ def fit_learned_lag(x, y, train_w, layout, folds: int, *, seeds: int, hidden, se
         on = w[f] > 0
         sc = scaling(x[on], y[on])
         nets += [mlp_init(jax.random.key(seed + s), x.shape[1], tuple(hidden), scale=sc) for s in range(seeds)]
-    nets = jax.tree.map(lambda *a: np.stack([np.asarray(v) for v in a]), *nets)
+    nets = stack_trees(nets)
     trainable = {"layers": nets.pop("layers"), "log_tau": np.full(folds * seeds, np.log(tau0_s), np.float32)}
     lay = tuple(np.asarray(a) for a in layout)
     out = _fit_all(trainable, nets, x, y, np.repeat(w, seeds, axis=0), lay, int(steps), float(learning_rate))

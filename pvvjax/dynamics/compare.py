@@ -16,7 +16,8 @@ from typing import Callable, NamedTuple
 import jax
 import numpy as np
 
-from ..nets import train
+from ..data.batch import take_rows
+from ..nets import stack_trees, train
 from ..nets.networks import mlp_apply, mlp_init, scaling
 from .models import dynamic_apply, dynamic_init, identified, rnn_apply, rnn_init
 from .sequences import Sequences
@@ -104,17 +105,10 @@ def model_inputs(seq: Sequences, model: str) -> np.ndarray:
     raise ValueError(f"{model!r} is not a sequence model")
 
 
-def _stack(trees):
-    """Trees of the same structure stacked leaf by leaf on the host (NumPy: no XLA program
-    per leaf shape)."""
-    return jax.tree.map(lambda *a: np.stack([np.asarray(v) for v in a]), *trees)
-
-
 # The chunked training's bookkeeping, each one program per batch layout (eagerly, every
 # leaf and operation would be a program of its own).
 _done = jax.jit(jax.vmap(train.done))
 _results = jax.jit(jax.vmap(train.result))
-_take = jax.jit(lambda tree, idx: jax.tree.map(lambda a: a[idx], tree))
 
 
 def fit_sequence_model(init: Callable, apply: Callable, x, y, mask, split: Split, seeds: int, cfg,
@@ -164,7 +158,7 @@ def fit_sequence_model(init: Callable, apply: Callable, x, y, mask, split: Split
         for s in range(seeds):
             params.append(init(jax.random.key(s), sc, (f, s)))
             data.append(train.Data(*d))
-    res = _train_chunked(_stack(params), _stack(data), cfg, apply, progress, chunk_evals)
+    res = _train_chunked(stack_trees(params), stack_trees(data), cfg, apply, progress, chunk_evals)
     pred = jax.jit(jax.vmap(apply, in_axes=(0, None)))(res.params, x)
     shape = (len(split.labels), seeds)
     reshape = lambda a: np.asarray(a).reshape(shape + np.shape(a)[1:])  # noqa: E731
@@ -200,8 +194,8 @@ def _train_chunked(params, data, cfg, apply, progress, chunk_evals: int) -> trai
         live = live[keep]
         if len(live):
             slots = np.concatenate([keep, np.full(_bucket(len(keep)) - len(keep), keep[0])])
-            state, consts, data = _take((state, consts, data), slots)
-    return _stack([finished[i] for i in range(n)])
+            state, consts, data = take_rows((state, consts, data), slots)
+    return stack_trees([finished[i] for i in range(n)])
 
 
 def _bucket(n: int) -> int:

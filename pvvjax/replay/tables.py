@@ -17,7 +17,7 @@ import pandas as pd
 
 from ..analysis.databases import STATE_CHANNELS
 from ..config import AnalysisConfig, CalibrationConfig, ReplayConfig
-from ..data.batch import bucket_size, pad_rows, to_batch, unpad_rows
+from ..data.batch import bucket_size, pad_rows, take_rows, to_batch, unpad_rows
 from ..data.campaign import Campaign
 from ..nets.sweep import heldout_models
 from .calibration import PARAMS, Bounds, calibrate, cost_grid, counter_costs, group_members
@@ -79,10 +79,7 @@ def load_replay_set(campaign: Campaign, counters, sweep_dir, databases, architec
 def take_counters(tree, idx):
     """The counters `idx` of a replay set's arrays (records, models: any PyTree with the
     counter as leading axis)."""
-    return _take(tree, np.asarray(idx))
-
-
-_take = jax.jit(lambda tree, idx: jax.tree.map(lambda a: a[idx], tree))  # one program per layout, not per leaf
+    return take_rows(tree, np.asarray(idx))
 
 
 def cost_weights(cfg: CalibrationConfig) -> CostWeights:
