@@ -11,9 +11,14 @@ from pathlib import Path
 # clone starts warm), and keeps every program, small ones too: on a cold cache (CI) much of
 # the workers' CPU time is XLA compiling, programs which the processes compile alike. Set
 # before JAX is imported (it reads these at import; children inherit them).
-from pvvjax._cache import compile_cache_dir  # noqa: E402  (imports no JAX)
+from pvvjax._cache import compile_cache_dir, user_cache_dir  # noqa: E402  (imports no JAX)
 
 os.environ.setdefault("JAX_COMPILATION_CACHE_DIR", str(compile_cache_dir()))
+# What the tests generate once (the campaigns, keyed by their config and generator version; the
+# small sweep and the small `pvvjax dynamic` run, keyed by the package's source) goes to the
+# user's cache too, so that a second clone of the same code makes none of it again. Set after
+# the compilation cache, which stays where it is.
+os.environ.setdefault("PVVJAX_CACHE", str(user_cache_dir() / "tests"))
 # hypothesis keeps its caches (the examples database is off: tests/test_fuzz.py) beside the
 # campaign cache, not in the working directory.
 os.environ.setdefault("HYPOTHESIS_STORAGE_DIRECTORY", str(compile_cache_dir().parent / "hypothesis"))
@@ -26,7 +31,7 @@ from _budget import (  # noqa: E402, F401  (the time budget's hooks, registered 
     pytest_addoption,
     pytest_runtest_logreport,
     pytest_runtest_makereport,
-    pytest_sessionfinish,
+    pytest_terminal_summary,
     start_counting,
 )
 
@@ -333,7 +338,23 @@ def cached_folder(kind: str, marker: str, make) -> Path:
                 os.rename(make(tmp), final)
             finally:
                 shutil.rmtree(tmp, ignore_errors=True)
+            _keep_newest(root, final, KEEP_VERSIONS)
     return final
+
+
+KEEP_VERSIONS = 4  # code versions whose cached folders are kept (the user's cache is shared by every clone)
+
+
+def _keep_newest(root: Path, final: Path, keep: int):
+    """Delete all but the `keep` newest cached folders of `root` (one per code version), never
+    `final`; their lock files go with them. A folder another process is still making is a
+    `.tmp-*` folder, which this leaves alone."""
+    import shutil
+
+    folders = sorted((p for p in root.glob("small-*") if p.is_dir() and p != final), key=lambda p: p.stat().st_mtime)
+    for old in folders[:max(0, len(folders) - (keep - 1))]:
+        shutil.rmtree(old, ignore_errors=True)
+        (root / f"{old.name}.lock").unlink(missing_ok=True)
 
 
 @pytest.fixture(scope="session")

@@ -704,6 +704,7 @@ def test_ctrl_c_says_how_to_resume(tmp_path, capsys, monkeypatch):
     assert code == 130 and "interrupted; run the same command to resume" in text
 
 
+@pytest.mark.check
 def test_a_closed_pipe_ends_quietly(tmp_path):
     # `pvvjax validate … | head` on a long report: the reader leaves before the writer is done.
     import subprocess

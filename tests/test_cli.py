@@ -23,6 +23,7 @@ def test_every_subcommand_has_help():
         assert e.value.code == 0
 
 
+@pytest.mark.check
 def test_console_script_help():
     out = subprocess.run([sys.executable, "-m", "pvvjax.cli", "--help"], capture_output=True, text=True)
     assert out.returncode == 0
@@ -30,6 +31,7 @@ def test_console_script_help():
         assert cmd in out.stdout
 
 
+@pytest.mark.check
 @pytest.mark.heavy
 def test_main_job_on_the_embedded_campaign(tmp_path, capsys, default_campaign_dir):
     cfg = tmp_path / "paper.toml"
@@ -59,6 +61,7 @@ def test_discover_on_fewer_conditions_than_folds_names_the_setting_and_the_campa
     assert f"discovery.ensemble.folds (campaign {folder}, db1) = 5" in err and "number of conditions (2)" in err
 
 
+@pytest.mark.check
 @pytest.mark.heavy
 def test_sweep_then_export_a_numpy_net(tmp_path, small_campaign_dir, small_sweep, capsys):
     # The shared small sweep (trained once by `pvvjax sweep`), resumed here with one database
@@ -137,6 +140,7 @@ def _main_job_with_networks(tmp_path, campaign, small_sweep, capsys, studies: bo
     return cfg, report
 
 
+@pytest.mark.check
 @pytest.mark.heavy
 def test_main_job_with_networks_reports_beside_the_paper(tmp_path, small_campaign_dir, small_sweep, capsys):
     # The micro twin of the research check below, without the studies (their twin:
@@ -148,6 +152,7 @@ def test_main_job_with_networks_reports_beside_the_paper(tmp_path, small_campaig
     assert "part of the results folder" in capsys.readouterr().err
 
 
+@pytest.mark.check
 @pytest.mark.heavy
 def test_replay_and_calibrate_commands_on_the_jobs_config(tmp_path, small_campaign_dir, small_sweep):
     # The research check's replay and calibrate commands, on the job's config without the job:
@@ -165,7 +170,7 @@ def test_replay_and_calibrate_commands_on_the_jobs_config(tmp_path, small_campai
     assert (tmp_path / "calibration" / f"cost_map_db1_{cal.group[0]}.png").exists()
 
 
-@pytest.mark.research
+@pytest.mark.check
 def test_main_job_with_networks_reports_table1_beside_the_paper(tmp_path, small_campaign_dir, small_sweep, capsys):
     cfg, report = _main_job_with_networks(tmp_path, small_campaign_dir, small_sweep, capsys, studies=True)
     # Every paper number in one table; Figs 1-9 one file each

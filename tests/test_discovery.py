@@ -618,6 +618,7 @@ _BASE = dict(maneuvers=("level", "climb", "descent", "turn", "roll", "pushover",
                       "rotor_resonance": {"enabled": False}})
 
 
+@pytest.mark.check
 @pytest.mark.heavy
 def test_cli_discovers_on_a_micro_world_and_writes_its_summary_and_report(tmp_path):
     # The micro twin of the research check below: the same command on a fifth of the null
@@ -643,7 +644,7 @@ def test_cli_discovers_on_a_micro_world_and_writes_its_summary_and_report(tmp_pa
     assert "figures/residual_map.png" in report and (tmp_path / "out" / "figures" / "residual_map.png").exists()
 
 
-@pytest.mark.research
+@pytest.mark.check
 def test_cli_on_a_world_without_hidden_effects_names_nothing(tmp_path):
     from pvvjax.cli import main
     from pvvjax.config import from_dict
@@ -702,6 +703,7 @@ def test_a_lag_fit_measures_a_lag_and_runs_to_the_grid_end_on_prediction_noise()
     assert tau == max(taus) and not _lag_identified(tau, taus)
 
 
+@pytest.mark.check
 def test_nets_trained_on_the_windows_see_every_strided_window(monkeypatch, small_campaign_dir):
     # Window nets (the lag test's, a named term's refit) train on every TRAIN_STRIDE-th fully
     # weighted window of the replay at the model's offset, with the measured windows as
@@ -897,6 +899,7 @@ def test_a_gains_column_is_its_band_in_units_of_its_gain_unit():
     assert _rules.GAIN_UNIT == 10.0
 
 
+@pytest.mark.check
 @pytest.mark.parametrize("beats_it_alone, control_worse", [(False, False), (True, False), (True, True)])
 def test_a_try_must_confirm_again_on_top_of_the_floor_control_or_beat_it_alone(
         monkeypatch, tmp_path, small_discovery, beats_it_alone, control_worse):
@@ -971,6 +974,7 @@ def test_a_try_must_confirm_again_on_top_of_the_floor_control_or_beat_it_alone(
     assert "over_control_region_shrink" in report and "the floor control" in report
 
 
+@pytest.mark.check
 @pytest.mark.parametrize("weak", [True, False])
 def test_a_weak_name_brings_its_runner_up_on_other_channels_which_is_retrained_and_can_be_named(
         monkeypatch, small_discovery, weak):
@@ -1037,6 +1041,7 @@ def test_each_operator_is_added_in_the_ways_the_config_allows():
     assert _modes("lag", discovery_config(resonance_input=True)) == ("lag",)
 
 
+@pytest.mark.check
 @pytest.mark.parametrize("term_refit", ["peaks", "windows"])
 def test_an_additive_term_is_refitted_on_the_residual_of_the_nets_its_refit_names(
         monkeypatch, small_campaign_dir, term_refit):
@@ -1083,6 +1088,7 @@ def test_an_additive_term_is_refitted_on_the_residual_of_the_nets_its_refit_name
                                    - (refit[:, :1] + refit[:, 1:] * x_p), rtol=1e-5, atol=1e-7)
 
 
+@pytest.mark.check
 @pytest.mark.parametrize("kept", [True, False])
 def test_only_the_named_term_is_refitted_on_window_nets_and_kept_if_it_confirms(
         monkeypatch, tmp_path, small_discovery, kept):
@@ -1138,6 +1144,7 @@ def test_only_the_named_term_is_refitted_on_window_nets_and_kept_if_it_confirms(
     assert res.after["ensemble_rms_g"] == pytest.approx(confirms[1 if kept else 0][1].metrics["ensemble_rms_g"])
 
 
+@pytest.mark.check
 @pytest.mark.parametrize("shrinks, way", [((0.05, 0.06), "additive"), ((0.01, 0.20), "input")])
 def test_a_named_input_gives_way_to_its_proposals_term_where_they_tie(
         monkeypatch, tmp_path, small_discovery, shrinks, way):
@@ -1183,6 +1190,7 @@ def test_a_named_input_gives_way_to_its_proposals_term_where_they_tie(
     assert "p_input_better" in write_discovery(res, tmp_path / "out", cfg).read_text()
 
 
+@pytest.mark.check
 def test_every_confirmed_inputs_term_logs_the_p_of_the_way_it_was_chosen(monkeypatch, small_discovery):
     # Two proposals, each retrained as a term (forced not to confirm) and as an input
     # (confirms): both terms log `p_input_better`, the p of the way chosen for whichever input
@@ -1214,6 +1222,7 @@ def test_every_confirmed_inputs_term_logs_the_p_of_the_way_it_was_chosen(monkeyp
     assert list(rows[rows.chosen].augment) == ["additive"]  # 0.05 against 0.06: within shrink_noise
 
 
+@pytest.mark.check
 def test_a_term_on_top_of_itself_keeps_little_of_its_coefficient_and_on_top_of_another_channel_most(
         small_campaign_dir):
     # `_round._kept_on_top`, the encompassing test's measure, with the workflow's own fits:
@@ -1238,6 +1247,7 @@ def test_a_term_on_top_of_itself_keeps_little_of_its_coefficient_and_on_top_of_a
     assert _round._kept_on_top(ctx, other, first.terms[-1]) > 0.5
 
 
+@pytest.mark.check
 @pytest.mark.parametrize("margin, kept, named", [
     (0.1, (0.0, 0.3), "rival"), (0.1, (0.3, 0.0), "proposal"), (0.1, (0.3, 0.35), "proposal"),
     (0.0, (0.3, 0.35), "rival")])

@@ -14,6 +14,8 @@ import tomli_w
 
 from pvvjax.nets import load_nets
 
+pytestmark = pytest.mark.check  # several processes: the check lane's
+
 
 def _free_port() -> int:
     with socket.socket() as s:
@@ -59,10 +61,9 @@ def _two_processes_and_one(tmp_path, campaign, max_steps: int, databases, hidden
 
 
 def test_two_processes_give_the_one_process_results_table_of_a_micro_sweep(tmp_path, small_campaign_dir):
-    # The research check's micro twin: 2 nets of one database, 100 steps.
+    # The full-size check's micro twin: 2 nets of one database, 100 steps.
     assert _two_processes_and_one(tmp_path, small_campaign_dir, 100, ["db1"], [[4]], 1) == 2
 
 
-@pytest.mark.research
 def test_two_processes_give_the_one_process_results_table(tmp_path, small_campaign_dir):
     assert _two_processes_and_one(tmp_path, small_campaign_dir, 300, ["db1", "db2"], [[4], [6]], 2) == 16

@@ -48,7 +48,7 @@ def workdir(tmp_path, monkeypatch, small_campaign_dir, small_sweep, request):
     outside the research lane). A config whose sweep is trained as the shared small sweep
     finds that sweep in its folder (`OUT_DIR/NAME/sweep`), so its `pvvjax sweep` resumes it
     instead of training."""
-    micro = request.node.get_closest_marker("research") is None
+    micro = "micro" in request.node.name
     import tomli_w
 
     from pvvjax.config import ExperimentConfig, from_dict, load_config, load_toml
@@ -101,6 +101,7 @@ def test_every_sh_block_is_run():
 BLOCKS = [(p.name, i) for p in DOCS for i, _ in enumerate(sh_blocks(p))]
 
 
+@pytest.mark.check
 @pytest.mark.heavy
 @pytest.mark.parametrize("doc, block", BLOCKS, ids=[f"{d}-{i}" for d, i in BLOCKS])
 def test_each_block_of_the_docs_commands_runs_with_micro_settings(doc, block, workdir, capsys):
@@ -108,7 +109,7 @@ def test_each_block_of_the_docs_commands_runs_with_micro_settings(doc, block, wo
         _run_line(line, capsys)
 
 
-@pytest.mark.research
+@pytest.mark.check
 @pytest.mark.parametrize("doc", ["README.md", "networks.md", "realtime.md"])
 def test_the_docs_commands_run_verbatim(doc, workdir, capsys):
     path = next(p for p in DOCS if p.name == doc)

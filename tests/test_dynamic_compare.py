@@ -179,6 +179,7 @@ def dynamic_run(small_campaign_dir, tmp_path_factory):
     return folder, folder / "out", args
 
 
+@pytest.mark.check
 def test_dynamic_command_writes_every_model_every_window_once(dynamic_run, small_campaign_dir):
     from pvvjax.config import DYNAMIC_MODELS
     from pvvjax.data.campaign import load_campaign
@@ -214,6 +215,7 @@ def test_dynamic_command_writes_every_model_every_window_once(dynamic_run, small
     assert (out / "figures" / "through_time_db1.png").stat().st_size > 10_000
 
 
+@pytest.mark.check
 def test_dynamic_command_resumes_and_refuses_another_config(dynamic_run, capsys):
     from pvvjax.cli import main
 
@@ -227,6 +229,7 @@ def test_dynamic_command_resumes_and_refuses_another_config(dynamic_run, capsys)
     assert "dynamic" in json.loads((out / "owner.json").read_text())["settings"]
 
 
+@pytest.mark.check
 def test_export_takes_the_best_model_or_a_named_one_into_the_element(dynamic_run, small_campaign_dir, tmp_path):
     from pvvjax.cli import main
     from pvvjax.data.campaign import load_campaign
@@ -262,6 +265,7 @@ def test_export_takes_the_best_model_or_a_named_one_into_the_element(dynamic_run
     assert main(["export", str(out), "--out", str(tmp_path / "plain")]) == 2  # a comparison exports elements only
 
 
+@pytest.mark.check
 def test_a_degenerate_model_is_flagged_never_best_and_exported_only_by_name(dynamic_run, small_campaign_dir,
                                                                            tmp_path):
     import shutil
@@ -302,6 +306,7 @@ def test_a_degenerate_model_is_flagged_never_best_and_exported_only_by_name(dyna
         assert main(["export", str(folder), "--element", "--model", "dynamic", "--out", str(tmp_path / "named")]) == 0
 
 
+@pytest.mark.check
 def test_main_job_reports_the_dynamic_stage(tmp_path, small_campaign_dir, capsys):
     from pvvjax.cli import main
 

@@ -6,6 +6,7 @@ import subprocess
 import sys
 
 import pandas as pd
+import pytest
 from conftest import write_tiny
 
 from pvvjax.config import ExperimentConfig, load_config
@@ -41,6 +42,7 @@ def test_databases_are_written_beside_their_config_and_summarised(tmp_path, defa
     assert "paper conditions (peak PVV, g):" in text and "T1-level-135" in text  # Table 1, beside the paper
 
 
+@pytest.mark.check
 def test_cpu_devices_are_set_before_jax_starts_only(monkeypatch):
     # Here JAX is running: nothing changes. In a fresh process, the flag gives XLA 3 host devices.
     import jax  # noqa: F401 (JAX running, also when this test runs alone)
@@ -55,6 +57,7 @@ def test_cpu_devices_are_set_before_jax_starts_only(monkeypatch):
     assert out.stdout.strip() == "3"
 
 
+@pytest.mark.check
 def test_deterministic_gpu_flag_is_set_before_jax_starts_and_a_users_setting_wins(monkeypatch):
     import jax  # noqa: F401
 

@@ -301,6 +301,7 @@ def _study_config(draw):
     return section, data
 
 
+@pytest.mark.check
 @settings(FUZZ, max_examples=8)
 @given(study=_study_config(), mutations=st.lists(st.tuples(st.sampled_from(["ax_g", "ay_g"]),
                                                            st.sampled_from(["drop", "zero", "m/s2", "swap", "nan"]),

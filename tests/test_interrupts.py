@@ -58,7 +58,9 @@ MOMENTS = {"compile": _at_compile, "training": _in_training, "checkpoint": _writ
            "results": _writing("results"), "swallowed in a callback": _swallowed}
 
 
-@pytest.mark.parametrize("moment", list(MOMENTS))
+# One moment in `make test`, the others (each a sweep trained twice) in the check lane.
+@pytest.mark.parametrize("moment", [m if m == "training" else pytest.param(m, marks=pytest.mark.check)
+                                    for m in MOMENTS])
 def test_ctrl_c_stops_the_sweep_with_130_and_it_resumes(moment, tmp_path, small_campaign_dir, monkeypatch, capsys):
     cfg = small_sweep_config(tmp_path / "s.toml", tmp_path, small_campaign_dir, databases=("db1",), test_folds=(0, 1))
     with monkeypatch.context() as m:

@@ -5,6 +5,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+import pytest
 
 from pvvjax.config import ExperimentConfig
 from pvvjax.io import markdown_table, read_table, write_table
@@ -26,6 +27,7 @@ def test_markdown_table_formats_floats_and_nan():
     assert markdown_table(df, "{:.3g}", nan="").splitlines()[3] == "| b |  | 4 | 2.25 |"
 
 
+@pytest.mark.check
 def test_compiled_programs_are_cached_for_the_user_outside_any_checkout(tmp_path):
     """The CLI's persistent compilation cache is the user's (shared by every clone, so a new
     clone starts warm), or under $PVVJAX_CACHE, and it is bounded in size."""

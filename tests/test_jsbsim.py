@@ -81,6 +81,7 @@ def _fly(tmp_path, monkeypatch, campaign_dir, cfg: dict):
 _PULSE = {"pitch-pulse": dict(variant=1, end_s=40.0, pulse_at_s=25.0, pulse_s=3.0, pulse_rad=0.3)}
 
 
+@pytest.mark.check
 @pytest.mark.heavy
 def test_the_example_flies_the_ah1s_briefly_with_the_axes_element(tmp_path, monkeypatch, small_campaign_dir):
     """The micro twin of the research check below: the axes element (nets of a hundred steps)
@@ -102,6 +103,7 @@ def test_the_example_flies_the_ah1s_briefly_with_the_axes_element(tmp_path, monk
         assert (table.c_minus_numpy_g < 1e-6).all()
 
 
+@pytest.mark.check
 @pytest.mark.heavy
 def test_the_example_flies_the_ah1s_briefly_with_the_dynamic_model(tmp_path, monkeypatch, small_campaign_dir):
     """The micro twin of the research check below, through the same short pitch pulse."""
@@ -120,7 +122,7 @@ def test_the_example_flies_the_ah1s_briefly_with_the_dynamic_model(tmp_path, mon
         assert np.abs(flight.c_pvv_g - flight.pvv_g).max() < 1e-6
 
 
-@pytest.mark.research
+@pytest.mark.check
 def test_the_example_flies_the_ah1s_with_the_element_in_the_loop(tmp_path, monkeypatch, small_campaign_dir):
     """`model = "axes"` (the shipped config's): `pvvjax axes` on the AH-1S campaign, its nets of three
     outputs as the element, three flights; every seat axis written, the C element equal on each."""
@@ -152,7 +154,7 @@ def test_the_example_flies_the_ah1s_with_the_element_in_the_loop(tmp_path, monke
     assert (out / "flights.png").is_file()
 
 
-@pytest.mark.research
+@pytest.mark.check
 def test_the_example_flies_the_ah1s_with_the_dynamic_model(tmp_path, monkeypatch, small_campaign_dir):
     """`model = "dynamic"`: `pvvjax dynamic` on the AH-1S campaign, its `best` model (the
     window map or the physics-shaped model) exported as the element, through a pitch

@@ -141,6 +141,7 @@ def test_lag_test_is_judged_by_the_learned_tau_and_adds_the_slow_lag_against_the
 _MICRO = dict(level=8, climb=2, descent=3, turn=2, roll=2, pushover=1, pullup=2, flare=1)
 
 
+@pytest.mark.check
 @pytest.mark.heavy
 def test_the_lag_test_runs_end_to_end_on_a_micro_world(monkeypatch, tmp_path):
     # The micro twin of the research check below: the same code path (the learned lag, the
@@ -176,7 +177,7 @@ def test_the_lag_test_runs_end_to_end_on_a_micro_world(monkeypatch, tmp_path):
     assert "## Lag test (round 0)" in report and pd.read_csv(tmp_path / "lag_test.csv").shape == (4, 12)
 
 
-@pytest.mark.research
+@pytest.mark.check
 def test_discover_names_a_long_lag_first_with_nets_trained_through_it(monkeypatch, tmp_path):
     # A world whose vibration lags its state by 2 s: the lag learned inside one training
     # (τ above lag_slow_s: the slow lag plus the delay and the fast dynamics) names the lag

@@ -38,6 +38,7 @@ def _cells(path: Path, settings: str, checks: bool):
     return nb
 
 
+@pytest.mark.check
 @pytest.mark.heavy
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.stem for p in NOTEBOOKS])
 def test_notebook_code_runs_on_a_micro_campaign(path, small_campaign_dir, monkeypatch):
@@ -56,7 +57,7 @@ def test_notebook_code_runs_on_a_micro_campaign(path, small_campaign_dir, monkey
         plt.close("all")
 
 
-@pytest.mark.research
+@pytest.mark.check
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.stem for p in NOTEBOOKS])
 def test_notebook_runs_in_a_kernel(path, default_campaign_dir, small_campaign_dir):
     from nbclient import NotebookClient

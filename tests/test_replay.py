@@ -344,6 +344,7 @@ def small_sweep_replay(small_campaign_dir, small_sweep):
 # held-out nets.
 
 
+@pytest.mark.check
 @pytest.mark.heavy
 def test_each_kinds_own_offset_does_at_least_as_well_on_it_as_the_common_one(small_sweep_replay, tmp_path):
     from pvvjax.replay import studies
@@ -354,6 +355,7 @@ def test_each_kinds_own_offset_does_at_least_as_well_on_it_as_the_common_one(sma
     assert (cost["one per kind"] <= cost["one for all"] * 1.01 + 1e-6).all()
 
 
+@pytest.mark.check
 @pytest.mark.heavy
 def test_the_window_length_study_and_the_stick_lag(small_sweep_replay, tmp_path):
     # The gradient optimum of (offset, window length) is no worse than the brute-force grid's

@@ -51,6 +51,7 @@ def test_each_axis_is_scored_on_its_own_peaks_against_its_own_cruise_level():
     assert y["rms_g"] == pytest.approx(np.sqrt((0.005**2 + 0.2**2) / 4))
 
 
+@pytest.mark.check
 def test_the_axes_command_writes_its_tables_resumes_and_exports_a_three_axis_element(small_campaign_dir, tmp_path,
                                                                                      capsys):
     (tmp_path / "cfg.toml").write_text(CONFIG)
@@ -101,7 +102,7 @@ def test_an_axis_that_carries_no_vibration_is_said_so_never_scored_as_failing():
     assert "carries no vibration" in needs.text["ax_g"] and "no database suffices" in needs.text["az_g"]
 
 
-@pytest.mark.research
+@pytest.mark.check
 def test_the_discovery_on_the_lateral_axis_names_sideslip(default_campaign):
     """Kottapalli's finding on the embedded campaign: db1's inputs fail the lateral axis, and the
     discovery run on it names sideslip first (the generator's lateral_sideslip effect). About a

@@ -126,6 +126,7 @@ def _sweep_config_file(tmp_path, campaign_dir, n_archs, databases=("db1", "db2",
     return cfg
 
 
+@pytest.mark.check
 @pytest.mark.heavy
 def test_killed_sweep_resumes_without_duplicates_or_corrupt_files(tmp_path, small_campaign_dir):
     # 48 nets with a long patience: the training outlasts the first checkpoint by seconds even
@@ -177,6 +178,7 @@ print(json.dumps(dict(zip(res.net_id, res.val_rms_g))))
 """
 
 
+@pytest.mark.check
 @pytest.mark.heavy
 def test_sweep_axis_is_sharded_over_devices_in_a_separate_process(tmp_path, small_campaign_dir, small_dbs):
     env = {**os.environ, "XLA_FLAGS": "--xla_force_host_platform_device_count=2", "JAX_PLATFORMS": "cpu"}

@@ -256,6 +256,7 @@ def test_concurrent_callers_generate_a_cached_campaign_once(tmp_path, monkeypatc
 AH1S = dict(blades=2, rotor_radius_ft=22.0, nominal_rpm=324.0, chord_ft=2.25, solidity=0.06511)
 
 
+@pytest.mark.check
 def test_a_two_bladed_campaign_vibrates_at_2_per_rev_end_to_end(small_dbs):
     """synth -> harmonics -> databases on a 2-bladed rotor: 2/rev dominates the floor signal,
     the databases take it by default, and by similarity the peaks are the UH-60A campaign's."""

@@ -62,6 +62,7 @@ def test_a_world_is_scored_against_its_truth_and_the_null_of_its_seed(wb):
     assert t.loc["all", "spurious extra"] == "2 / 2" and t.loc["collective-knee", "median parameter error"] == "5.0%"
 
 
+@pytest.mark.check
 def test_of_two_effects_the_larger_must_come_first_and_both_be_named(wb):
     base = SynthConfig(conditions=("11022",), noise_g=0.0)
     big = {**base.effects, "collective_stall": EffectConfig(enabled=True, scale=3.0, params=dict(knee=40.0))}
@@ -83,6 +84,7 @@ def test_of_two_effects_the_larger_must_come_first_and_both_be_named(wb):
             assert s.parameter_error == pytest.approx(1 / 40)
 
 
+@pytest.mark.check
 def test_a_micro_world_runs_end_to_end_and_writes_its_truth(wb, tmp_path):
     """The runner's path on a few conditions with short trainings (the table runs the
     defaults on 80-300 conditions)."""
