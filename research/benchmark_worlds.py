@@ -132,6 +132,30 @@ def _truth(fam: Family, drawn: dict, cfg) -> dict:
     return out
 
 
+def _one_of_each_per_seed(deck: list, per_seed: int) -> list:
+    """The deck reordered so that no seed is dealt one family twice: a seed's worlds share
+    their base and a family's draws depend on the seed alone, so a family dealt twice at one
+    seed would be the same world twice. A repeated card is swapped with the first later card
+    whose family the seed does not hold and whose seed does not hold the repeated family (the
+    counts per family stay as dealt)."""
+    deck = list(deck)
+    block = lambda j: range(j - j % per_seed, min(j - j % per_seed + per_seed, len(deck)))  # noqa: E731
+
+    def others(j):  # the families of j's seed other than card j's
+        return {deck[i].name for i in block(j) if i != j}
+
+    for k in range(len(deck)):
+        if deck[k].name not in {deck[i].name for i in block(k) if i < k}:
+            continue
+        swap = next((j for j in range(block(k)[-1] + 1, len(deck))
+                     if deck[j].name not in others(k) and deck[k].name not in others(j)), None)
+        if swap is None:
+            raise ValueError(f"protocol.hidden_per_seed = {per_seed}: the deck cannot give each seed "
+                             f"{per_seed} different families")
+        deck[k], deck[swap] = deck[swap], deck[k]
+    return deck
+
+
 def worlds(plan: Plan, fresh: bool = False) -> list[dict]:
     """The worlds of the tuning (or fresh) seeds, each seed's null before its hidden
     worlds: each a dict of name, seed, database, truth (None for a null), synth (its
@@ -144,6 +168,7 @@ def worlds(plan: Plan, fresh: bool = False) -> list[dict]:
     n_hidden = len(seeds) * p.hidden_per_seed
     rng = np.random.default_rng([seeds.start, len(seeds), 7])
     deck = [plan.family[i % len(plan.family)] for i in rng.permutation(max(n_hidden, len(plan.family)))][:n_hidden]
+    deck = _one_of_each_per_seed(deck, p.hidden_per_seed)
     every = int(round(1 / p.two_effects)) if p.two_effects > 0 else 0
     out, k = [], 0
     for seed in seeds:

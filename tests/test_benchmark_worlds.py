@@ -40,6 +40,22 @@ def test_the_fresh_table_has_sixty_worlds_twenty_nulls_and_a_fifth_with_two_effe
     assert bw.worlds(plan, fresh=True) == fresh  # the same plan gives the same worlds
 
 
+def test_no_two_worlds_of_a_draw_are_the_same_world(bw):
+    plan = bw.load_plan(CONFIG)
+    for ws in (bw.worlds(plan), bw.worlds(plan, fresh=True)):
+        names = [w["name"] for w in ws]
+        assert len(set(names)) == len(names)
+        synth = [repr(w["synth"]) for w in ws]
+        assert len(set(synth)) == len(synth)
+    Card = type("Card", (), {"__init__": lambda self, name: setattr(self, "name", name)})
+    deck = [Card(n) for n in "AABCBC"]  # seed 1 dealt A twice
+    dealt = [c.name for c in bw._one_of_each_per_seed(deck, 2)]
+    assert sorted(dealt) == sorted("AABCBC")
+    assert all(dealt[i] != dealt[i + 1] for i in range(0, 6, 2))
+    with pytest.raises(ValueError, match="hidden_per_seed = 2"):
+        bw._one_of_each_per_seed([Card("A")] * 4, 2)
+
+
 def test_a_hidden_world_is_its_seeds_null_plus_what_it_plants(bw):
     plan = bw.load_plan(CONFIG)
     ws = bw.worlds(plan)
