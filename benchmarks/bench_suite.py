@@ -7,7 +7,8 @@ and a third time with a CPU hog beside it (one busy process per core, at normal 
 each run: the wall time of the whole command (venv and install included), pytest's own
 seconds, the tests passed and failed, the tests the suite listed over its 15 s budget, and
 the programs in the compilation cache after it (after the first run: those a new machine compiles).
-Nothing in the checkout is touched; the folders are kept under --work.
+Nothing in the checkout is touched; the folders are kept under --work, each clone with its
+`make-test.log` and `junit.xml` (every test's seconds).
 
     python benchmarks/bench_suite.py [--work DIR] [--runs new,second,loaded] [--target test]
 
@@ -21,6 +22,7 @@ import json
 import multiprocessing
 import os
 import re
+import signal
 import subprocess
 import sys
 import tempfile
@@ -62,6 +64,7 @@ def machine_speed() -> float:
 def run(clone: Path, home: Path, target: str, hog: bool) -> dict:
     env = {k: v for k, v in os.environ.items() if not k.startswith(("PVVJAX_", "JAX_", "XDG_", "PYTEST_"))}
     env["HOME"] = str(home)
+    env["PYTEST_ADDOPTS"] = f"--junitxml={clone / 'junit.xml'}"  # every test's seconds, for where the time goes
     procs = []
     if hog:
         stop = time.time() + 3600
@@ -69,7 +72,9 @@ def run(clone: Path, home: Path, target: str, hog: bool) -> dict:
         for p in procs:
             p.start()
     t0 = time.perf_counter()
-    out = subprocess.run(["make", target], cwd=clone, env=env, capture_output=True, text=True)
+    # Ctrl-C as a terminal gives it (a benchmark started in the background inherits it ignored).
+    out = subprocess.run(["make", target], cwd=clone, env=env, capture_output=True, text=True,
+                         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     wall = time.perf_counter() - t0
     for p in procs:
         p.terminate()

@@ -32,7 +32,7 @@ from ._conditions import DEFAULT_COUNTS, NAMED, Condition, catalogue, condition_
 from ._scaling import scale_states, similarity
 from ._vibration import EFFECTS, amplitude_4p, amplitude_axis, vibration_state
 
-GENERATOR_VERSION = "2"
+GENERATOR_VERSION = "3"
 MAX_RATE_HZ = 20000.0  # the highest sample or dynamics rate a generator config may ask for
 
 
@@ -235,7 +235,7 @@ def generate(cfg: SynthConfig = SynthConfig()) -> tuple[pd.DataFrame, dict[str, 
         a1, a2 = rng.uniform(0.015, 0.04), 0.01 + 0.05 * np.abs(nz - 1.0)
         p1, p2, p4, p8 = rng.uniform(0, 2 * np.pi, 4)
         n = ac.blades  # the blade-passage harmonic N/rev and its 2N/rev
-        az = (nz + a1 * np.cos(psi + p1) + a2 * np.cos(2 * psi + p2)
+        az = (nz + rotor_harmonics(psi, n, (a1, a2), (p1, p2))
               + amp4 * np.cos(n * psi + p4 + interp(phi4))
               + 0.2 * amp4 * np.cos(2 * n * psi + p8)
               + cfg.noise_g * rng.standard_normal(ts.size))
@@ -264,6 +264,18 @@ def generate(cfg: SynthConfig = SynthConfig()) -> tuple[pd.DataFrame, dict[str, 
                 records[name] = part
                 rows.append(_row(name, c, seg, scale))
     return pd.DataFrame(rows), records, ground_truth(cfg)
+
+
+def rotor_harmonics(psi, blades: int, amplitudes, phases):
+    """The 1/rev, 2/rev, ... of rotor track, balance and blade dissimilarity (`amplitudes[k - 1]`
+    at k/rev, g; `phases` rad) on azimuth `psi` (rad): only those below the blade-passage
+    harmonic, which is the vibration law's alone (on a two-bladed rotor 2/rev is N/rev, where a
+    term of random phase per condition would be a second, lawless vibration source)."""
+    out = np.zeros_like(psi)
+    for k, (a, p) in enumerate(zip(amplitudes, phases), start=1):
+        if k < blades:
+            out = out + a * np.cos(k * psi + p)
+    return out
 
 
 def _horizontal(psi, n: int, amp: dict, phase_n, settings: dict, noise_g: float, rng) -> dict:
