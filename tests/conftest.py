@@ -305,6 +305,26 @@ def small_sweep_config(path, out, campaign, name="s", databases=("db1", "db3"), 
     return path
 
 
+def small_job_config(folder, campaign, small_sweep, replay_databases=("db1", "db3"), run: str = "") -> Path:
+    """The main job's config on the small campaign with the shared small sweep's settings,
+    written to `folder/p.toml`; the sweep is copied into its folder (`folder/p/sweep`, as
+    `pvvjax sweep` of the same config leaves it), so a command on the config claims the
+    folder and resumes the sweep with nothing to train. `run`: a `[run]` table to add."""
+    import json
+    import shutil
+
+    folder = Path(folder)
+    shutil.copytree(small_sweep, folder / "p" / "sweep")
+    cfg = folder / "p.toml"
+    cfg.write_text(f'''name = "p"\nout_dir = "{folder.as_posix()}"
+[campaign]\npath = "{Path(campaign).as_posix()}"
+{run}[sweep]\ndatabases = ["db1", "db3"]\nhidden = [[4]]\nseeds = 1\nfolds = 3\ncpu_devices = 1
+[train]\nmax_steps = 300\nlearning_rate = 0.01
+[replay]\ndatabases = {json.dumps(list(replay_databases))}
+[calibration]\ngrid_offset_step_s = 0.5\ngrid_window_step_revs = 2.0\n''')
+    return cfg
+
+
 def _code_key() -> str:
     """Hash of the package's source: a cached sweep is trained again whenever the code changes."""
     import hashlib

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
-from conftest import small_sweep_config
+from conftest import small_job_config, small_sweep_config
 
 from pvvjax import _apidoc
 from pvvjax.cli import build_parser, main
@@ -110,19 +110,9 @@ def test_cli_reference_in_the_docs_is_current():
 
 
 def _job_config(tmp_path, campaign, small_sweep, studies: bool) -> Path:
-    """The main job's config with networks on the small campaign. Its sweep is the shared
-    small sweep, copied into OUT_DIR/NAME/sweep (as `pvvjax sweep` of the same config leaves
-    it): a command on the config claims the folder and resumes the sweep."""
-    shutil.copytree(small_sweep, tmp_path / "p" / "sweep")
-    cfg = tmp_path / "p.toml"
-    cfg.write_text(f'''name = "p"\nout_dir = "{tmp_path.as_posix()}"
-[campaign]\npath = "{campaign.as_posix()}"
-[run]\nnetworks = true\nhtml = false\nstudies = {str(studies).lower()}
-[sweep]\ndatabases = ["db1", "db3"]\nhidden = [[4]]\nseeds = 1\nfolds = 3\ncpu_devices = 1
-[train]\nmax_steps = 300\nlearning_rate = 0.01
-[replay]\ndatabases = ["db1", "db3"]
-[calibration]\ngrid_offset_step_s = 0.5\ngrid_window_step_revs = 2.0\n''')
-    return cfg
+    """The main job's config with networks on the small campaign (`small_job_config`)."""
+    return small_job_config(tmp_path, campaign, small_sweep,
+                            run=f"[run]\nnetworks = true\nhtml = false\nstudies = {str(studies).lower()}\n")
 
 
 def _main_job_with_networks(tmp_path, campaign, small_sweep, capsys, studies: bool):

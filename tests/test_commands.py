@@ -5,28 +5,19 @@ command on its config resumes it), with the fewest steps that still give a resul
 what it writes. The whole-command runs at their own settings (the README's blocks, the
 notebooks, the main job with networks, JSBSim's flights) are in the check lane."""
 
-import shutil
-
 import numpy as np
 import pandas as pd
 import pytest
+from conftest import small_job_config
 
 from pvvjax.cli import main
 
 
 @pytest.fixture
 def job(tmp_path, small_campaign_dir, small_sweep):
-    """A config of db1 on the small campaign whose sweep folder (OUT_DIR/NAME/sweep) holds
+    """The main job's config on the small campaign, replaying db1, whose sweep folder holds
     the shared small sweep: replay and calibrate resume it with nothing to train."""
-    shutil.copytree(small_sweep, tmp_path / "p" / "sweep")
-    cfg = tmp_path / "p.toml"
-    cfg.write_text(f'''name = "p"\nout_dir = "{tmp_path.as_posix()}"
-[campaign]\npath = "{small_campaign_dir.as_posix()}"
-[sweep]\ndatabases = ["db1", "db3"]\nhidden = [[4]]\nseeds = 1\nfolds = 3\ncpu_devices = 1
-[train]\nmax_steps = 300\nlearning_rate = 0.01
-[replay]\ndatabases = ["db1"]
-[calibration]\ngrid_offset_step_s = 0.5\ngrid_window_step_revs = 2.0\n''')
-    return cfg
+    return small_job_config(tmp_path, small_campaign_dir, small_sweep, replay_databases=("db1",))
 
 
 def test_the_main_job_builds_the_databases_and_reports_them(tmp_path, small_campaign_dir, capsys):
