@@ -21,10 +21,12 @@ from ._generate import (
     load_synth_config,
     write_synthetic,
 )
+from ._law import law_amplitudes, simulation_config
 from ._vibration import EFFECTS, Effect
 
 __all__ = [
     "EFFECTS", "GENERATOR_VERSION", "NAMED", "Condition", "Effect", "EffectConfig", "Planted", "Span",
     "SynthConfig", "CampaignDraw", "cached_campaign", "catalogue", "default_cache_dir", "describe_effects",
-    "draw_campaign", "generate", "ground_truth", "law_effects", "load_synth_config", "write_synthetic",
+    "draw_campaign", "generate", "ground_truth", "law_amplitudes", "law_effects", "load_synth_config",
+    "simulation_config", "write_synthetic",
 ]

@@ -25,7 +25,7 @@ else:  # pragma: no cover
 from .._strict import to_dict
 from ..config import config_hash, load_config
 from ..data.campaign import write_campaign
-from ..data.constants import UH60A, Aircraft
+from ..data.constants import KT_TO_FT_S, UH60A, Aircraft
 from ..io import refuse_in_campaign
 from . import _flight
 from ._conditions import DEFAULT_COUNTS, NAMED, Condition, catalogue, condition_rng, pilot_plan
@@ -77,6 +77,10 @@ class SynthConfig:
             campaign is then UH-60A-like physics scaled to that rotor (same advance ratio,
             blade loading and load factor; its rotor speed, weights and speeds; its N/rev and
             2N/rev content), written into campaign.toml: a stand-in until measured data exist.
+        load_factor: the load factor in the blade loading the vibration sees: "measured", the
+            `nz_g` the airframe feels (turns, pull-ups and the climb's own acceleration), or
+            "kinematic", the turn-and-pull-up MLF of bank, pitch rate and airspeed that the
+            paper's databases carry (a world whose blade loading db1's inputs express exactly).
     """
 
     name: str = "uh60a-synthetic"
@@ -92,6 +96,7 @@ class SynthConfig:
     effects: dict[str, EffectConfig] = field(default_factory=dict)
     vibration_weight_lb: float | None = None
     aircraft: dict[str, float] = field(default_factory=dict)
+    load_factor: Literal["measured", "kinematic"] = "measured"
 
     def aircraft_constants(self) -> Aircraft:
         """The aircraft the campaign is flown on."""
@@ -187,12 +192,9 @@ def _simulate(conds: list[Condition], cfg: SynthConfig):
     return t, states
 
 
-def generate(cfg: SynthConfig = SynthConfig()) -> tuple[pd.DataFrame, dict[str, pd.DataFrame], dict]:
-    """Generate a campaign in memory.
-
-    Returns:
-        (counters table, counter -> time series, ground truth).
-    """
+def campaign_conditions(cfg: SynthConfig) -> list[Condition]:
+    """The conditions a campaign of `cfg` flies (its catalogue, filtered by `conditions` and
+    `maneuvers`)."""
     conds = catalogue(cfg.seed, cfg.counts)
     if cfg.conditions:
         known = {c.id for c in conds}
@@ -202,25 +204,68 @@ def generate(cfg: SynthConfig = SynthConfig()) -> tuple[pd.DataFrame, dict[str, 
         conds = [c for c in conds if c.id in set(cfg.conditions)]
     if cfg.maneuvers:
         conds = [c for c in conds if c.maneuver in set(cfg.maneuvers)]
-    ac = cfg.aircraft_constants()
-    scale = similarity(ac)  # every factor exactly 1 for the UH-60A
+    return conds
+
+
+def flight(cfg: SynthConfig, conds: list[Condition]) -> tuple[np.ndarray, dict]:
+    """The simulated flight of the conditions: the dynamics time grid (s) and the (K, N)
+    states in the aircraft's units."""
     t, states = _simulate(conds, cfg)
-    states = scale_states(states, ac)
-    dt = float(t[1] - t[0])
-    settings = cfg.effect_settings()
-    seen = states  # what the vibration sees; the flight and its channels keep each condition's weight
+    return t, scale_states(states, cfg.aircraft_constants())
+
+
+def seen_state(cfg: SynthConfig, states: dict) -> dict:
+    """The vibration state (`vibration_state`) of the flight as `cfg`'s vibration sees it:
+    with its fixed vibration weight and its load factor (`SynthConfig.load_factor`)."""
+    seen = dict(states)
     if cfg.vibration_weight_lb is not None:
-        seen = {**states, "gross_weight_lb": np.full_like(states["gross_weight_lb"], cfg.vibration_weight_lb)}
-    vstate = vibration_state(seen, ac)
-    # Condition-to-condition scatter (a per-condition constant, so its order with the lag is
-    # immaterial); the paper's named conditions are the calibration anchors and carry none.
+        seen["gross_weight_lb"] = np.full_like(states["gross_weight_lb"], cfg.vibration_weight_lb)
+    if cfg.load_factor == "kinematic":
+        g = cfg.aircraft_constants().g_ft_s2
+        q, v = np.deg2rad(states["pitch_rate_dps"]), states["airspeed_kt"] * KT_TO_FT_S
+        seen["nz_g"] = (1.0 + q * v / g) / np.cos(np.deg2rad(states["roll_angle_deg"]))
+    return vibration_state(seen, cfg.aircraft_constants())
+
+
+def condition_scatter(cfg: SynthConfig, conds: list[Condition]) -> np.ndarray:
+    """(K,) each condition's factor on its N/rev level: 1 + scatter · N(0, 1), at least 0.5;
+    the paper's named conditions (the calibration anchors) carry none."""
     named = {c.id for c in NAMED}
     scat = np.array([1.0 + (0.0 if c.id in named else cfg.scatter)
                      * condition_rng(cfg.seed, "scatter:" + c.id).standard_normal() for c in conds])
+    return np.maximum(scat, 0.5)
+
+
+def record_parts(c: Condition, n: int) -> list[tuple[str, np.ndarray, int]]:
+    """How a condition's `n` samples become records: (counter, sample indices, segment), one
+    record, or a continuous flight cut into equal segments."""
+    names = c.counter_names
+    if len(names) == 1:
+        return [(names[0], np.arange(n), 1)]
+    return [(name, idx, seg) for seg, (name, idx) in enumerate(zip(names, np.array_split(np.arange(n), len(names))),
+                                                                start=1)]
+
+
+def generate(cfg: SynthConfig = SynthConfig()) -> tuple[pd.DataFrame, dict[str, pd.DataFrame], dict]:
+    """Generate a campaign in memory.
+
+    Returns:
+        (counters table, counter -> time series, ground truth).
+    """
+    conds = campaign_conditions(cfg)
+    ac = cfg.aircraft_constants()
+    scale = similarity(ac)  # every factor exactly 1 for the UH-60A
+    t, states = flight(cfg, conds)
+    dt = float(t[1] - t[0])
+    settings = cfg.effect_settings()
+    vstate = seen_state(cfg, states)  # the flight and its channels keep each condition's weight
+    # Condition-to-condition scatter (a per-condition constant, so its order with the lag is
+    # immaterial).
+    scat = condition_scatter(cfg, conds)
     a4, _ = amplitude_4p(vstate, settings, dt)
-    a4 = a4 * np.maximum(scat, 0.5)[:, None]
+    a4 = a4 * scat[:, None]
     phi4 = 1.2 * vstate["mu"] + 3.0 * (vstate["loading"] - 0.07)
-    a_xy = {axis: amplitude_axis(vstate, settings, dt, axis) * np.maximum(scat, 0.5)[:, None] for axis in "xy"}
+    a_xy = {axis: amplitude_axis(vstate, settings, dt, axis) * scat[:, None] for axis in "xy"}
 
     rows, records = [], {}
     for k, c in enumerate(conds):
@@ -252,17 +297,11 @@ def generate(cfg: SynthConfig = SynthConfig()) -> tuple[pd.DataFrame, dict[str, 
             ch[stick] = np.clip(ch[stick] + 0.15 * rng.standard_normal(ts.size), 0.0, 100.0)
         df = pd.DataFrame(ch).astype(np.float32)
         df["time_s"] = ts  # keep time exact (float64)
-        names = c.counter_names
-        if len(names) == 1:
-            records[names[0]] = df
-            rows.append(_row(names[0], c, 1, scale))
-        else:  # one continuous flight cut into equal segments, each with time from its start
-            cut = np.array_split(np.arange(len(df)), len(names))
-            for seg, (name, idx) in enumerate(zip(names, cut), start=1):
-                part = df.iloc[idx].reset_index(drop=True)
-                part["time_s"] = ts[idx] - ts[idx[0]]
-                records[name] = part
-                rows.append(_row(name, c, seg, scale))
+        for name, idx, seg in record_parts(c, len(df)):
+            part = df.iloc[idx].reset_index(drop=True)
+            part["time_s"] = ts[idx] - ts[idx[0]]  # each segment's time from its start
+            records[name] = part
+            rows.append(_row(name, c, seg, scale))
     return pd.DataFrame(rows), records, ground_truth(cfg)
 
 
