@@ -57,6 +57,7 @@ def _research(name: str):
 
 bw = _research("benchmark_worlds")
 matches = _research("discovery_benchmark").matches  # a named effect against the accepted forms
+wt = _research("world_truth")
 
 
 def effect_size(world: dict, family: str, null: dict) -> float:
@@ -70,25 +71,35 @@ def effect_size(world: dict, family: str, null: dict) -> float:
 
 
 def run_world(world: dict, out: Path, cfg: ExperimentConfig | None = None) -> dict:
-    """Generate a world, write its truth file, run `discover` with the defaults (`cfg`: other
-    settings, for the test suite's micro run only); the row of what scoring needs (the named
-    effects as JSON, the metrics before and after, seconds)."""
-    (out / "truth").mkdir(parents=True, exist_ok=True)
-    (out / "truth" / f"{world['name']}.truth.json").write_text(json.dumps(bw.world_truth(world), indent=1))
+    """Generate a world, write its truth file (the generator's truth, the draws, the judged
+    truth and every discrepancy against db1 with its size and the world's floor:
+    `world_truth.discrepancies`), run `discover` with the defaults (`cfg`: other settings,
+    for the test suite's micro run only) and keep its baseline's windows (out-of-fold
+    prediction, measured level, window edges: OUT/windows/<world>.parquet, what the oracle
+    tests); the row of what scoring needs (the named effects as JSON, the metrics before and
+    after, the floor, seconds)."""
+    for sub in ("truth", "windows"):
+        (out / sub).mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     counters, records, _ = generate(world["synth"])
+    truth = {**bw.world_truth(world), "discrepancies": wt.discrepancies(world["synth"], records, world["drawn"])}
+    (out / "truth" / f"{world['name']}.truth.json").write_text(json.dumps(truth, indent=1))
+    t_truth = time.perf_counter() - t0
     campaign = campaign_from_frames(counters, records, aircraft=world["synth"].aircraft_constants(),
                                     source=world["name"])
     cfg = cfg or ExperimentConfig(name=world["name"],
                                   discovery=from_dict(DiscoveryConfig, {"database": world["database"]}))
     res = discover(campaign, cfg, name=world["name"], log=lambda m: None)
     js = summary(res)
+    keep = [c for c in res.windows.columns if not c.startswith("effect_") and c not in ("i", "k")]
+    res.windows[keep].to_parquet(out / "windows" / f"{world['name']}.parquet", index=False)
     row = dict(world=world["name"], seed=world["seed"], database=world["database"],
                family=world["truth"]["effect"] if world["truth"] else "none",
                also=world["truth"].get("also", {}).get("effect", "") if world["truth"] else "",
                aircraft=world["drawn"]["aircraft"], conditions=world["drawn"]["conditions"],
                named=" > ".join(e["name"] for e in js["effects"]) or "none", effects=json.dumps(js["effects"]),
-               seconds=time.perf_counter() - t0)
+               offset_s=float(res.baseline.offset_s), floor_g=truth["discrepancies"]["floor_g"],
+               seconds=time.perf_counter() - t0 - t_truth, truth_seconds=t_truth)
     for k in ("ensemble_rms_g", "peak_error_g", "rms_g"):
         row[f"{k}_before"], row[f"{k}_after"] = float(res.before[k]), float(res.after[k])
     return row

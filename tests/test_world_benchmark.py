@@ -102,6 +102,11 @@ def test_a_micro_world_runs_end_to_end_and_writes_its_truth(wb, tmp_path):
     row = wb.run_world(world, tmp_path, cfg)
     truth = json.loads((tmp_path / "truth" / "micro.truth.json").read_text())
     assert truth["drawn"] == world["drawn"] and truth["judged"] is None
+    names = {e["name"] for e in truth["discrepancies"]["entries"]}
+    assert {"measured load factor", "0.6 s lag", "pitch rate"} <= names
     assert row["family"] == "none" and row["ensemble_rms_g_before"] > 0 and row["seconds"] > 0
+    assert row["floor_g"] == truth["discrepancies"]["floor_g"] > 0
+    windows = pd.read_parquet(tmp_path / "windows" / "micro.parquet")  # what the oracle tests
+    assert {"counter", "condition", "t0", "t1", "measured_g", "weight", "predicted_before_g"} <= set(windows.columns)
     s = wb.score(pd.DataFrame([row]), [world]).iloc[0]
     assert s.clean == (row["named"] == "none")
