@@ -23,6 +23,10 @@ os.environ.setdefault("PVVJAX_CACHE", str(user_cache_dir() / "tests"))
 # campaign cache, not in the working directory.
 os.environ.setdefault("HYPOTHESIS_STORAGE_DIRECTORY", str(compile_cache_dir().parent / "hypothesis"))
 os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0")
+# The two test processes share the two cores: scikit-learn's trees (the cross-fitted tests'
+# nuisance learner) each take one OpenMP thread, not one per core (three times slower when
+# they oversubscribe).
+os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402

@@ -34,13 +34,15 @@ block-permutation test), `residuals` (where the residual concentrates) and `repo
 (discovery.json, report.md, figures). Its private modules, one concept each: `_model` (the nets, the replay windows, the
 predictions and metrics), `_fits` (least-squares fits of a lag, a knee or band, the offset),
 `_propose` (the candidate matrix, the floor covariates and the selection's proposals),
-`_confirm` (add a candidate, retrain, compare by condition, name), `_results` (the typed
+`_confirm` (add a candidate, retrain, compare by condition, name), `_citest` (cross-fitted
+conditional-independence tests with conditions as the units: `gcm_test`, `capacity_test`, `holm`), `_results` (the typed
 outcome: a trial's `Confirmation`, an `Effect`, a `Round`), `_round` (one round's
 tries, each way, judged and one named), `_lag` (the lag test) and `_workflow` (`discover`,
 `summary`).
 """
 
 from . import effects
+from ._citest import UnitTest, capacity_test, cross_fit, default_learner, gcm_test, holm, unit_folds
 from ._model import Model, delag, fit_ensemble, floor_features, gain_apply, metrics
 from ._propose import knn_floor
 from ._results import Confirmation, Effect, Round
@@ -59,6 +61,10 @@ __all__ = [
     "Residual",
     "Round",
     "Selected",
+    "UnitTest",
+    "capacity_test",
+    "cross_fit",
+    "default_learner",
     "delag",
     "describe",
     "discover",
@@ -67,6 +73,8 @@ __all__ = [
     "floor_features",
     "forward_select",
     "from_key",
+    "gcm_test",
+    "holm",
     "gain_apply",
     "knn_floor",
     "library",
@@ -75,6 +83,7 @@ __all__ = [
     "residual_windows",
     "selection_gain",
     "summary",
+    "unit_folds",
     "window_table",
     "window_tables",
     "write_discovery",
