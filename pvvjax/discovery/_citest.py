@@ -2,12 +2,15 @@
 
 Does a candidate x explain the residual y beyond any function of the model's inputs Z? Both
 are regressed on Z by a flexible learner, out of fold with the folds drawn over units
-(conditions: the windows of one are not independent), and what is left of one is set
-against what is left of the other (the generalised covariance measure, Shah & Peters 2020):
-the products are summed per unit and the units' sums tested by a t on units. A candidate that
-is a function of Z has nothing left after the partialling-out, so it is never taken for a
-missing input; whether the residual holds structure that Z itself explains (a misfit of the
-model's inputs) is a test of its own (`capacity_test`).
+(conditions: the windows of one are not independent), and what is left of y is regressed on
+what is left of x: double machine learning's partially linear model (Chernozhukov et al.
+2018), whose score at θ = 0 is the generalised covariance measure (Shah & Peters 2020). Its
+t takes a cluster-robust standard error with the units as clusters, evaluated at the fitted
+coefficient, so an effect carried by a few conditions is not hidden by its own spread over
+them (the units' sums of products at θ = 0 would put the signal into the variance). A
+candidate that is a function of Z has nothing left after the partialling-out, so it is never
+taken for a missing input; whether the residual holds structure that Z itself explains (a
+misfit of the model's inputs) is a test of its own (`capacity_test`).
 """
 
 from __future__ import annotations
@@ -24,11 +27,12 @@ class UnitTest(NamedTuple):
     """A test on units.
 
     Attributes:
-        statistic: t of the units' scores (mean over their standard error).
+        statistic: a t with `units` − 1 degrees of freedom.
         p_value: two-sided for `gcm_test`, one-sided (skill above none) for `capacity_test`.
         units: how many units (conditions) entered.
-        estimate: the mean score per unit (`gcm_test`: covariance per unit, g × the
-            candidate's unit; `capacity_test`: reduction of squared error per unit, g²).
+        estimate: `gcm_test`: the coefficient θ of the residual left on the candidate left
+            (g per unit of the candidate: 1 where the candidate is exactly what the model
+            lacks); `capacity_test`: the squared error removed per unit, g².
     """
 
     statistic: float
@@ -70,14 +74,29 @@ def cross_fit(target, Z, fold: np.ndarray, learner: Callable = default_learner) 
     return out
 
 
-def _t_on_units(scores, groups, one_sided: bool) -> UnitTest:
+def _t_on_units(scores, groups) -> UnitTest:
+    """One-sided t (above 0) of the units' sums of `scores`."""
     units, inverse = np.unique(np.asarray(groups), return_inverse=True)
     s = np.bincount(inverse, weights=scores, minlength=len(units))
     g = len(units)
     sd = s.std(ddof=1)
     t = float(s.mean() / (sd / np.sqrt(g))) if sd > 0 else 0.0
-    p = stats.t.sf(t, g - 1) if one_sided else 2 * stats.t.sf(abs(t), g - 1)
-    return UnitTest(t, float(p), g, float(s.mean()))
+    return UnitTest(t, float(stats.t.sf(t, g - 1)), g, float(s.mean()))
+
+
+def _regression_t(ry, rx, groups) -> UnitTest:
+    """θ of ry = θ·rx, its t with the units' cluster-robust variance (the small-sample factor
+    G/(G − 1)), two-sided on G − 1 degrees of freedom."""
+    units, inverse = np.unique(np.asarray(groups), return_inverse=True)
+    g = len(units)
+    sxx = float(np.sum(rx**2))
+    if sxx == 0 or g < 2:
+        return UnitTest(0.0, 1.0, g, 0.0)
+    theta = float(np.sum(ry * rx) / sxx)
+    score = np.bincount(inverse, weights=(ry - theta * rx) * rx, minlength=g)
+    se = np.sqrt(g / (g - 1) * np.sum(score**2)) / sxx
+    t = theta / se if se > 0 else np.inf * np.sign(theta)
+    return UnitTest(float(t), float(2 * stats.t.sf(abs(t), g - 1)), g, theta)
 
 
 def gcm_test(residual, candidate, groups, Z=None, folds: int = 5, seed: int = 0, learner: Callable = default_learner,
@@ -96,7 +115,7 @@ def gcm_test(residual, candidate, groups, Z=None, folds: int = 5, seed: int = 0,
             (`cross_fit`), when several candidates are tested against one residual.
 
     Returns:
-        `UnitTest`, two-sided: the t of the units' sums of (residual left) × (candidate left).
+        `UnitTest`, two-sided: θ of (residual left) on (candidate left) and its t.
     """
     y, x = np.asarray(residual, float), np.asarray(candidate, float)
     if Z is None:
@@ -105,7 +124,7 @@ def gcm_test(residual, candidate, groups, Z=None, folds: int = 5, seed: int = 0,
         fold = unit_folds(groups, folds, seed)
         ry = cross_fit(y, Z, fold, learner) if residual_left is None else np.asarray(residual_left, float)
         rx = cross_fit(x, Z, fold, learner)
-    return _t_on_units(ry * rx, groups, one_sided=False)
+    return _regression_t(ry, rx, groups)
 
 
 def capacity_test(residual, Z, groups, folds: int = 5, seed: int = 0, learner: Callable = default_learner) -> UnitTest:
@@ -118,7 +137,7 @@ def capacity_test(residual, Z, groups, folds: int = 5, seed: int = 0, learner: C
     """
     y = np.asarray(residual, float)
     left = cross_fit(y, Z, unit_folds(groups, folds, seed), learner)
-    return _t_on_units(y**2 - left**2, groups, one_sided=True)
+    return _t_on_units(y**2 - left**2, groups)
 
 
 def holm(p_values) -> np.ndarray:
