@@ -6,6 +6,7 @@ powerful where it is yes; checked by simulation against the stated level."""
 import numpy as np
 import pytest
 from scipy import stats
+
 from pvvjax.discovery import capacity_test, cross_fit, gcm_test, holm, unit_folds
 
 UNITS, PER = 60, 20  # conditions, windows per condition
