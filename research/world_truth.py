@@ -149,6 +149,18 @@ def floor_g(cfg: SynthConfig, records: dict, win: dict | None = None) -> float:
     return float(np.sqrt(np.mean(np.concatenate([win[k][2] - truth[k][2] for k in win]) ** 2)))
 
 
+SIMULATION_COLUMN = "simulated_pvv_g"
+
+
+def with_simulation(cfg: SynthConfig, records: dict, spread: float = 0.3) -> dict:
+    """The world's records with the simulation lane's baseline as a column: the predicted
+    vertical N/rev (g) of the world's base law drawn wrong (`simulation_config`) at every
+    sample, `SIMULATION_COLUMN`, which a campaign keeps and passes through (data contract:
+    other columns) as a user's physics code's prediction would be."""
+    sim = law_amplitudes(cfg, {"simulation": simulation_config(cfg, spread)})
+    return {k: r.assign(**{SIMULATION_COLUMN: sim[k].simulation.to_numpy(np.float32)}) for k, r in records.items()}
+
+
 def table(truth: dict) -> pd.DataFrame:
     """A truth's entries as a table (mg), for a report."""
     rows = [dict(name=e["name"], source=e["source"], kind=e["kind"], rms_mg=1e3 * e["rms_g"],

@@ -64,3 +64,17 @@ def test_the_floor_is_the_noise_and_scatter_and_the_simulation_lane_misses_only_
     assert {e["name"] for e in sim["entries"]} == {"yaw_rate", "the simulation's coefficients"}
     with pytest.raises(ValueError, match="lane"):
         wt.discrepancies(hidden, records, drawn, lane="db2")
+
+
+def test_the_simulation_lane_carries_its_prediction_as_a_column_a_campaign_keeps(wt, worlds):
+    from pvvjax.data.campaign import campaign_from_frames
+
+    hidden, drawn, null, records = worlds
+    counters = generate(hidden)[0]
+    campaign = campaign_from_frames(counters, wt.with_simulation(hidden, records), source="with-simulation")
+    k = next(iter(records))
+    column = campaign.records[k][wt.SIMULATION_COLUMN].to_numpy()
+    sim = law_amplitudes(null, {"s": wt.simulation_config(null)})[k].s.to_numpy()
+    np.testing.assert_allclose(column, sim, rtol=1e-6)  # the null's simulation: nothing planted reaches it
+    law = law_amplitudes(hidden)[k].law.to_numpy()
+    assert 0 < np.sqrt(np.mean((column - law) ** 2)) < 0.5 * np.sqrt(np.mean(law**2))  # drawn wrong, not far off
