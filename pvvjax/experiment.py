@@ -277,7 +277,7 @@ def run_main_job(cfg, source: str | Path = "") -> Path:
 
     step("campaign", f"campaign ({'embedded synthetic' if not cfg.campaign.path else cfg.campaign.path})")
     campaign, campaign_dir = resolve_campaign(cfg)
-    claim_folder(out, to_dict(cfg), campaign.fingerprint)
+    claim_folder(out, to_dict(cfg), campaign.fingerprint, kind="run")
     step("databases", "harmonic analysis, peak PVV, databases 1-3")
     dbs = build_databases(campaign, cfg.analysis)
     write_databases(dbs, out / "databases", cfg)

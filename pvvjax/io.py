@@ -13,8 +13,8 @@ import pyarrow.parquet as pq
 
 from ._strict import to_dict
 
-__all__ = ["OWNER_FILE", "ResultsFolderError", "claim_folder", "listed", "markdown_table", "new_file", "own_folder",
-           "read_table", "refuse_in_campaign", "write_config", "write_table"]
+__all__ = ["OWNER_FILE", "ResultsFolderError", "claim_folder", "folder_kind", "listed", "markdown_table", "new_file",
+           "own_folder", "read_table", "refuse_in_campaign", "write_config", "write_table"]
 
 _META_KEY = b"pvvjax.config"
 OWNER_FILE = "owner.json"
@@ -32,10 +32,6 @@ def _flat(tree, prefix=""):
         return out
     return {prefix[:-1]: tree}
 
-
-# Files by which a folder without an owner record is known as pvvjax's results.
-_RESULTS = ("report.md", "results.parquet", "discovery.json", "config.toml", "windows.parquet", "databases",
-            "calibration.parquet", "summary.parquet")
 
 
 def listed(items, most: int = 5, sep: str = ", ") -> str:
@@ -120,32 +116,36 @@ def new_file(path: str | Path, flag: str = "--out") -> Path:
     return path
 
 
-def claim_folder(out: str | Path, settings: dict, campaign: str, log=print) -> Path:
+def claim_folder(out: str | Path, settings: dict, campaign: str, log=print, kind: str = "") -> Path:
     """Make `out` the results folder of these settings and campaign, or refuse.
 
-    A folder belongs to the settings that first wrote into it (recorded in `owner.json`):
-    the same settings and campaign again resume or rerun there; anything else is refused,
-    naming what differs, so that the rows of two configs never mix in one table. A folder
-    holding only results folders (each with its own record, as `pvvjax sweep` leaves
-    `OUT_DIR/NAME/sweep` for the main job) is claimed as it is: each keeps its own record,
-    checked when its stage resumes it.
+    A folder belongs to the command and settings that first wrote into it (recorded in
+    `owner.json`, the tool's own marker): the same settings and campaign again resume or
+    rerun there; anything else is refused, naming what differs, so that the rows of two
+    configs never mix in one table. A folder holding only results folders (each with its own
+    record, as `pvvjax sweep` leaves `OUT_DIR/NAME/sweep` for the main job) is claimed as it
+    is: each keeps its own record, checked when its stage resumes it. A non-empty folder
+    without the marker is not the tool's, whatever files it holds: it is refused, never
+    moved or written into.
 
     Args:
         out: the results folder (created if missing).
         settings: the config sections that decide its results (`to_dict` form).
         campaign: the campaign's content fingerprint.
-        log: where a folder of an older pvvjax (results, no owner record) is reported:
-            it is moved aside to `OUT.old` and the results are rerun.
+        log: unused; kept for callers that pass it.
+        kind: the command whose results these are ("sweep", "dynamic", "run", ...),
+            recorded so that a reader of the folder knows what it holds (`folder_kind`).
 
     Raises:
-        ResultsFolderError: `out` is a file, holds other settings' results, lies inside
-            another results folder, or holds files that are not pvvjax results.
+        ResultsFolderError: `out` is a file, holds other settings' or another command's
+            results, lies inside another results folder, or is not empty and not the tool's.
     """
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise ResultsFolderError(f"{out}: is a file, not a folder; give a folder for the results")
     refuse_in_campaign(out)
-    record = json.loads(json.dumps({"settings": settings, "campaign": campaign}, sort_keys=True, default=str))
+    record = json.loads(json.dumps({"settings": settings, "campaign": campaign, **({"kind": kind} if kind else {})},
+                                   sort_keys=True, default=str))
     owner = out / OWNER_FILE
     old = _owner_record(out)
     if old is not None:
@@ -153,6 +153,12 @@ def claim_folder(out: str | Path, settings: dict, campaign: str, log=print) -> P
             return out
         if "written_by" in old:
             raise ResultsFolderError(f"{out}: holds the output of {old['written_by']}; give another output folder")
+        if kind and old.get("kind", kind) != kind:
+            raise ResultsFolderError(f"{out}: holds the results of `pvvjax {old['kind']}`, not of `pvvjax {kind}`; "
+                                     "give another output folder")
+        if {k: v for k, v in old.items() if k != "kind"} == {k: v for k, v in record.items() if k != "kind"}:
+            owner.write_text(json.dumps(record, indent=1, sort_keys=True))  # a record from before kinds: add it
+            return out
         was, now = _flat(old.get("settings", {})), _flat(record["settings"])
         diffs = [f"{k}: {was.get(k, '(unset)')!r} there, {now.get(k, '(unset)')!r} now"
                  for k in sorted(set(was) | set(now)) if was.get(k) != now.get(k)]
@@ -160,7 +166,7 @@ def claim_folder(out: str | Path, settings: dict, campaign: str, log=print) -> P
             diffs.append(f"campaign content: fingerprint {old.get('campaign')} there, {campaign} now")
         shown = listed(diffs, sep="; ")
         raise ResultsFolderError(f"{out}: holds the results of other settings ({shown}); give another output "
-                                 "folder, or delete this one to start over")
+                                 "folder")
     parent = next((p for p in out.resolve().parents if (p / OWNER_FILE).exists()), None)
     if out.exists() and any(out.iterdir()) and parent is not None:
         raise ResultsFolderError(f"{out}: is part of the results folder {parent}, written there with its settings; "
@@ -168,17 +174,22 @@ def claim_folder(out: str | Path, settings: dict, campaign: str, log=print) -> P
     # Only results folders of its stages (`pvvjax sweep` into OUT_DIR/NAME/sweep): a job resumes them.
     stages = out.exists() and all((p / OWNER_FILE).exists() for p in out.iterdir())
     if out.exists() and any(out.iterdir()) and not stages:
-        if not any((out / name).exists() for name in _RESULTS):
-            raise ResultsFolderError(f"{out}: is not empty and holds no pvvjax results; give a new or empty "
-                                     "output folder")
-        # Results of an older pvvjax (no owner record): rerun, never reinterpreted; kept aside.
-        names = (out.with_name(f"{out.name}.old{'' if i == 0 else f'-{i}'}") for i in range(1000))
-        aside = next(p for p in names if not p.exists())
-        out.rename(aside)
-        log(f"{out}: results of an older pvvjax (no {OWNER_FILE}) moved to {aside}; rerunning")
+        raise ResultsFolderError(f"{out}: is not empty and has no {OWNER_FILE} (the marker pvvjax writes into its "
+                                 "results folders), so it is not pvvjax's to write into; give a new or empty output "
+                                 "folder")
     out.mkdir(parents=True, exist_ok=True)
     owner.write_text(json.dumps(record, indent=1, sort_keys=True))
     return out
+
+
+def folder_kind(folder: str | Path) -> str | None:
+    """The command whose results a folder holds, from its `owner.json` ("sweep", "dynamic",
+    ...; "" for a record without a kind), or None if the folder has no record."""
+    old = _owner_record(Path(folder))
+    if old is None:
+        return None
+    settings = old.get("settings")
+    return old.get("kind") or (settings.get("command", "") if isinstance(settings, dict) else "")
 
 
 def write_table(df: pd.DataFrame, stem: str | Path, config=None) -> tuple[Path, Path]:

@@ -3,6 +3,7 @@ changed campaign is never taken for the one a result came from. Each through the
 
 from __future__ import annotations
 
+import json
 import shutil
 
 import numpy as np
@@ -12,7 +13,8 @@ from conftest import small_sweep_config
 
 from pvvjax.cli import main
 from pvvjax.data import campaign_fingerprint
-from pvvjax.io import ResultsFolderError, claim_folder
+from pvvjax.io import ResultsFolderError, claim_folder, folder_kind
+from pvvjax.nets.sweep import finished_sweep
 
 _SWEEP = '''name = "r"\nout_dir = "{out}"\n[campaign]\npath = "{campaign}"
 [sweep]\ndatabases = ["db1"]\nfamily = "rbf"\ncenters = [{centers}]\nseeds = 1\nfolds = 3\n'''
@@ -86,22 +88,44 @@ def test_claims_resume_the_same_settings_and_refuse_files_and_foreign_folders(tm
         claim_folder(tmp_path / "file", {}, "")
     (tmp_path / "mine").mkdir()
     (tmp_path / "mine" / "notes.txt").write_text("x")
-    with pytest.raises(ResultsFolderError, match="holds no pvvjax results"):
+    with pytest.raises(ResultsFolderError, match="not pvvjax's to write into"):
         claim_folder(tmp_path / "mine", {}, "")
-    # Results of an older pvvjax (no owner record) are rerun, the old ones kept aside.
-    (tmp_path / "old" / "parts").mkdir(parents=True)
-    (tmp_path / "old" / "results.parquet").write_text("x")
-    said = []
-    assert claim_folder(tmp_path / "old", {"a": 1}, "f", log=said.append) == tmp_path / "old"
-    assert [p.name for p in (tmp_path / "old").iterdir()] == ["owner.json"] and "moved to" in said[0]
-    assert (tmp_path / "old.old" / "results.parquet").exists()
+    # A folder is pvvjax's only if its marker says so: a user's folder that holds a config.toml and
+    # results-like files is refused, never moved aside or written into.
+    (tmp_path / "user" / "parts").mkdir(parents=True)
+    for name in ("config.toml", "results.parquet", "notes.md"):
+        (tmp_path / "user" / name).write_text("x")
+    before = sorted(p.name for p in (tmp_path / "user").iterdir())
+    with pytest.raises(ResultsFolderError, match="has no owner.json"):
+        claim_folder(tmp_path / "user", {"a": 1}, "f")
+    assert sorted(p.name for p in (tmp_path / "user").iterdir()) == before and not (tmp_path / "user.old").exists()
     # A folder holding only results folders (a sweep run into OUT_DIR/NAME/sweep) is a job's to claim.
     claim_folder(tmp_path / "job" / "sweep", {"s": 1}, "f")
     assert claim_folder(tmp_path / "job", {"a": 1}, "f") == tmp_path / "job"
     assert sorted(p.name for p in (tmp_path / "job").iterdir()) == ["owner.json", "sweep"]
     (tmp_path / "job2" / "mine").mkdir(parents=True)  # a user's folder among them: refused
-    with pytest.raises(ResultsFolderError, match="holds no pvvjax results"):
+    with pytest.raises(ResultsFolderError, match="not pvvjax's to write into"):
         claim_folder(tmp_path / "job2", {}, "")
+
+
+def test_a_folder_knows_its_kind_and_is_diagnosed_by_it(tmp_path):
+    claim_folder(tmp_path / "dyn", {"a": 1}, "f", kind="dynamic")
+    (tmp_path / "dyn" / "parts").mkdir()
+    (tmp_path / "dyn" / "config.toml").write_text("x")
+    assert folder_kind(tmp_path / "dyn") == "dynamic" and folder_kind(tmp_path) is None
+    with pytest.raises(ResultsFolderError, match="results of `pvvjax dynamic`, not of `pvvjax sweep`"):
+        claim_folder(tmp_path / "dyn", {"a": 1}, "f", kind="sweep")
+    with pytest.raises(FileNotFoundError, match="results of `pvvjax dynamic`, not a sweep") as err:
+        finished_sweep(tmp_path / "dyn")
+    assert "delete" not in str(err.value) and "unfinished" not in str(err.value)
+    # A record written before kinds: the same settings resume and the kind is added.
+    (tmp_path / "pre").mkdir()
+    (tmp_path / "pre" / "owner.json").write_text(json.dumps({"settings": {"a": 1}, "campaign": "f"}))
+    assert claim_folder(tmp_path / "pre", {"a": 1}, "f", kind="sweep") == tmp_path / "pre"
+    assert folder_kind(tmp_path / "pre") == "sweep"
+    with pytest.raises(ResultsFolderError) as err:
+        claim_folder(tmp_path / "pre", {"a": 2}, "f", kind="sweep")
+    assert "delete" not in str(err.value)
 
 
 def test_the_main_jobs_sweep_folder_exports_an_element(tmp_path, campaign_copy, small_sweep, capsys):

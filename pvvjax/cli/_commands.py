@@ -54,7 +54,8 @@ def cmd_build_db(args) -> int:
     cfg = _experiment(args)
     campaign, _ = resolve_campaign(cfg, args.campaign)
     out = claim_folder(args.out, dict(command="build-db", analysis=to_dict(cfg.analysis),
-                                      columns=to_dict(cfg.campaign)["columns"]), campaign.fingerprint)
+                                      columns=to_dict(cfg.campaign)["columns"]), campaign.fingerprint,
+                       kind="build-db")
     dbs = build_databases(campaign, cfg.analysis)
     write_databases(dbs, out, cfg)
     print(database_summary(dbs))
@@ -171,7 +172,7 @@ def cmd_replay(args) -> int:
     L = rc.window_revs if args.window is None else args.window
     out = Path(args.out) if args.out else Path(cfg.out_dir) / cfg.name / "replay"
     _given_sweep(args, cfg)
-    claim_folder(out, dict(config=to_dict(cfg), offset_s=tau, window_revs=L, counters=args.counters), "")
+    claim_folder(out, dict(config=to_dict(cfg), offset_s=tau, window_revs=L, counters=args.counters), "", kind="replay")
     info, batch, recs, models = _replay_inputs(args, cfg)
     theta = (tau, L, rc.stick_offset_s)
     windows = replay_windows(info, recs, models, theta, settings_at(batch, theta, rc.hop_revs))
@@ -212,7 +213,7 @@ def cmd_calibrate(args) -> int:
         cfg = cfg.with_(calibration=cc)
     out = Path(args.out) if args.out else Path(cfg.out_dir) / cfg.name / "calibration"
     _given_sweep(args, cfg)
-    claim_folder(out, dict(config=to_dict(cfg), counters=args.counters), "")
+    claim_folder(out, dict(config=to_dict(cfg), counters=args.counters), "", kind="calibrate")
     info, batch, recs, models = _replay_inputs(args, cfg)
     init = (cfg.replay.offset_s, cfg.replay.window_revs, cfg.replay.stick_offset_s)
     table = calibration_table(info, batch, recs, models, cc, init)
@@ -348,7 +349,7 @@ def cmd_discover(args) -> int:
         campaign, folder = resolve_campaign(cfg)
     claim_folder(args.out, dict(discovery=to_dict(cfg.discovery), train=to_dict(cfg.train),
                                 analysis=to_dict(cfg.analysis), columns=to_dict(cfg.campaign)["columns"]),
-                 campaign.fingerprint)
+                 campaign.fingerprint, kind="discover")
     t0 = time.perf_counter()
     res = discover(campaign, cfg, name=str(folder))
     report = write_discovery(res, args.out, cfg)

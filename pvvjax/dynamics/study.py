@@ -408,7 +408,7 @@ def run_dynamic(cfg, campaign, campaign_dir, out, log=print) -> tuple:
     check_dynamic(cfg, campaign)
     settings = dict(command="dynamic", dynamic=to_dict(cfg.dynamic), train=to_dict(cfg.train),
                     analysis=to_dict(cfg.analysis), seed=cfg.seed, columns=to_dict(cfg.campaign)["columns"])
-    out = claim_folder(out, settings, campaign.fingerprint)
+    out = claim_folder(out, settings, campaign.fingerprint, kind="dynamic")
     write_config(cfg.with_(campaign=dataclasses.replace(cfg.campaign, path=str(campaign_dir), synthetic="")),
                  out / "config.toml")
     return out, run_comparison(campaign, cfg, out, log)

@@ -33,7 +33,7 @@ from ..analysis.databases import DB_INPUTS, OUTPUT
 from ..config import ExperimentConfig, config_hash
 from ..data.fingerprint import tables_fingerprint
 from ..interrupts import check_interrupt
-from ..io import claim_folder, write_config
+from ..io import claim_folder, folder_kind, write_config
 from ..realtime.npnet import read_npz, write_npz
 from . import train as _train
 from .batched import predict_many, stack_trees, train_nets
@@ -175,8 +175,8 @@ def load_nets(out, net_ids, results: pd.DataFrame | None = None) -> list[tuple[d
     res = collect(out) if results is None else results
     where = res.set_index("net_id") if len(res) else None
     if where is not None and "params_file" not in where.columns:
-        raise ValueError(f"{out}: written by an earlier pvvjax (a parameter file per net); delete the folder and "
-                         "run the sweep again")
+        raise ValueError(f"{out}: written by an earlier pvvjax (a parameter file per net), which this one cannot "
+                         "read; run the sweep again into a new folder (this one is left as it is)")
     missing = [i for i in net_ids if where is None or i not in where.index]
     if missing:
         raise KeyError(f"{out}: no finished net {missing[0]!r}")
@@ -221,7 +221,7 @@ def run_sweep(cfg: ExperimentConfig, dbs: dict, out: Path, *, progress=None, log
     data_key = databases_fingerprint(dbs, [db for db in DB_INPUTS if db in dbs])
     writer = jax.process_index() == 0  # across processes (`jax.distributed`), process 0 writes
     if writer:
-        out = claim_folder(out, sweep_settings(cfg), data_key)
+        out = claim_folder(out, sweep_settings(cfg), data_key, kind="sweep")
         write_config(cfg, out / "config.toml")  # what `export` and `replay` read the sweep's settings from
         (out / "parts").mkdir(parents=True, exist_ok=True)
         (out / "params").mkdir(exist_ok=True)
@@ -301,6 +301,10 @@ def finished_sweep(folder: str | Path) -> pd.DataFrame:
     if not folder.is_dir():
         raise FileNotFoundError(f"{folder}: no such folder; give a sweep folder (`pvvjax sweep` and the main job "
                                 "write OUT_DIR/NAME/sweep)")
+    kind = folder_kind(folder)
+    if kind not in (None, "", "sweep"):
+        raise FileNotFoundError(f"{folder}: holds the results of `pvvjax {kind}`, not a sweep; give the folder "
+                                "`pvvjax sweep` or the main job wrote (OUT_DIR/NAME/sweep)")
     if (folder / "config.toml").is_file() and (folder / "parts").is_dir():
         n = len(collect(folder))
         raise FileNotFoundError(f"{folder}: an unfinished sweep ({n} nets finished, its results not yet gathered): it "

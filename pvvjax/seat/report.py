@@ -60,7 +60,7 @@ def run_study(cfg, campaign, campaign_dir, out, *, log=print) -> tuple:
                          "k-fold split by condition needs at least k")
     settings = dict(command="axes", axes=to_dict(cfg.axes), train=to_dict(cfg.train), analysis=to_dict(cfg.analysis),
                     seed=cfg.seed, columns=to_dict(cfg.campaign)["columns"])
-    out = claim_folder(out, settings, campaign.fingerprint)
+    out = claim_folder(out, settings, campaign.fingerprint, kind="axes")
     write_config(cfg.with_(campaign=dataclasses.replace(cfg.campaign, path=str(campaign_dir), synthetic="")),
                  out / "config.toml")
     study = run_axes(campaign, cfg, out, log)
