@@ -191,3 +191,39 @@ def test_take_rows_indexes_every_leaf_as_numpy_does_in_one_program():
     for u, v in zip(jax.tree.leaves(got), jax.tree.leaves(tree)):
         np.testing.assert_array_equal(u, v[idx])
     assert lowered["take_rows"] == 1 and sum(lowered.values()) == 1, dict(lowered)
+
+
+def test_one_records_defect_leaves_every_other_records_windows_bitwise_unchanged(small_campaign_dir):
+    # A logger glitch in one record (a spike in the acceleration or a state channel, an azimuth sample out of
+    # step, a time stamp off) changes that record's windows only: each record's window plan comes from its own
+    # samples (`record_plans`), so no record inherits another's worst sample.
+    import dataclasses
+
+    from pvvjax.analysis import analyze, plan_groups, record_plans
+    from pvvjax.data.batch import to_batch
+    from pvvjax.data.campaign import load_campaign
+
+    batch = to_batch(load_campaign(small_campaign_dir), ["airspeed_kt", "pitch_rate_dps"])
+    base = analyze(batch)
+    j = 7
+    others = np.arange(len(batch.counters)) != j
+
+    def glitched(field, change):
+        a = np.array(getattr(batch, field))
+        change(a)
+        return dataclasses.replace(batch, **{field: a})
+
+    step = float(batch.rev[j, 401] - batch.rev[j, 400])
+    cases = {
+        "accel": glitched("accel", lambda a: a.__setitem__((j, 400), a[j, 400] + 5.0)),
+        "state channel": glitched("x", lambda a: a.__setitem__((j, 400, 0), 1e4)),
+        "azimuth": glitched("rev", lambda a: a.__setitem__((j, 401), a[j, 401] - 0.9 * step)),
+        "time": glitched("time", lambda a: a.__setitem__((j, 401), a[j, 401] + 1e-3)),
+    }
+    plans = record_plans(cases["azimuth"], 8.0, 8.0)
+    assert len(plan_groups(plans)) > len(plan_groups(record_plans(batch, 8.0, 8.0)))  # its own plan now
+    for name, b in cases.items():
+        out = analyze(b)
+        for before, after in zip(base, out):
+            np.testing.assert_array_equal(np.asarray(before)[others], np.asarray(after)[others], err_msg=name)
+        assert any(not np.array_equal(np.asarray(x)[j], np.asarray(y)[j], equal_nan=True) for x, y in zip(base, out))

@@ -28,9 +28,11 @@ from .harmonics import (
     Windows,
     _edge_kind,
     _phasor_power,
+    by_plan,
     make_columns,
     means_from_sums,
-    plan_windows,
+    plan_groups,
+    record_plans,
     window_bounds,
     window_sums,
 )
@@ -128,8 +130,14 @@ def analyze_axes(batch: RecordBatch, harmonics, window_revs: float = 8.0, hop_re
     if np.ndim(batch.accel) != 3:
         raise ValueError("analyze_axes needs a batch of several axes: to_batch(..., axis=(...))")
     hop = window_revs if hop_revs is None else hop_revs
-    if plan is None:
-        plan = plan_windows(batch, float(window_revs), float(hop), float(taper_revs), float(start_revs), edge=edge)
+    if plan is None:  # each record's sizes from its own samples (see `analyze`)
+        groups = plan_groups(record_plans(batch, float(window_revs), float(hop), float(taper_revs),
+                                          float(start_revs), edge=edge))
+        if len(groups) > 1:
+            return by_plan(batch, groups, lambda b, p: analyze_axes(b, harmonics, window_revs, hop_revs,
+                                                                    taper_revs=taper_revs, start_revs=start_revs,
+                                                                    plan=p, edge=edge))
+        plan = next(iter(groups))
     fn = jax.vmap(partial(axis_windows, harmonics=tuple(int(k) for k in harmonics), taper_revs=float(taper_revs),
                           plan=plan, edge=edge), in_axes=(0, 0, 0, 0, 0, 0, 0, 0, None, None, None))
     arrays = (batch.accel, batch.cos_psi, batch.sin_psi, batch.rev, batch.width, batch.time, batch.x, batch.mask)

@@ -24,6 +24,7 @@ shapes, so the function jits and vmaps over counters.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from functools import partial
 from typing import NamedTuple
@@ -45,11 +46,15 @@ __all__ = [
     "harmonic_from_means",
     "harmonic_windows",
     "make_columns",
+    "by_plan",
     "means_from_sums",
+    "plan_groups",
     "plan_windows",
     "record_bounds",
     "record_columns",
+    "record_plans",
     "stack_columns",
+    "take_rows",
     "window_bounds",
     "window_sums",
     "with_prefix",
@@ -397,8 +402,47 @@ def plan_windows(batch: RecordBatch, max_window_revs: float, min_hop_revs: float
     is rounded up to a `bucket_size`, so that campaigns of similar records share programs
     (the extra windows lie past the record and are invalid). A hop below one sample is
     refused (`ValueError`): its windows would repeat samples without bound."""
-    rev = np.asarray(batch.rev, np.float64)
-    mask = np.asarray(batch.mask)
+    return _plan(np.asarray(batch.rev, np.float64), np.asarray(batch.mask), max_window_revs, min_hop_revs,
+                 taper_revs, start_revs, block, edge)
+
+
+def record_plans(batch: RecordBatch, max_window_revs: float, min_hop_revs: float, taper_revs: float = 0.0,
+                 start_revs: float = 0.0, block: int = 16, edge: str = "cell") -> list[WindowPlan]:
+    """`plan_windows` of each record of a batch alone: what its own sampling needs, which no
+    other record's samples can move."""
+    rev, mask = np.asarray(batch.rev, np.float64), np.asarray(batch.mask)
+    return [_plan(rev[i:i + 1], mask[i:i + 1], max_window_revs, min_hop_revs, taper_revs, start_revs, block, edge)
+            for i in range(len(rev))]
+
+
+def plan_groups(plans: list[WindowPlan]) -> dict[WindowPlan, np.ndarray]:
+    """Records (their plans from `record_plans`) grouped by the sizes their windows need,
+    each group's plan holding every record's windows (the most windows of any record):
+    plan -> the records' row indices."""
+    n_windows = max(p.n_windows for p in plans)
+    groups: dict = {}
+    for i, p in enumerate(plans):
+        groups.setdefault(p._replace(n_windows=n_windows), []).append(i)
+    return {p: np.asarray(rows) for p, rows in groups.items()}
+
+
+def by_plan(batch: RecordBatch, groups: dict, run):
+    """`run(sub_batch, plan)` on the records of each plan group, the results (PyTrees with
+    records along the leading axis) put back in the batch's order."""
+    order = np.concatenate(list(groups.values()))
+    parts = [run(take_rows(batch, rows), p) for p, rows in groups.items()]
+    back = np.argsort(order)
+    return jax.tree.map(lambda *a: jnp.concatenate(a)[back], *parts)
+
+
+def take_rows(batch: RecordBatch, rows) -> RecordBatch:
+    """The records `rows` of a batch, as a batch."""
+    rows = np.asarray(rows)
+    sub = jax.tree.map(lambda a: a[rows], batch)
+    return dataclasses.replace(sub, counters=tuple(batch.counters[i] for i in rows) if batch.counters else ())
+
+
+def _plan(rev, mask, max_window_revs, min_hop_revs, taper_revs, start_revs, block, edge) -> WindowPlan:
     d = np.diff(rev, axis=-1)
     dmask = mask[:, 1:] & mask[:, :-1]
     dmin, dmax = float(d[dmask].min()), float(d[dmask].max())
@@ -440,7 +484,17 @@ def analyze(batch: RecordBatch, window_revs: float = 8.0, hop_revs: float | None
     sliced back), so that batches of similar size share one compiled program.
     """
     hop = window_revs if hop_revs is None else hop_revs
-    if plan is None:
+    if plan is None and not isinstance(batch.rev, jax.core.Tracer):
+        # Each record's sizes from its own samples: records that need the same share one call,
+        # and no record's sampling (or a defect in it) moves another record's numbers.
+        groups = plan_groups(record_plans(batch, float(window_revs), float(hop), float(taper_revs),
+                                          float(start_revs), edge=edge))
+        if len(groups) > 1:
+            return by_plan(batch, groups, lambda b, p: analyze(b, window_revs, hop_revs, harmonic=harmonic,
+                                                               taper_revs=taper_revs, start_revs=start_revs, plan=p,
+                                                               edge=edge))
+        plan = next(iter(groups))
+    elif plan is None:
         plan = plan_windows(batch, float(window_revs), float(hop), float(taper_revs), float(start_revs), edge=edge)
     fn = jax.vmap(
         partial(harmonic_windows, harmonic=harmonic, taper_revs=float(taper_revs), plan=plan, edge=edge),

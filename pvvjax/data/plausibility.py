@@ -48,6 +48,10 @@ LIMITS: dict[str, tuple[tuple, tuple, str]] = {
                                       "rotor with a quiet vertical N/rev), never 6x (m/s² give 9.81x)"),
 }
 # The optional horizontal axes at the pilot floor, beside az_g: name -> (axis, sign).
+# Each step of `azimuth_deg` within this span × the record's typical step: a rotor's speed
+# moves by a few per cent from one sample to the next, never by half (autorotation and
+# overspeed span 90-115 % of nominal over seconds).
+AZIMUTH_STEP_SPAN = (0.5, 1.5)
 HORIZONTAL_AXES = {"ax_g": ("longitudinal", "positive forward"), "ay_g": ("lateral", "positive right")}
 # Time stamps are analysed in single precision: a record whose times float32 would round by
 # more than this share of its sample step is rebased to start at 0 s (refused where even that
@@ -235,6 +239,27 @@ def _azimuth_rule(t, azimuth, rpm, file, problems):
                                     f"advances {ratio:.3g} × the rate rotor_rpm gives (in degrees, forwards), "
                                     f"outside {_span(bounds)}: {hint}", warning=warning))
             return
+    _azimuth_steps(np.diff(azimuth), file, problems)
+
+
+def _azimuth_steps(d, file, problems):
+    """Every step of `azimuth_deg` must advance by about the record's typical step: the
+    analysis counts revolutions on each one (window edges, the sizes of its window plan), so
+    one sample that stands still, runs back or jumps (a logger glitch reading 0, a repeated
+    or skipped value) would move the windows. Refused at the first such sample's row."""
+    step = (d + 180.0) % 360.0 - 180.0
+    forward = step[step > 0]
+    if not forward.size:
+        return
+    typical = float(np.median(forward))
+    lo, hi = AZIMUTH_STEP_SPAN
+    bad = (step < lo * typical) | (step > hi * typical)
+    if bad.any():
+        i = int(np.argmax(bad))
+        problems.append(Problem(file, "azimuth_deg", i + 2,
+                                f"steps {step[i]:+.3g}° from the sample before, where the record's typical step is "
+                                f"{typical:.3g}° (allowed {lo:g}-{hi:g} × that): a glitch in the azimuth signal"
+                                + (f"; {int(bad.sum())} such steps in the record" if bad.sum() > 1 else "")))
 
 
 def rebase_time(df: pd.DataFrame, file: str) -> tuple[pd.DataFrame, list[Problem]]:
