@@ -117,6 +117,14 @@ def _azimuth(fn):
     return edit
 
 
+def _three_blades(folder):
+    """The tiny campaign (a 4/rev vibration) with blades = 3 in its campaign.toml."""
+    from pvvjax.data.constants import UH60A
+
+    c, r = tiny_records()
+    return write_campaign(folder, c, r, fmt="csv", aircraft=UH60A._replace(blades=3))
+
+
 def _slow(df):
     return df.iloc[::25].reset_index(drop=True)  # 11 samples per revolution: < 3 per 4/rev cycle
 
@@ -146,6 +154,8 @@ CAMPAIGN = {
     "one azimuth sample reading 0 (a logger glitch)": (_records(_azimuth(lambda d: np.where(np.arange(len(d)) == 40,
                                                                                           0.0, d))),
                                                        1, "C1.csv", "azimuth_deg", "row 41"),
+    "blades = 3 on a four-bladed rotor's data (a warning)": (_three_blades, 0, "C1.csv", "az_g",
+                                                             "vibrates at 4/rev, far more than at the analysed 3/rev"),
     "a vibration channel without vibration": (_records(_set("az_g", 1.0)), 1, "C1.csv", "az_g", "no vibration"),
     "time stamps of the day (a warning)": (_records(lambda d: d.assign(time_s=d.time_s + 52312.5)), 0, "C1.csv",
                                            "time_s", "rebased to start at 0 s"),

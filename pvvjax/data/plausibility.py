@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from .checks import Problem, _first_bad, _numeric
+from .checks import Problem, _first_bad, _integrate_azimuth, _numeric
 from .constants import KT_TO_FT_S, Aircraft
 
 __all__ = ["HORIZONTAL_AXES", "LIMITS", "MIN_SAMPLES_PER_CYCLE", "STICKS", "TIME_PRECISION_SHARE",
@@ -52,6 +52,9 @@ LIMITS: dict[str, tuple[tuple, tuple, str]] = {
 # moves by a few per cent from one sample to the next, never by half (autorotation and
 # overspeed span 90-115 % of nominal over seconds).
 AZIMUTH_STEP_SPAN = (0.5, 1.5)
+# Another order this many times stronger than the analysed harmonic means the analysis would
+# measure noise: a blade-passage vibration stands far above its neighbouring orders.
+HARMONIC_DOMINANCE = 4.0
 HORIZONTAL_AXES = {"ax_g": ("longitudinal", "positive forward"), "ay_g": ("lateral", "positive right")}
 # Time stamps are analysed in single precision: a record whose times float32 would round by
 # more than this share of its sample step is rebased to start at 0 s (refused where even that
@@ -134,6 +137,9 @@ def plausibility(df: pd.DataFrame, file: str, aircraft: Aircraft, harmonic: int,
                  f" (nominal {aircraft.nominal_rpm:g} rpm); rad/s or rev/s?")
     if all(p.warning for p in problems[n:]) and "azimuth_deg" in df:  # against a rotor speed in rpm
         _azimuth_rule(t, _numeric(df["azimuth_deg"]), rpm, file, problems)
+    if all(p.warning for p in problems):  # the azimuth given, or the one its rotor speed integrates to
+        azimuth = _numeric(df["azimuth_deg"]) if "azimuth_deg" in df else _integrate_azimuth(t, rpm)
+        _harmonic_rule(az, azimuth, harmonic, file, problems)
     if all(p.warning for p in problems[n:]):  # the advance ratio needs a rotor speed in rpm
         tip_ft_s = rpm * np.pi / 30.0 * aircraft.rotor_radius_ft
         _sample_rule("advance ratio", _numeric(df["airspeed_kt"]) * KT_TO_FT_S / tip_ft_s, file, "airspeed_kt",
@@ -215,6 +221,32 @@ def _vibration_rule(t, x, rpm, file, problems, column: str = "az_g") -> bool:
         problems.append(Problem(file, column, None, text))
         return True
     return False
+
+
+def _harmonic_rule(az, azimuth, harmonic: int, file, problems):
+    """The analysed harmonic must carry the record's vibration: where another order from
+    2/rev up (1/rev is track and balance) is `HARMONIC_DOMINANCE`
+    times stronger over the whole record, the analysis would measure noise (a wrong `blades`
+    in campaign.toml, or `analysis.harmonic`). A warning without numbers, so that a cause
+    shared by every record is reported once (`_collapsed`)."""
+    psi = np.unwrap(np.deg2rad(azimuth))
+    per_rev = len(psi) / max((psi[-1] - psi[0]) / (2 * np.pi), 1e-9)
+    orders = [k for k in range(2, 2 * harmonic + 3) if k < per_rev / 2]
+    if harmonic not in orders:
+        return
+    x = az - az.mean()
+    turn, z = np.exp(-1j * psi), np.exp(-1j * psi)
+    amp = {}
+    for k in range(2, orders[-1] + 1):  # e^(−ikψ) by repeated products: one complex exponential per record
+        z = z * turn
+        if k in orders:
+            amp[k] = 2.0 * abs(np.mean(x * z))
+    strongest = max(amp, key=amp.get)
+    if strongest != harmonic and amp[strongest] > HARMONIC_DOMINANCE * amp[harmonic]:
+        problems.append(Problem(file, "az_g", None,
+                                f"vibrates at {strongest}/rev, far more than at the analysed {harmonic}/rev (the blade "
+                                f"passage of campaign.toml's blades, or analysis.harmonic): is blades right? The "
+                                f"analysis would measure noise", warning=True))
 
 
 def _azimuth_rule(t, azimuth, rpm, file, problems):
