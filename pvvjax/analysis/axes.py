@@ -22,13 +22,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..data.batch import RecordBatch, bucket_size, pad_rows, unpad_rows
+from ..data.batch import RecordBatch, bucket_size, by_group, pad_rows, unpad_rows
 from .harmonics import (
     WindowPlan,
     Windows,
     _edge_kind,
     _phasor_power,
-    by_plan,
     make_columns,
     means_from_sums,
     plan_groups,
@@ -134,7 +133,7 @@ def analyze_axes(batch: RecordBatch, harmonics, window_revs: float = 8.0, hop_re
         groups = plan_groups(record_plans(batch, float(window_revs), float(hop), float(taper_revs),
                                           float(start_revs), edge=edge))
         if len(groups) > 1:
-            return by_plan(batch, groups, lambda b, p: analyze_axes(b, harmonics, window_revs, hop_revs,
+            return by_group(batch, groups, lambda b, p: analyze_axes(b, harmonics, window_revs, hop_revs,
                                                                     taper_revs=taper_revs, start_revs=start_revs,
                                                                     plan=p, edge=edge))
         plan = next(iter(groups))

@@ -24,7 +24,6 @@ shapes, so the function jits and vmaps over counters.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from functools import partial
 from typing import NamedTuple
@@ -34,7 +33,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._lookup import Lookup, make_lookup, search
-from ..data.batch import RecordBatch, bucket_size, pad_rows, unpad_rows
+from ..data.batch import RecordBatch, bucket_size, by_group, pad_rows, unpad_rows
 
 __all__ = [
     "Columns",
@@ -46,7 +45,6 @@ __all__ = [
     "harmonic_from_means",
     "harmonic_windows",
     "make_columns",
-    "by_plan",
     "means_from_sums",
     "plan_groups",
     "plan_windows",
@@ -54,7 +52,6 @@ __all__ = [
     "record_columns",
     "record_plans",
     "stack_columns",
-    "take_rows",
     "window_bounds",
     "window_sums",
     "with_prefix",
@@ -426,22 +423,6 @@ def plan_groups(plans: list[WindowPlan]) -> dict[WindowPlan, np.ndarray]:
     return {p: np.asarray(rows) for p, rows in groups.items()}
 
 
-def by_plan(batch: RecordBatch, groups: dict, run):
-    """`run(sub_batch, plan)` on the records of each plan group, the results (PyTrees with
-    records along the leading axis) put back in the batch's order."""
-    order = np.concatenate(list(groups.values()))
-    parts = [run(take_rows(batch, rows), p) for p, rows in groups.items()]
-    back = np.argsort(order)
-    return jax.tree.map(lambda *a: jnp.concatenate(a)[back], *parts)
-
-
-def take_rows(batch: RecordBatch, rows) -> RecordBatch:
-    """The records `rows` of a batch, as a batch."""
-    rows = np.asarray(rows)
-    sub = jax.tree.map(lambda a: a[rows], batch)
-    return dataclasses.replace(sub, counters=tuple(batch.counters[i] for i in rows) if batch.counters else ())
-
-
 def _plan(rev, mask, max_window_revs, min_hop_revs, taper_revs, start_revs, block, edge) -> WindowPlan:
     d = np.diff(rev, axis=-1)
     dmask = mask[:, 1:] & mask[:, :-1]
@@ -490,7 +471,7 @@ def analyze(batch: RecordBatch, window_revs: float = 8.0, hop_revs: float | None
         groups = plan_groups(record_plans(batch, float(window_revs), float(hop), float(taper_revs),
                                           float(start_revs), edge=edge))
         if len(groups) > 1:
-            return by_plan(batch, groups, lambda b, p: analyze(b, window_revs, hop_revs, harmonic=harmonic,
+            return by_group(batch, groups, lambda b, p: analyze(b, window_revs, hop_revs, harmonic=harmonic,
                                                                taper_revs=taper_revs, start_revs=start_revs, plan=p,
                                                                edge=edge))
         plan = next(iter(groups))

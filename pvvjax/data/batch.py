@@ -21,7 +21,8 @@ import numpy as np
 
 from .campaign import Campaign
 
-__all__ = ["BLOCK", "RecordBatch", "bucket_size", "pad_rows", "sample_widths", "take_rows", "to_batch", "unpad_rows"]
+__all__ = ["BLOCK", "RecordBatch", "batch_rows", "bucket_size", "by_group", "pad_rows", "sample_widths", "take_rows",
+           "to_batch", "unpad_rows"]
 
 BLOCK = 64  # batches are padded to a multiple of this many samples
 
@@ -178,3 +179,20 @@ def to_batch(campaign: Campaign, channels: Sequence[str], counters: Sequence[str
     accel = np.ascontiguousarray(out["accel"][..., 0]) if isinstance(axis, str) else out["accel"]
     return RecordBatch(out["time"], out["rev"], out["cos_psi"], out["sin_psi"], out["width"], accel, x, mask,
                        tuple(counters), tuple(channels), axis)
+
+
+def by_group(batch: RecordBatch, groups: dict, run):
+    """`run(sub_batch, key)` on the records of each group (key -> row indices, e.g. the
+    window plans of `analysis.plan_groups`), the results (PyTrees with records along the
+    leading axis) put back in the batch's order, on the host (no program per group size)."""
+    order = np.concatenate(list(groups.values()))
+    parts = [run(batch_rows(batch, rows), key) for key, rows in groups.items()]
+    back = np.argsort(order)
+    return jax.tree.map(lambda *a: jax.device_put(np.concatenate([np.asarray(x) for x in a])[back]), *parts)
+
+
+def batch_rows(batch: RecordBatch, rows) -> RecordBatch:
+    """The records `rows` of a batch, as a batch (their counters with them)."""
+    rows = np.asarray(rows)
+    sub = take_rows(batch, rows)
+    return dataclasses.replace(sub, counters=tuple(batch.counters[i] for i in rows) if batch.counters else ())

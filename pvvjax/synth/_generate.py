@@ -80,7 +80,7 @@ class SynthConfig:
         load_factor: the load factor in the blade loading the vibration sees: "measured", the
             `nz_g` the airframe feels (turns, pull-ups and the climb's own acceleration), or
             "kinematic", the turn-and-pull-up MLF of bank, pitch rate and airspeed that the
-            paper's databases carry (a world whose blade loading db1's inputs express exactly).
+            paper's databases carry (a campaign whose blade loading db1's inputs express exactly).
     """
 
     name: str = "uh60a-synthetic"

@@ -83,10 +83,10 @@ def simulation_config(cfg: SynthConfig, spread: float = 0.3, planted: tuple[str,
     default effects drawn wrong, and its planted effects left out.
 
     This stands for a user's physics code (a comprehensive rotorcraft analysis) whose
-    predicted vibration is compared with the measurement: it knows the world's base physics
+    predicted vibration is compared with the measurement: it knows the campaign's base physics
     (the steady law, the maneuver transients, the airframe resonance, the lags, the measured
     load factor), each coefficient of the vertical law and the resonance's gain off by a
-    factor U(1 − spread, 1 + spread) (the resonance's frequency and the lags as the world's),
+    factor U(1 − spread, 1 + spread) (the resonance's frequency and the lags as the campaign's),
     and nothing of what was planted. Against it, a campaign without planted effects has nothing missing, and
     one with them misses exactly those. The draws come from the seed's own stream, so every
     campaign of one seed (with or without planted effects) gets the same simulation.
