@@ -158,10 +158,17 @@ def judged(rows: pd.DataFrame, orc: pd.DataFrame, worlds: list[dict], truths: di
                 accepts[effect_of[fam["also"]["effect"]]] = fam["also"]["accept"]
         in_truth = [any(matches(e, a) for a in accepts.values()) for e in effects]
         o = orc[orc.world == r["world"]].set_index("name")
+        # The largest entry the oracle detects: is it what discovery names first?
+        seen = [e for e in truth["entries"] if e["name"] in o.index and bool(o.loc[e["name"], "detected"])
+                and e["name"] in accepts]
+        largest = max(seen, key=lambda e: e["rms_g"]) if seen else None
         row = dict(world=r["world"], family=r["family"], aircraft=r["aircraft"], conditions=r["conditions"],
                    named=r["named"], named_count=len(effects), false_named=int(len(effects) - sum(in_truth)),
                    base_named=int(sum(any(matches(e, a) for e in effects) for a in BASE_ACCEPT.values())),
                    capacity_p=float(o.loc["capacity", "p_value"]) if "capacity" in o.index else np.nan,
+                   named_in_truth=int(sum(in_truth)),
+                   largest_first=(np.nan if largest is None else
+                                  bool(effects) and any(matches(effects[0], a) for a in [accepts[largest["name"]]])),
                    floor_g=r["floor_g"], before_g=r["ensemble_rms_g_before"], after_g=r["ensemble_rms_g_after"],
                    seconds=r["seconds"])
         if planted is not None:
@@ -176,6 +183,13 @@ def judged(rows: pd.DataFrame, orc: pd.DataFrame, worlds: list[dict], truths: di
     return df
 
 
+def with_scores(df: pd.DataFrame, rows: pd.DataFrame, worlds: list[dict]) -> pd.DataFrame:
+    """`judged` with the runner's own scores of each world (`world_benchmark.score`): the
+    attributable shrink and the parameter's error of a right first effect."""
+    s = wb.score(rows, worlds)[["world", "attributable", "parameter_error"]]
+    return df.merge(s, on="world", how="left")
+
+
 def tables(df: pd.DataFrame, orc: pd.DataFrame) -> dict[str, pd.DataFrame]:
     """The report's tables: detection per size bin and per family (oracle beside discovery),
     the nulls, the base terms' detection by the oracle."""
@@ -183,10 +197,15 @@ def tables(df: pd.DataFrame, orc: pd.DataFrame) -> dict[str, pd.DataFrame]:
     nulls = df[df.family == "none"]
 
     def line(name, g):
+        att = g["attributable"].dropna() if "attributable" in g else pd.Series(dtype=float)
+        err = g["parameter_error"].dropna() if "parameter_error" in g else pd.Series(dtype=float)
         return {"": name, "worlds": len(g), "oracle detects": _rate(g.oracle.sum(), g.oracle.notna().sum()),
                 "discovery names it": _rate(g.discovered.sum(), len(g)), "named first": _rate(g.first.sum(), len(g)),
                 "names something not in the truth": _rate((g.false_named > 0).sum(), len(g)),
-                "median size / floor": f"{g['size'].median():.2f}"}
+                "median size / floor": f"{g['size'].median():.2f}",
+                "attributable ≥ 0.5": _rate((att >= 0.5).sum(), len(att)),
+                "median parameter error": f"{err.median():.1%}" if len(err) else "",
+                "median seconds": f"{g.seconds.median():.0f}"}
 
     by_bin = pd.DataFrame([line(b, hidden[hidden.bin == b]) for b in BIN_NAMES if (hidden.bin == b).any()]
                           + [line("all", hidden)])
@@ -196,12 +215,18 @@ def tables(df: pd.DataFrame, orc: pd.DataFrame) -> dict[str, pd.DataFrame]:
                           "name a base term": _rate((nulls.base_named > 0).sum(), len(nulls)),
                           "baseline's residual predictable from its inputs (capacity, 5 %)":
                               _rate((nulls.capacity_p < LEVEL).sum(), len(nulls))}])
+    largest = df.largest_first.dropna()
+    overall = pd.DataFrame([{"named effects": int(df.named_count.sum()),
+                             "precision (named effects in the truth)": _rate(df.named_in_truth.sum(),
+                                                                             df.named_count.sum()),
+                             "the largest entry the oracle detects named first": _rate(largest.sum(), len(largest)),
+                             "median seconds per world": f"{df.seconds.median():.0f}"}])
     base = orc[orc.source == "base"]
     terms = pd.DataFrame([{"term": n, "worlds": len(g), "median size / floor": f"{g.against_noise.median():.2f}",
                            "median size (mg)": f"{1e3 * g.rms_g.median():.1f}",
                            "oracle detects": _rate(g.detected.sum(), len(g))}
                           for n, g in base.groupby("name", sort=False)])
-    return dict(by_bin=by_bin, by_family=by_family, nulls=null, base_terms=terms)
+    return dict(by_bin=by_bin, by_family=by_family, nulls=null, overall=overall, base_terms=terms)
 
 
 def main():
@@ -230,7 +255,7 @@ def main():
         orc.to_csv(path, index=False)
         print(f"[{i + 1}/{len(rows)}] {r.world}: " + ", ".join(f"{n} p={p:.3g}" for n, p in zip(new.name, new.p_value)),
               flush=True)
-    df = judged(rows, orc, worlds, truths, plan)
+    df = with_scores(judged(rows, orc, worlds, truths, plan), rows, worlds)
     df.to_csv(out / "judged.csv", index=False)
     t = tables(df, orc)
     for name, tab in t.items():
@@ -244,7 +269,7 @@ def main():
 
 def docs(t: dict, df: pd.DataFrame, prov: dict, config: str, planned: int) -> str:
     cols = ["world", "aircraft", "conditions", "named", "size", "oracle", "discovered", "false_named", "capacity_p",
-            "before_g", "after_g", "floor_g", "seconds"]
+            "attributable", "parameter_error", "before_g", "after_g", "floor_g", "seconds"]
     return f"""# Discovery: the drawn-world benchmark against the truth
 
 Commands: `python research/world_benchmark.py {config} --fresh --out runs/world-benchmark/fresh-9100`
@@ -273,6 +298,10 @@ Rates carry their Monte Carlo standard error.
 ## Null worlds
 
 {markdown_table(t['nulls'], "{}")}
+
+## Every world's naming against its truth
+
+{markdown_table(t['overall'], "{}")}
 
 ## The base's own terms, by the oracle (every world)
 

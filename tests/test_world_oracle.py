@@ -90,6 +90,8 @@ def test_a_named_effect_counts_against_the_whole_truth(wo):
     assert df.loc["null-1", "false_named"] == 0 and df.loc["null-1", "base_named"] == 1  # nz_g: a base term
     yaw = df.loc["yaw-rate-1"]
     assert yaw.discovered and not yaw.first and yaw.false_named == 1 and yaw.oracle and yaw["bin"] == "1-2"
+    assert yaw.largest_first is False and np.isnan(df.loc["null-1", "largest_first"])  # the oracle's largest: yaw
     t = wo.tables(df.reset_index(), orc)
     assert t["by_bin"].set_index("").loc["1-2", "oracle detects"].startswith("1 / 1")
     assert t["nulls"].iloc[0]["name something not in the truth"].startswith("0 / 1")
+    assert t["overall"].iloc[0]["precision (named effects in the truth)"].startswith("2 / 3")
