@@ -107,3 +107,30 @@ def test_cli_config_error_is_a_message_not_a_traceback(tmp_path, capsys):
     assert main(["validate", "--campaign", str(tmp_path), "--config", str(cfgfile)]) == 2
     err = capsys.readouterr().err
     assert "bad.toml: analysis.window_revz: unknown key" in err and "Traceback" not in err
+
+
+def test_one_long_record_costs_its_own_memory_and_moves_no_other_peak(small_campaign_dir):
+    # A recording twelve times as long as the others: batched alone (memory in proportion to the samples,
+    # not the longest record times every record), and every other condition's peak is bitwise unchanged.
+    from pvvjax.analysis import PADDING_LIMIT, length_groups, peak_table
+    from pvvjax.data.campaign import load_campaign
+
+    lengths = np.array([6000] * 70 + [72000])
+    keys = length_groups(lengths)
+    padded = sum(lengths[keys == k].max() * (keys == k).sum() for k in np.unique(keys))
+    assert lengths.max() * len(lengths) > PADDING_LIMIT * lengths.sum() and padded <= 2 * lengths.sum()
+    assert (length_groups([6000, 7000, 9000]) == 0).all()  # alike: one batch
+
+    campaign = load_campaign(small_campaign_dir)
+    before, _ = peak_table(campaign)
+    k = "T1-level-135"
+    r = campaign.records[k]
+    turns = np.unwrap(np.deg2rad(r.azimuth_deg.to_numpy()))
+    span = turns[-1] - turns[0] + (turns[1] - turns[0])
+    long = pd.concat([r] * 12, ignore_index=True)
+    long["time_s"] = np.arange(len(long)) * float(r.time_s.iloc[1] - r.time_s.iloc[0])
+    long["azimuth_deg"] = np.rad2deg(np.concatenate([turns + i * span for i in range(12)])) % 360.0
+    campaign.records[k] = long
+    after, _ = peak_table(campaign)
+    others = (before.condition != campaign.counters.loc[k, "condition"]).to_numpy()
+    np.testing.assert_array_equal(before[others].peak_pvv_g.to_numpy(), after[others].peak_pvv_g.to_numpy())

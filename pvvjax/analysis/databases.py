@@ -32,13 +32,16 @@ __all__ = [
     "DB_INPUTS",
     "META_COLUMNS",
     "OUTPUT",
+    "PADDING_LIMIT",
     "STATE_CHANNELS",
     "Peaks",
+    "analyze_by_length",
     "axes_database",
     "axis_peak_tables",
     "build_databases",
     "campaign_axes",
     "condition_peaks",
+    "length_groups",
     "peak_table",
     "peaks_from_windows",
     "require_axis",
@@ -158,10 +161,59 @@ def peak_table(campaign: Campaign, analysis: AnalysisConfig = AnalysisConfig()) 
     """
     require_axis(campaign, analysis.axis)
     _, counters = _counters(campaign)
-    batch = to_batch(campaign, STATE_CHANNELS, counters, axis=analysis.axis)
-    win = analyze(batch, analysis.window_revs, analysis.hop, harmonic=analysis.harmonic or campaign.aircraft.blades,
-                  taper_revs=analysis.taper_revs)
+    win = analyze_by_length(campaign, counters, analysis.window_revs, analysis.hop,
+                            harmonic=analysis.harmonic or campaign.aircraft.blades, taper_revs=analysis.taper_revs,
+                            axis=analysis.axis)
     return peaks_from_windows(campaign, win, counters, analysis), window_table(campaign, win, counters)
+
+
+# Records are batched together while padding them to the longest at most multiplies their
+# memory by this; beyond, they are batched by length.
+PADDING_LIMIT = 4.0
+
+
+def length_groups(lengths) -> np.ndarray:
+    """(n,) a batch key per record of these sample counts: all one batch while padding them
+    to the longest at most multiplies their memory by `PADDING_LIMIT`, else groups whose
+    lengths lie within a factor 2 (padded, each costs at most twice its records' samples)."""
+    lengths = np.asarray(lengths)
+    if lengths.max() * len(lengths) <= PADDING_LIMIT * lengths.sum():  # alike: one batch, one program
+        return np.zeros(len(lengths), int)
+    return np.ceil(np.log2(np.maximum(lengths, 1))).astype(int)
+
+
+def analyze_by_length(campaign: Campaign, counters, window_revs: float, hop_revs: float | None = None, *,
+                      harmonic: int, taper_revs: float = 0.0, axis: str = "az_g") -> Windows:
+    """`analyze` of the counters' records (their `STATE_CHANNELS`), batched by length where
+    their lengths differ widely (padding every record to the longest would multiply their
+    memory by more than `PADDING_LIMIT`): the records within a factor 2 of each other's length
+    are padded to their own longest, so one long record among short ones costs its own memory
+    and not the rest's. Windows
+    come back in the order of `counters`, the short records' past their last as invalid.
+
+    Args: as `analyze`; `counters` the records, `axis` the acceleration analysed.
+
+    Returns:
+        `Windows` with shapes (B, W) and (B, W, C), W the most windows of any record.
+    """
+    buckets = length_groups([len(campaign.records[c]) for c in counters])
+    parts, order = [], []
+    for b in np.unique(buckets):
+        rows = np.flatnonzero(buckets == b)
+        batch = to_batch(campaign, STATE_CHANNELS, [counters[i] for i in rows], axis=axis)
+        parts.append(analyze(batch, window_revs, hop_revs, harmonic=harmonic, taper_revs=taper_revs))
+        order.append(rows)
+    if len(parts) == 1:
+        return parts[0]
+    n_windows = max(int(p.amplitude.shape[1]) for p in parts)
+
+    def widen(a):  # (rows, W, ...) -> (rows, n_windows, ...), the windows past a record's end invalid
+        a = np.asarray(a)
+        pad = [(0, 0), (0, n_windows - a.shape[1])] + [(0, 0)] * (a.ndim - 2)
+        return np.pad(a, pad)
+
+    back = np.argsort(np.concatenate(order))
+    return jax.tree.map(lambda *a: jax.device_put(np.concatenate([widen(x) for x in a])[back]), *parts)
 
 
 def peaks_from_windows(campaign: Campaign, win: Windows, counters, analysis: AnalysisConfig) -> pd.DataFrame:
