@@ -99,7 +99,7 @@ def run_world(world: dict, out: Path, cfg: ExperimentConfig | None = None) -> di
                aircraft=world["drawn"]["aircraft"], conditions=world["drawn"]["conditions"],
                named=" > ".join(e["name"] for e in js["effects"]) or "none", effects=json.dumps(js["effects"]),
                offset_s=float(res.baseline.offset_s), floor_g=truth["discrepancies"]["floor_g"],
-               seconds=time.perf_counter() - t0 - t_truth, truth_seconds=t_truth)
+               seconds=time.perf_counter() - t0 - t_truth, truth_seconds=t_truth, commit=_head())
     for k in ("ensemble_rms_g", "peak_error_g", "rms_g"):
         row[f"{k}_before"], row[f"{k}_after"] = float(res.before[k]), float(res.after[k])
     return row
@@ -163,6 +163,15 @@ def table(df: pd.DataFrame) -> pd.DataFrame:
                 "median seconds": f"{g.seconds.median():.0f}"}
     fams = [f for f in df.family.unique() if f != "none"]
     return pd.DataFrame([line(f, df[df.family == f]) for f in ["none", *sorted(fams)]] + [line("all", df)])
+
+
+def _head() -> str:
+    """The commit this process runs (each row carries it: a run resumed after a change of
+    the code says which worlds ran on which)."""
+    if not hasattr(_head, "commit"):
+        _head.commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
+                                      cwd=ROOT).stdout.strip()
+    return _head.commit
 
 
 def _provenance(out: Path) -> dict:
