@@ -35,7 +35,8 @@ block-permutation test), `residuals` (where the residual concentrates) and `repo
 predictions and metrics), `_fits` (least-squares fits of a lag, a knee or band, the offset),
 `_propose` (the candidate matrix, the floor covariates and the selection's proposals),
 `_confirm` (add a candidate, retrain, compare by condition, name), `_citest` (cross-fitted
-conditional-independence tests with conditions as the units: `gcm_test`, `capacity_test`, `holm`), `_results` (the typed
+conditional-independence tests with conditions as the units: `gcm_test`, `capacity_test`, `holm`),
+`_explain` (`explain`: the candidates named by that test at one level, stepwise), `_results` (the typed
 outcome: a trial's `Confirmation`, an `Effect`, a `Round`), `_round` (one round's
 tries, each way, judged and one named), `_lag` (the lag test) and `_workflow` (`discover`,
 `summary`).
@@ -43,6 +44,7 @@ tries, each way, judged and one named), `_lag` (the lag test) and `_workflow` (`
 
 from . import effects
 from ._citest import UnitTest, capacity_test, cross_fit, default_learner, gcm_test, holm, unit_folds
+from ._explain import Explanation, Named, carried_by, explain
 from ._model import Model, delag, fit_ensemble, floor_features, gain_apply, metrics
 from ._propose import knn_floor
 from ._results import Confirmation, Effect, Round
@@ -57,17 +59,21 @@ __all__ = [
     "Confirmation",
     "Discovery",
     "Effect",
+    "Explanation",
     "Model",
+    "Named",
     "Residual",
     "Round",
     "Selected",
     "UnitTest",
     "capacity_test",
+    "carried_by",
     "cross_fit",
     "default_learner",
     "delag",
     "describe",
     "discover",
+    "explain",
     "effects",
     "fit_ensemble",
     "floor_features",

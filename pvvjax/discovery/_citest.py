@@ -6,8 +6,10 @@ are regressed on Z by a flexible learner, out of fold with the folds drawn over 
 what is left of x: double machine learning's partially linear model (Chernozhukov et al.
 2018), whose score at θ = 0 is the generalised covariance measure (Shah & Peters 2020). Its
 t takes a cluster-robust standard error with the units as clusters, evaluated at the fitted
-coefficient, so an effect carried by a few conditions is not hidden by its own spread over
-them (the units' sums of products at θ = 0 would put the signal into the variance). A
+coefficient (the units' jackknife), so an effect carried by a few conditions is not hidden
+by its own spread over them (the units' sums of products at θ = 0 would put the signal into
+the variance), and a unit that holds much of a candidate's spread does not make it reject
+more often than its level. A
 candidate that is a function of Z has nothing left after the partialling-out, so it is never
 taken for a missing input; whether the residual holds structure that Z itself explains (a
 misfit of the model's inputs) is a test of its own (`capacity_test`).
@@ -18,7 +20,7 @@ from __future__ import annotations
 from typing import Callable, NamedTuple
 
 import numpy as np
-from scipy import stats
+from scipy import sparse, stats
 
 __all__ = ["UnitTest", "capacity_test", "cross_fit", "default_learner", "gcm_test", "holm", "unit_folds"]
 
@@ -84,19 +86,33 @@ def _t_on_units(scores, groups) -> UnitTest:
     return UnitTest(t, float(stats.t.sf(t, g - 1)), g, float(s.mean()))
 
 
-def _regression_t(ry, rx, groups) -> UnitTest:
-    """θ of ry = θ·rx, its t with the units' cluster-robust variance (the small-sample factor
-    G/(G − 1)), two-sided on G − 1 degrees of freedom."""
+def regression_tests(ry, RX, groups) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per column of RX ((n, m) candidates left after the inputs): θ of ry = θ·rx, its t and
+    two-sided p on G − 1 degrees of freedom (G units). The variance is the units' jackknife
+    (each unit's score over 1 − its leverage, the share of Σ rx² it holds): a unit that
+    carries much of a candidate's spread would make the plain cluster-robust variance too
+    small, and the test reject more often than its level."""
+    RX = np.asarray(RX, float).reshape(len(ry), -1)
     units, inverse = np.unique(np.asarray(groups), return_inverse=True)
     g = len(units)
-    sxx = float(np.sum(rx**2))
-    if sxx == 0 or g < 2:
-        return UnitTest(0.0, 1.0, g, 0.0)
-    theta = float(np.sum(ry * rx) / sxx)
-    score = np.bincount(inverse, weights=(ry - theta * rx) * rx, minlength=g)
-    se = np.sqrt(g / (g - 1) * np.sum(score**2)) / sxx
-    t = theta / se if se > 0 else np.inf * np.sign(theta)
-    return UnitTest(float(t), float(2 * stats.t.sf(abs(t), g - 1)), g, theta)
+    if g < 2:
+        m = RX.shape[1]
+        return np.zeros(m), np.zeros(m), np.ones(m)
+    member = sparse.csr_matrix((np.ones(len(inverse)), (inverse, np.arange(len(inverse)))), shape=(g, len(inverse)))
+    sxx = np.sum(RX**2, axis=0)
+    safe = np.where(sxx > 0, sxx, 1.0)
+    theta = np.where(sxx > 0, ry @ RX / safe, 0.0)
+    score = member @ ((ry[:, None] - RX * theta) * RX)
+    leverage = np.minimum(member @ RX**2 / safe, 1.0 - 1e-9)
+    se = np.sqrt(np.sum((score / (1.0 - leverage)) ** 2, axis=0)) / safe
+    t = np.where(se > 0, theta / np.where(se > 0, se, 1.0), 0.0)
+    return theta, t, 2 * stats.t.sf(np.abs(t), g - 1)
+
+
+def _regression_t(ry, rx, groups) -> UnitTest:
+    """`regression_tests` of one candidate, as a `UnitTest`."""
+    theta, t, p = regression_tests(ry, np.asarray(rx, float)[:, None], groups)
+    return UnitTest(float(t[0]), float(p[0]), len(np.unique(np.asarray(groups))), float(theta[0]))
 
 
 def gcm_test(residual, candidate, groups, Z=None, folds: int = 5, seed: int = 0, learner: Callable = default_learner,
