@@ -168,3 +168,13 @@ def test_levenberg_marquardt_reaches_optimistixs_minimum_and_keeps_a_flat_parame
     assert bool(ok) and int(steps) == 1 and np.asarray(y).tolist() == [0.5, 1.0]
     # Out of steps: not converged.
     assert not bool(_levenberg_marquardt(rosen, jnp.array([-1.2, 1.0]), max_steps=2, rtol=1e-7, atol=1e-10)[3])
+
+
+def test_a_parameter_on_its_search_bound_is_named_not_reported_as_fitted():
+    from pvvjax.replay import at_bounds
+
+    theta = {"offset_s": 3.0, "window_revs": 8.0, "stick_offset_s": -2.0}
+    assert at_bounds(theta, ("offset_s", "window_revs"), Bounds()) == "offset_s=3"
+    assert at_bounds(theta, ("window_revs",), Bounds()) == ""
+    assert at_bounds(theta, ("offset_s", "stick_offset_s"), Bounds()) == "offset_s=3, stick_offset_s=-2"
+    assert at_bounds({**theta, "offset_s": 2.9}, ("offset_s",), Bounds()) == ""

@@ -63,6 +63,7 @@ def test_replay_and_calibrate_write_their_tables(job, tmp_path):
                  str(tmp_path / "calibration")]) == 0
     cal = pd.read_csv(tmp_path / "calibration" / "calibration.csv")
     assert len(cal) == 1 and cal.offset_s.between(-1.0, 3.0).all() and cal.within_one_grid_step.all()
+    assert "at_bound" in cal  # a parameter stopped on its bound is named there (empty: none)
 
 
 def test_dynamic_compares_its_models_and_exports_the_best(tmp_path, small_campaign_dir):

@@ -24,6 +24,7 @@ from .quasistatic import (
 )
 from .studies import Study, offset_per_kind, one_offset, stick_lag, window_length
 from .tables import (
+    at_bounds,
     calibration_settings,
     calibration_table,
     cost_weights,
@@ -50,6 +51,7 @@ __all__ = [
     "Study",
     "calibrate",
     "calibration_settings",
+    "at_bounds",
     "calibration_table",
     "cost_grid",
     "cost_terms",

@@ -24,6 +24,7 @@ from .calibration import PARAMS, Bounds, calibrate, cost_grid, counter_costs, gr
 from .quasistatic import FEATURES, CostWeights, ReplayRecord, Settings, make_settings, prepare, replay
 
 __all__ = [
+    "at_bounds",
     "calibration_settings",
     "calibration_table",
     "cost_weights",
@@ -246,8 +247,24 @@ def calibration_table(info: pd.DataFrame, batch, recs: ReplayRecord, models: dic
             for i, p in enumerate(PARAMS):
                 row[p] = float(cal.theta[d, g, i])
                 row[f"start_{p}"] = float(cal.start[d, g, i])
+            row["at_bound"] = at_bounds(row, free, _bounds(cfg))
+            if row["at_bound"]:
+                log(f"warning: {db}, group {name}: {row['at_bound']} stopped at its search bound, so it is not a "
+                    "fitted value (the optimum may lie beyond): widen calibration's bounds for it")
             rows.append(row)
     return pd.DataFrame(rows)
+
+
+def at_bounds(theta: dict, free, bounds: Bounds, share: float = 1e-3) -> str:
+    """The free parameters of a calibrated θ that lie on a bound of the search (within
+    `share` of its span), as "name=value" joined by commas; "" for none."""
+    out = []
+    for p in free:
+        lo, hi = getattr(bounds, p)
+        tol = share * (hi - lo)
+        if min(abs(theta[p] - lo), abs(theta[p] - hi)) <= tol:
+            out.append(f"{p}={theta[p]:g}")
+    return ", ".join(out)
 
 
 def grid_table(info: pd.DataFrame, recs: ReplayRecord, models: dict, cfg: CalibrationConfig, batch,
