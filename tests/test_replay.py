@@ -368,3 +368,16 @@ def test_the_window_length_study_and_the_stick_lag(small_sweep_replay, tmp_path)
     assert len(wl.tables["window_length"]) == 4 and wl.markdown.startswith("## Window length")
     lag = studies.stick_lag(*rset, cc, common, "11022", tmp_path, log=lambda *a: None)
     assert lag.markdown.startswith("## A separate lag") and all(Path(f).exists() for f in lag.figures)
+
+
+def test_a_counter_without_a_whole_window_is_named_not_dropped_silently():
+    import pandas as pd
+
+    from pvvjax.replay import peak_summary
+
+    rows = [dict(database="db1", counter=c, condition=c, maneuver="level", window=k, time_s=float(k),
+                 measured_g=0.1 + 0.01 * k, predicted_g=0.1, weight=w, offset_s=0.0, window_revs=8.0,
+                 stick_offset_s=0.0) for c, w in (("A", 1.0), ("B", 0.6)) for k in range(3)]
+    with pytest.warns(UserWarning, match=r"1 counter\(s\) get no whole window .*: B"):
+        summary = peak_summary(pd.DataFrame(rows))
+    assert list(summary.counter) == ["A"]

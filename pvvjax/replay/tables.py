@@ -155,13 +155,30 @@ def replay_windows(info: pd.DataFrame, recs: ReplayRecord, models: dict, theta, 
             **{f: np.asarray(rep.features[..., k]).ravel() for k, f in enumerate(FEATURES)},
         }))
     out = pd.concat(parts, ignore_index=True)
-    return out[out.weight > 0].reset_index(drop=True)
+    out = out[out.weight > 0].reset_index(drop=True)
+    _say_windowless(info.index[~info.index.isin(out.counter)], "gets no replay window",
+                    "shorter than the window plus the offset")
+    return out
+
+
+def _say_windowless(counters, what: str, why: str) -> None:
+    """A warning naming the counters left out of a table, never a silent drop."""
+    import warnings
+
+    from ..io import listed
+
+    counters = [str(c) for c in counters]
+    if counters:
+        warnings.warn(f"{len(counters)} counter(s) {what} ({why}), left out of the tables: {listed(counters)}",
+                      stacklevel=3)
 
 
 def peak_summary(windows: pd.DataFrame) -> pd.DataFrame:
     """Per database and counter: measured and predicted peak (largest fully weighted
     window), peak error (g), phase error (s, predicted − measured peak time) and RMS (g)."""
     full = windows[windows.weight >= 0.999]
+    _say_windowless(sorted(set(windows.counter) - set(full.counter)), "get no whole window",
+                    "their windows reach past the record's ends")
     rows = []
     for (db, counter), g in full.groupby(["database", "counter"], sort=False):
         im, ip = g.measured_g.idxmax(), g.predicted_g.idxmax()
