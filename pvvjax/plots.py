@@ -18,8 +18,14 @@ __all__ = ["correlation", "cost_map", "offset_bars", "partial_dependence", "pvv_
 
 
 def save(fig, path) -> Path:
-    """Write `fig` as PNG (creating the folder), close it, and return the path."""
+    """Write `fig` as PNG (creating the folder), close it, and return the path. A figure
+    with nothing drawn in any panel is written all the same and said in a warning naming it,
+    so that an empty picture is never taken for a result."""
     path = Path(path)
+    if not any(ax.has_data() for ax in fig.axes):
+        import warnings
+
+        warnings.warn(f"{path}: the figure has nothing to draw (no data in any panel)", stacklevel=2)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110, bbox_inches="tight")
     plt.close(fig)

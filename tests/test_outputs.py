@@ -110,3 +110,20 @@ def test_synth_replaces_only_its_own_files_and_says_so(tmp_path):
     (tmp_path / "t.json").write_text("{}")
     with pytest.raises(ValueError, match="not a ground truth"):
         write_synthetic(tmp_path / "d", cfg, truth_path=tmp_path / "t.json")
+
+
+def test_a_figure_with_nothing_to_draw_is_named_in_a_warning(tmp_path):
+    import matplotlib.pyplot as plt
+
+    from pvvjax.plots import save
+
+    fig, ax = plt.subplots()
+    with pytest.warns(UserWarning, match="empty.png: the figure has nothing to draw"):
+        save(fig, tmp_path / "empty.png")
+    fig, ax = plt.subplots()
+    ax.plot([0, 1], [0, 1])
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert save(fig, tmp_path / "drawn.png").exists()
