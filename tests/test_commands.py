@@ -86,3 +86,18 @@ def test_axes_scores_every_axis(tmp_path, small_campaign_dir):
     table = pd.read_csv(tmp_path / "ax" / "axes.csv")
     assert list(table.axis) == ["az_g", "ax_g", "ay_g"] and (table.rms_g > 0).all()
     assert (tmp_path / "ax" / "report.md").exists()
+
+
+def test_an_element_that_never_becomes_ready_is_named_in_a_warning():
+    from types import SimpleNamespace
+
+    from pvvjax.realtime import stream
+
+    class Waiting:  # an element whose first window never completes
+        def step(self, t, az, x):
+            return SimpleNamespace(pvv_g=0.0, ready=False)
+
+    t = np.linspace(0.0, 0.5, 11)
+    with pytest.warns(UserWarning, match="never became ready on record C1"):
+        out, lat = stream(Waiting(), t, np.zeros(11), np.zeros((11, 2)), ["pvv_g"], "record C1")
+    assert out.shape == (11, 1) and (lat >= 0).all()

@@ -280,14 +280,9 @@ def cmd_realtime(args) -> int:
     names = ["pvv_g", "shake_g", "amplitude_g", "out_of_envelope"]
     if el.outputs != ("az_g",):  # every seat axis the element gives, as the simulator reads them
         names += [f"{k}_{AXIS_OUTPUTS[a]}_g" for a in el.outputs for k in ("pvv", "shake")]
-    out = np.zeros((t.size, len(names)))
-    lat = np.empty(t.size)
-    clock = time.perf_counter_ns
-    for i in range(t.size):
-        s0 = clock()
-        o = el.step(t[i], az[i], x[i])
-        lat[i] = (clock() - s0) / 1e3
-        out[i] = [getattr(o, n) for n in names]
+    from ..realtime import stream
+
+    out, lat = stream(el, t, az, x, names, f"record {args.record}")
     p50, p99, pmax = np.percentile(lat, [50, 99, 100])
     print(f"{t.size} frames at {rate:g} Hz from record {args.record} ({t[-1] - t[0]:.1f} s): latency per frame "
           f"median {p50:.1f} µs, 99th percentile {p99:.1f} µs, max {pmax:.0f} µs; "

@@ -10,7 +10,7 @@ nets (both import JAX).
 """
 
 from .cexport import CElement, CSourceLimits, c_compiler, c_sources, compile_shared, write_c_element
-from .element import CHANNELS, ElementOutput, VibrationElement
+from .element import CHANNELS, ElementOutput, VibrationElement, stream
 from .fmu import build_fmu, model_description
 from .jsbsim import JSBSIM_CHANNELS, frame_channels, jsbsim_aircraft, quiet_stdout
 from .npnet import NumpyNet, read_npz
@@ -32,5 +32,6 @@ __all__ = [
     "model_description",
     "quiet_stdout",
     "read_npz",
+    "stream",
     "write_c_element",
 ]

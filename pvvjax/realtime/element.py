@@ -43,13 +43,15 @@ from __future__ import annotations
 
 import json
 import math
+import time
+import warnings
 from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
 
 __all__ = ["AIRCRAFT_DEFAULTS", "AXIS_OUTPUTS", "CHANNELS", "FEATURES", "ElementOutput", "VibrationElement",
-           "input_source", "shake_settings"]
+           "input_source", "shake_settings", "stream"]
 
 # Frame channels, canonical units (data contract): what db1-db3 and their features need.
 CHANNELS = ("airspeed_kt", "gross_weight_lb", "rotor_rpm", "density_ratio", "pitch_rate_dps", "roll_angle_deg",
@@ -416,3 +418,33 @@ class VibrationElement:
             if self.clip:
                 z = np.clip(z, lo, hi)
         return z, flag
+
+
+def stream(el, t, az, x, names, what: str = "the frames") -> tuple[np.ndarray, np.ndarray]:
+    """Feed an element frame by frame, as a simulator would.
+
+    Args:
+        el: an element (`VibrationElement`, `CElement`, ...: `step(t, az, x)`).
+        t: (F,) frame times, s. az: (F,) rotor azimuth, deg. x: (F, C) the element's channels.
+        names: the `ElementOutput` fields to keep. what: the frames' source, in messages.
+
+    Returns:
+        (the outputs `names` per frame (F, len(names)), each frame's latency in µs (F,)). An
+        element that never becomes ready (no analysis window complete) is said in a warning
+        naming `what`: every value it gave is the 0 it starts from.
+    """
+    out = np.zeros((t.size, len(names)))
+    lat = np.empty(t.size)
+    clock = time.perf_counter_ns
+    ready = False
+    for i in range(t.size):
+        s0 = clock()
+        o = el.step(t[i], az[i], x[i])
+        lat[i] = (clock() - s0) / 1e3
+        out[i] = [getattr(o, n) for n in names]
+        ready = ready or o.ready
+    if not ready:
+        warnings.warn(f"the element never became ready on {what} ({t[-1] - t[0]:.1f} s): no analysis window was "
+                      "complete, so every PVV and seat-shake value written is the 0 it starts from; give a longer "
+                      "record", stacklevel=2)
+    return out, lat
