@@ -35,7 +35,13 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from pvvjax.analysis import DB_INPUTS  # noqa: E402
-from pvvjax.discovery import capacity_test, cross_fit, gcm_test, unit_folds  # noqa: E402
+from pvvjax.discovery import (  # noqa: E402
+    capacity_test,
+    cross_fit,
+    neighbour_left,
+    regression_tests,
+    unit_folds,
+)
 from pvvjax.io import markdown_table  # noqa: E402
 from pvvjax.synth import law_amplitudes  # noqa: E402
 
@@ -102,33 +108,42 @@ def features(world: dict, truth: dict, win: pd.DataFrame, offset_s: float) -> di
 def oracle(world: dict, truth: dict, win: pd.DataFrame, offset_s: float, seed: int = 0) -> list[dict]:
     """The oracle's test of each discrepancy of a world, and the baseline's capacity test
     (is its out-of-fold residual predictable from db1's inputs at all): rows of name, kind,
-    statistic, p_value, detected (at `LEVEL`)."""
+    statistic, p_value, theta, detected (at `LEVEL`). The test is `pvvjax.discovery.explain`'s
+    told the answer: the residual partialled out of the inputs by trees, the features by
+    nearest neighbours, the partially linear regression's t over conditions; a misfit (a
+    function of the inputs) by its form alone."""
     win = win[win.weight >= 0.999].reset_index(drop=True)  # the fully weighted windows, as the metrics
     y = (win.measured_g - win.predicted_before_g).to_numpy()
     Z = win[list(DB_INPUTS["db1"])].to_numpy(float)
     groups = win.condition.astype(str).to_numpy()
-    left = cross_fit(y, Z, unit_folds(groups, 5, seed))
+    fold = unit_folds(groups, 5, seed)
     feats = features(world, truth, win, offset_s)
+    entries = [e for e in truth["entries"] if e["name"] in feats and np.ptp(feats[e["name"]]) > 0]
     rows = []
-    for e in truth["entries"]:
-        if e["name"] not in feats:
-            continue
-        x = feats[e["name"]]
-        if np.ptp(x) == 0:
-            t = None
-        elif e["kind"] == "misfit":
-            t = gcm_test(y, x, groups)
-        else:
-            t = gcm_test(y, x, groups, Z, seed=seed, residual_left=left)
-        rows.append(dict(world=world["name"], name=e["name"], source=e["source"], kind=e["kind"],
-                         against_noise=e["against_noise"], rms_g=e["rms_g"],
-                         statistic=np.nan if t is None else t.statistic, p_value=1.0 if t is None else t.p_value))
+    missing = [e for e in entries if e["kind"] != "misfit"]
+    if missing:
+        X = np.column_stack([feats[e["name"]] for e in missing])
+        theta, t, p = regression_tests(cross_fit(y, Z, fold), neighbour_left(X, Z, fold), groups)
+        rows += [_row(world, e, t[j], p[j], theta[j]) for j, e in enumerate(missing)]
+    misfits = [e for e in entries if e["kind"] == "misfit"]
+    if misfits:
+        X = np.column_stack([feats[e["name"]] for e in misfits])
+        theta, t, p = regression_tests(y - y.mean(), X - X.mean(axis=0), groups)
+        rows += [_row(world, e, t[j], p[j], theta[j]) for j, e in enumerate(misfits)]
+    rows += [_row(world, e, np.nan, 1.0, np.nan) for e in truth["entries"]
+             if e["kind"] != "all" and e not in entries]
     cap = capacity_test(y, Z, groups, seed=seed)
     rows.append(dict(world=world["name"], name="capacity", source="baseline", kind="capacity", against_noise=np.nan,
-                     rms_g=np.nan, statistic=cap.statistic, p_value=cap.p_value))
+                     rms_g=np.nan, statistic=cap.statistic, p_value=cap.p_value, theta=np.nan))
     for r in rows:
         r["detected"] = r["p_value"] < LEVEL
     return rows
+
+
+def _row(world, e, t, p, theta) -> dict:
+    return dict(world=world["name"], name=e["name"], source=e["source"], kind=e["kind"],
+                against_noise=e["against_noise"], rms_g=e["rms_g"], statistic=float(t), p_value=float(p),
+                theta=float(theta))
 
 
 def _rate(k, n) -> str:
@@ -233,16 +248,42 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("config")
     ap.add_argument("--fresh", action="store_true")
-    ap.add_argument("--out", required=True, help="the runner's folder (rows.csv, truth/, windows/)")
+    ap.add_argument("--out", required=True, action="append",
+                    help="the runner's folder (rows.csv, truth/, windows/); again for a run of the same commit's "
+                         "worlds in another folder (processes side by side)")
     ap.add_argument("--docs", action="store_true", help="write research/discovery-benchmark.md (fresh seeds only)")
     args = ap.parse_args()
-    out = Path(args.out)
+    outs = [Path(o) for o in args.out]
+    provs = [json.loads((o / "provenance.json").read_text()) for o in outs]
+    if len({p["commit"] for p in provs}) > 1:
+        raise SystemExit(f"--out folders of different commits: {[p['commit'] for p in provs]}")
     plan = bw.load_plan(args.config)
     worlds = bw.worlds(plan, args.fresh)
-    rows = pd.read_csv(out / "rows.csv", keep_default_na=False)
     by = {w["name"]: w for w in worlds}
-    rows = rows[rows.world.isin(list(by))]
-    truths = {n: json.loads((out / "truth" / f"{n}.truth.json").read_text())["discrepancies"] for n in rows.world}
+    rows, orcs, truths = [], [], {}
+    for out in outs:
+        r = pd.read_csv(out / "rows.csv", keep_default_na=False)
+        r = r[r.world.isin(list(by))]
+        truths.update({n: json.loads((out / "truth" / f"{n}.truth.json").read_text())["discrepancies"]
+                       for n in r.world})
+        orcs.append(_oracle_of(out, r, by, truths))
+        rows.append(r)
+    rows = pd.concat(rows, ignore_index=True).drop_duplicates("world")
+    orc = pd.concat(orcs, ignore_index=True).drop_duplicates(["world", "name"])
+    df = with_scores(judged(rows, orc, worlds, truths, plan), rows, worlds)
+    df.to_csv(outs[0] / "judged.csv", index=False)
+    t = tables(df, orc)
+    for name, tab in t.items():
+        print(f"\n{name}\n{tab.to_string(index=False)}")
+    if args.docs:
+        target = ROOT / "research" / "discovery-benchmark.md"
+        target.write_text(docs(t, df, provs[0], args.config, len(worlds)))
+        print(f"wrote {target}")
+
+
+def _oracle_of(out: Path, rows: pd.DataFrame, by: dict, truths: dict) -> pd.DataFrame:
+    """The oracle's rows of a runner's folder (OUT/oracle.csv), the worlds not yet tested
+    tested first."""
     path = out / "oracle.csv"
     orc = pd.read_csv(path) if path.exists() else pd.DataFrame()
     done = set(orc.world) if len(orc) else set()
@@ -255,16 +296,7 @@ def main():
         orc.to_csv(path, index=False)
         print(f"[{i + 1}/{len(rows)}] {r.world}: " + ", ".join(f"{n} p={p:.3g}" for n, p in zip(new.name, new.p_value)),
               flush=True)
-    df = with_scores(judged(rows, orc, worlds, truths, plan), rows, worlds)
-    df.to_csv(out / "judged.csv", index=False)
-    t = tables(df, orc)
-    for name, tab in t.items():
-        print(f"\n{name}\n{tab.to_string(index=False)}")
-    if args.docs:
-        prov = json.loads((out / "provenance.json").read_text())
-        target = ROOT / "research" / "discovery-benchmark.md"
-        target.write_text(docs(t, df, prov, args.config, len(worlds)))
-        print(f"wrote {target}")
+    return orc
 
 
 def docs(t: dict, df: pd.DataFrame, prov: dict, config: str, planned: int) -> str:
@@ -273,8 +305,10 @@ def docs(t: dict, df: pd.DataFrame, prov: dict, config: str, planned: int) -> st
     return f"""# Discovery: the drawn-world benchmark against the truth
 
 Commands: `python research/world_benchmark.py {config} --fresh --out runs/world-benchmark/fresh-9100`
-(discovery, run once at {prov['commit']} from {prov['date']}; {len(df)} of {planned} worlds), then
-`python research/world_oracle.py {config} --fresh --out runs/world-benchmark/fresh-9100 --docs`
+(discovery, run once at {prov['commit']} from {prov['date']}, the last 50 worlds in a second process of
+the same commit with `--only ... --out runs/world-benchmark/fresh-9100-b`; {len(df)} of {planned}
+worlds), then `python research/world_oracle.py {config} --fresh --out runs/world-benchmark/fresh-9100
+--out runs/world-benchmark/fresh-9100-b --docs`
 (the oracle and the scores). The machine: the 2-core VM ({prov['machine']}).
 
 Each world's truth (`research/world_truth.py`) lists every discrepancy against db1, sized by

@@ -43,8 +43,17 @@ tries, each way, judged and one named), `_lag` (the lag test) and `_workflow` (`
 """
 
 from . import effects
-from ._citest import UnitTest, capacity_test, cross_fit, default_learner, gcm_test, holm, unit_folds
-from ._explain import Explanation, Named, carried_by, explain
+from ._citest import (
+    UnitTest,
+    capacity_test,
+    cross_fit,
+    default_learner,
+    gcm_test,
+    holm,
+    regression_tests,
+    unit_folds,
+)
+from ._explain import Explanation, Named, carried_by, explain, neighbour_left
 from ._model import Model, delag, fit_ensemble, floor_features, gain_apply, metrics
 from ._propose import knn_floor
 from ._results import Confirmation, Effect, Round
@@ -86,6 +95,8 @@ __all__ = [
     "library",
     "localize",
     "metrics",
+    "neighbour_left",
+    "regression_tests",
     "residual_windows",
     "selection_gain",
     "summary",

@@ -22,7 +22,8 @@ from typing import Callable, NamedTuple
 import numpy as np
 from scipy import sparse, stats
 
-__all__ = ["UnitTest", "capacity_test", "cross_fit", "default_learner", "gcm_test", "holm", "unit_folds"]
+__all__ = ["UnitTest", "capacity_test", "cross_fit", "default_learner", "gcm_test", "holm", "regression_tests",
+           "unit_folds"]
 
 
 class UnitTest(NamedTuple):

@@ -25,7 +25,7 @@ from ._citest import UnitTest, capacity_test, cross_fit, default_learner, holm, 
 from ._model import _DERIVED_FROM
 from .candidates import Candidate, library, values
 
-__all__ = ["Explanation", "Named", "explain"]
+__all__ = ["Explanation", "Named", "carried_by", "explain", "neighbour_left"]
 
 
 class Named(NamedTuple):
@@ -79,8 +79,10 @@ def carried_by(c: Candidate, inputs) -> bool:
     return all(ch in have or set(_DERIVED_FROM.get(ch, (None,))) <= have for ch in c.channels)
 
 
-def _neighbour_left(X, Z, fold, neighbours: int) -> np.ndarray:
-    """X minus its out-of-fold mean over each row's nearest neighbours in Z (standardised)."""
+def neighbour_left(X, Z, fold, neighbours: int = 30) -> np.ndarray:
+    """(n, m) X minus its out-of-fold mean over each row's `neighbours` nearest rows in Z
+    (standardised; the neighbours drawn from the other folds): every column partialled out of
+    Z at once, the candidates' nuisance regression."""
     from sklearn.neighbors import KNeighborsRegressor
 
     scale = Z.std(axis=0)
@@ -137,7 +139,7 @@ def explain(residual, table: pd.DataFrame, inputs, groups, *, candidates: list[C
         if not pool:
             break
         ry = cross_fit(y, Z, fold, learner)
-        RX = _neighbour_left(X, Z, fold, neighbours)
+        RX = neighbour_left(X, Z, fold, neighbours)
         left = RX.var(axis=0) / np.maximum(X.var(axis=0), 1e-300)
         theta, t, p = regression_tests(ry, RX, groups)
         adj = holm(p)
