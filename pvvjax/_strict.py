@@ -9,9 +9,12 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import math
+import numbers
 import types
 import typing
 from typing import Any, Literal, Union
+
+import numpy as np
 
 
 class ConfigError(ValueError):
@@ -63,16 +66,18 @@ def _convert(tp: Any, value: Any, where: str) -> Any:
             raise ConfigError(f"{where}: expected a table, got {value!r}")
         kt, vt = args if args else (str, Any)
         return {_convert(kt, k, where): _convert(vt, v, f"{where}.{k}") for k, v in value.items()}
+    # NumPy's scalars are numbers like Python's (a notebook's np.int64(3) is an integer).
+    flag = isinstance(value, (bool, np.bool_))
     if tp is bool:
-        if not isinstance(value, bool):
+        if not flag:
             raise ConfigError(f"{where}: expected true/false, got {value!r}")
-        return value
+        return bool(value)
     if tp is int:
-        if isinstance(value, bool) or not isinstance(value, int):
+        if flag or not isinstance(value, numbers.Integral):
             raise ConfigError(f"{where}: expected an integer, got {value!r}")
-        return value
+        return int(value)
     if tp is float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
+        if flag or not isinstance(value, numbers.Real):
             raise ConfigError(f"{where}: expected a number, got {value!r}")
         if not math.isfinite(value):
             raise ConfigError(f"{where}: {value!r} is not a finite number; give a number")

@@ -110,3 +110,17 @@ def test_config_hash_is_the_hash_of_every_setting_nested_sections_included(tmp_p
         alpha = 0.05
     """)
     assert load_config(p) == alpha and config_hash(load_config(p)) == config_hash(alpha)
+
+
+def test_numpy_scalars_are_numbers_like_pythons():
+    import numpy as np
+
+    from pvvjax.config import AnalysisConfig, TrainConfig, from_dict
+
+    cfg = from_dict(TrainConfig, {"max_steps": np.int64(50), "learning_rate": np.float32(0.01)})
+    assert cfg.max_steps == 50 and type(cfg.max_steps) is int and type(cfg.learning_rate) is float
+    assert from_dict(AnalysisConfig, {"window_revs": np.int32(8)}).window_revs == 8.0
+    with pytest.raises(ConfigError, match="expected an integer"):
+        from_dict(TrainConfig, {"max_steps": np.float64(50.5)})
+    with pytest.raises(ConfigError, match="expected an integer"):
+        from_dict(TrainConfig, {"max_steps": np.bool_(True)})
