@@ -227,3 +227,20 @@ def test_one_records_defect_leaves_every_other_records_windows_bitwise_unchanged
         for before, after in zip(base, out):
             np.testing.assert_array_equal(np.asarray(before)[others], np.asarray(after)[others], err_msg=name)
         assert any(not np.array_equal(np.asarray(x)[j], np.asarray(y)[j], equal_nan=True) for x, y in zip(base, out))
+
+
+@pytest.mark.parametrize("kw, needle", [
+    (dict(window_revs=-8.0), "window_revs = -8.0: must be a number above 0"),
+    (dict(hop_revs=0.0), "hop_revs = 0.0"),
+    (dict(harmonic=4.5), "harmonic = 4.5: must be a whole number"),
+    (dict(harmonic=0), "harmonic = 0"),
+    (dict(taper_revs=5.0), "taper_revs = 5.0: its two edges must fit"),
+    (dict(window_revs="8"), "window_revs = '8'"),
+])
+def test_analyze_refuses_impossible_arguments_by_name_and_takes_numpy_scalars(kw, needle):
+    c, r = tiny_records(n_counters=1)
+    batch = to_batch(campaign_from_frames(c, r), ["airspeed_kt"])
+    with pytest.raises(ValueError, match=needle):
+        analyze(batch, **kw)
+    out = analyze(batch, np.float32(8.0), harmonic=np.int64(4))
+    assert np.asarray(out.valid).any()

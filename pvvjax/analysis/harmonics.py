@@ -32,6 +32,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._arguments import check_arguments
 from .._lookup import Lookup, make_lookup, search
 from ..data.batch import RecordBatch, bucket_size, by_group, pad_rows, unpad_rows
 
@@ -465,6 +466,8 @@ def analyze(batch: RecordBatch, window_revs: float = 8.0, hop_revs: float | None
     sliced back), so that batches of similar size share one compiled program.
     """
     hop = window_revs if hop_revs is None else hop_revs
+    if not isinstance(batch.rev, jax.core.Tracer):
+        check_arguments(window_revs, hop, harmonic, taper_revs, start_revs)
     if plan is None and not isinstance(batch.rev, jax.core.Tracer):
         # Each record's sizes from its own samples: records that need the same share one call,
         # and no record's sampling (or a defect in it) moves another record's numbers.
