@@ -77,6 +77,19 @@ def _span(bounds) -> str:
     return f"[{'' if lo is None else f'{lo:g}'}, {'' if hi is None else f'{hi:g}'}]"
 
 
+def unit_hint(seen: float, typical: float, units: dict[str, float], what: str = "") -> str:
+    """The likely unit of a value outside its plausible range, ranked by the value itself:
+    the units (name -> factor to the canonical unit) whose conversion brings `seen` within a
+    factor 1.5 of `typical`, nearest first ("in % of the nominal rotor speed?"); all of them
+    as a question where none does."""
+    fits = sorted((abs(np.log(seen * f / typical)), name) for name, f in units.items()
+                  if seen > 0 and abs(np.log(seen * f / typical)) < np.log(1.5))
+    prefix = f"{what} in " if what else "in "
+    if fits:
+        return prefix + " or ".join(name for _, name in fits) + "? (the values seen fit it)"
+    return prefix + " or ".join(units) + "?"
+
+
 def _sample_rule(key, vals, file, column, problems, hint=""):
     """Per-sample error and warning bounds of `LIMITS[key]` on `vals`."""
     err, warn, _ = LIMITS[key]
@@ -133,8 +146,10 @@ def plausibility(df: pd.DataFrame, file: str, aircraft: Aircraft, harmonic: int,
         if axis in df:
             _horizontal_rule(axis, t, _numeric(df[axis]), az, rpm, file, problems)
     n = len(problems)
-    _sample_rule("rotor_rpm / nominal", rpm / aircraft.nominal_rpm, file, "rotor_rpm", problems,
-                 f" (nominal {aircraft.nominal_rpm:g} rpm); rad/s or rev/s?")
+    nominal = aircraft.nominal_rpm
+    _sample_rule("rotor_rpm / nominal", rpm / nominal, file, "rotor_rpm", problems,
+                 f" (nominal {nominal:g} rpm); " + unit_hint(float(np.median(rpm)), nominal, {
+                     "% of the nominal rotor speed": nominal / 100.0, "rad/s": 30.0 / np.pi, "rev/s or Hz": 60.0}))
     if all(p.warning for p in problems[n:]) and "azimuth_deg" in df:  # against a rotor speed in rpm
         _azimuth_rule(t, _numeric(df["azimuth_deg"]), rpm, file, problems)
     if all(p.warning for p in problems):  # the azimuth given, or the one its rotor speed integrates to
@@ -164,8 +179,9 @@ def plausibility(df: pd.DataFrame, file: str, aircraft: Aircraft, harmonic: int,
     for bounds, warning in ((err, False), (warn, True)):
         if _outside(ct_sigma, bounds):
             problems.append(Problem(file, "gross_weight_lb", None,
-                                    f"blade loading C_T/σ {ct_sigma:.3g} at {w:g} lb outside {_span(bounds)}: "
-                                    "weight in kg or N?", warning=warning))
+                                    f"blade loading C_T/σ {ct_sigma:.3g} at {w:g} lb outside {_span(bounds)}: " +
+                                    unit_hint(ct_sigma, 0.08, {"kg": 2.20462, "N": 0.224809,
+                                                               "tonnes": 2204.62}, "weight"), warning=warning))
             break
     return problems
 
