@@ -237,6 +237,31 @@ def experiment(name: str):
     return mod
 
 
+def research(name: str):
+    """The module of research/NAME.py (a script of the lab, not a package)."""
+    import importlib.util
+    import sys
+
+    spec = importlib.util.spec_from_file_location(name, Path(__file__).parents[1] / "research" / f"{name}.py")
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[name] = mod  # its dataclasses' annotations resolve in their module
+    spec.loader.exec_module(mod)
+    return mod
+
+
+class LinearLearner:
+    """Least squares with an intercept, a nuisance learner for tests of the cross-fitted tests
+    over many simulated draws (their nuisances are linear; scikit-learn's own costs more in
+    checks than in fitting)."""
+
+    def fit(self, Z, y):
+        self.coef = np.linalg.lstsq(np.c_[np.ones(len(Z)), Z], y, rcond=None)[0]
+        return self
+
+    def predict(self, Z):
+        return np.c_[np.ones(len(Z)), Z] @ self.coef
+
+
 _SECTION_OF = {"hidden": ("ensemble", "hidden"), "seeds": ("ensemble", "seeds"), "folds": ("ensemble", "folds"),
                "split_seed": ("ensemble", "split_seed"), "offset_step_s": ("offset", "step_s"),
                "calibrate_offset": ("offset", "calibrate"), "offset_s": ("offset", "fixed_s"),

@@ -3,12 +3,11 @@ tuning and fresh seeds never overlap, every seed gives a null and its hidden wor
 one base, the families are dealt evenly with a fifth of the hidden worlds carrying two,
 each judged truth is the planted draw, and a config's mistake is an error naming it."""
 
-import importlib.util
 import json
-import sys
 from pathlib import Path
 
 import pytest
+from conftest import research
 
 from pvvjax.config import ConfigError
 
@@ -18,11 +17,7 @@ CONFIG = ROOT / "research" / "configs" / "worlds.toml"
 
 @pytest.fixture(scope="module")
 def bw():
-    spec = importlib.util.spec_from_file_location("benchmark_worlds", ROOT / "research" / "benchmark_worlds.py")
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = mod  # its dataclasses' annotations resolve in their module
-    spec.loader.exec_module(mod)
-    return mod
+    return research("benchmark_worlds")
 
 
 def test_the_fresh_table_has_sixty_nulls_sixty_hidden_worlds_and_a_fifth_with_two_effects(bw):

@@ -5,6 +5,7 @@ powerful where it is yes; checked by simulation against the stated level."""
 
 import numpy as np
 import pytest
+from conftest import LinearLearner
 from scipy import stats
 
 from pvvjax.discovery import capacity_test, cross_fit, gcm_test, holm, unit_folds
@@ -12,16 +13,6 @@ from pvvjax.discovery import capacity_test, cross_fit, gcm_test, holm, unit_fold
 UNITS, PER = 60, 20  # conditions, windows per condition
 
 
-class LinearRegression:
-    """Least squares with an intercept: the nuisance learner of the many-world calibrations
-    (the worlds' nuisances are linear; scikit-learn's own costs more in checks than in fit)."""
-
-    def fit(self, Z, y):
-        self.coef = np.linalg.lstsq(np.c_[np.ones(len(Z)), Z], y, rcond=None)[0]
-        return self
-
-    def predict(self, Z):
-        return np.c_[np.ones(len(Z)), Z] @ self.coef
 
 
 def _world(rng, effect=0.0, shared=1.0):
@@ -41,10 +32,10 @@ def test_at_five_per_cent_a_null_world_is_named_about_one_time_in_twenty():
     p, naive = [], []
     for _ in range(300):
         y, x, z, g = _world(rng)
-        p.append(gcm_test(y, x, g, z, learner=LinearRegression).p_value)
+        p.append(gcm_test(y, x, g, z, learner=LinearLearner).p_value)
         # The same products tested with windows as the units: the per-unit parts make it reject far more.
         fold = unit_folds(g)
-        r = cross_fit(y, z, fold, LinearRegression) * cross_fit(x, z, fold, LinearRegression)
+        r = cross_fit(y, z, fold, LinearLearner) * cross_fit(x, z, fold, LinearLearner)
         naive.append(2 * stats.norm.sf(abs(r.mean() / (r.std() / np.sqrt(r.size)))))
     rate = np.mean(np.array(p) < 0.05)
     assert 0.02 <= rate <= 0.085, rate  # 5 % within three Monte Carlo standard errors (1.3 points)
@@ -54,7 +45,7 @@ def test_at_five_per_cent_a_null_world_is_named_about_one_time_in_twenty():
 def test_a_candidate_with_its_own_effect_is_found_and_one_carried_by_the_inputs_is_not():
     rng = np.random.default_rng(1)
     y, x, z, g = _world(rng, effect=1.0)
-    assert gcm_test(y, x, g, z, learner=LinearRegression).p_value < 1e-3
+    assert gcm_test(y, x, g, z, learner=LinearLearner).p_value < 1e-3
     # A channel that follows a knee of an input, with a variation of its own that the residual does not
     # depend on: with trees as the nuisance learner, the knee is carried by the inputs and nothing is left.
     knee = np.maximum(z[:, 1] - 0.5, 0)
@@ -68,8 +59,8 @@ def test_a_candidate_with_its_own_effect_is_found_and_one_carried_by_the_inputs_
 def test_capacity_is_found_where_the_residual_is_a_function_of_the_inputs_and_not_in_noise():
     rng = np.random.default_rng(2)
     y, x, z, g = _world(rng)
-    assert capacity_test(y, z, g, learner=LinearRegression).p_value < 1e-4
-    noise = [capacity_test(rng.normal(size=y.size) + rng.normal(size=UNITS)[g], z, g, learner=LinearRegression).p_value
+    assert capacity_test(y, z, g, learner=LinearLearner).p_value < 1e-4
+    noise = [capacity_test(rng.normal(size=y.size) + rng.normal(size=UNITS)[g], z, g, learner=LinearLearner).p_value
              for _ in range(100)]
     assert np.mean(np.array(noise) < 0.05) <= 0.1
 

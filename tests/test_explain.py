@@ -6,6 +6,7 @@ the model's own inputs, and names a second effect given the first."""
 import numpy as np
 import pandas as pd
 import pytest
+from conftest import LinearLearner
 
 from pvvjax.discovery import Candidate, carried_by, explain
 
@@ -16,15 +17,6 @@ CANDS = [Candidate("input", ("yaw_rate_dps",), {"transform": "abs"}), Candidate(
          Candidate("threshold", ("rotor_rpm",), {"knee": 0.5, "above": True, "softness": 0.05})]
 
 
-class Linear:
-    """Least squares with an intercept (the calibration's many draws; their nuisance is linear)."""
-
-    def fit(self, Z, y):
-        self.coef = np.linalg.lstsq(np.c_[np.ones(len(Z)), Z], y, rcond=None)[0]
-        return self
-
-    def predict(self, Z):
-        return np.c_[np.ones(len(Z)), Z] @ self.coef
 
 
 def _world(rng, yaw=0.0, sideslip=0.0):
@@ -64,7 +56,7 @@ def test_a_second_effect_is_named_given_the_first():
 
 def test_where_nothing_is_missing_nothing_is_named_at_about_the_level():
     rng = np.random.default_rng(2)
-    named = [bool(explain(y, t, INPUTS, g, candidates=CANDS, learner=Linear).named)
+    named = [bool(explain(y, t, INPUTS, g, candidates=CANDS, learner=LinearLearner).named)
              for y, t, g in (_world(rng) for _ in range(60))]
     assert np.mean(named) <= 0.12  # 5 % family-wise, within about three Monte Carlo errors
 

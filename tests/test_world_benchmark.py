@@ -2,14 +2,13 @@
 first, both named and the larger first on a two-effect world, clean nulls, spurious extras,
 the attributable shrink against the null of the seed and the parameter's error."""
 
-import importlib.util
 import json
-import sys
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
+from conftest import research
 
 from pvvjax.synth import EffectConfig, SynthConfig, generate
 
@@ -18,11 +17,7 @@ ROOT = Path(__file__).parents[1]
 
 @pytest.fixture(scope="module")
 def wb():
-    spec = importlib.util.spec_from_file_location("world_benchmark", ROOT / "research" / "world_benchmark.py")
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = mod
-    spec.loader.exec_module(mod)
-    return mod
+    return research("world_benchmark")
 
 
 def _effect(operator, channels, **parameters):

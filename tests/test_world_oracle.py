@@ -2,14 +2,13 @@
 planted effect that a baseline lacks and nothing where the baseline holds it; the scores
 count a named effect against the whole truth, base terms included."""
 
-import importlib.util
 import json
-import sys
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
+from conftest import research
 
 from pvvjax.analysis import DB_INPUTS
 from pvvjax.data.campaign import campaign_from_frames
@@ -21,11 +20,7 @@ ROOT = Path(__file__).parents[1]
 
 @pytest.fixture(scope="module")
 def wo():
-    spec = importlib.util.spec_from_file_location("world_oracle", ROOT / "research" / "world_oracle.py")
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = mod
-    spec.loader.exec_module(mod)
-    return mod
+    return research("world_oracle")
 
 
 def _windows(wo, cfg, records):

@@ -2,26 +2,18 @@
 cannot carry is listed and sized by switching it off, a planted effect's size is the world
 minus the null of its seed (generated apart), and the floor is what noise and scatter leave."""
 
-import importlib.util
-import sys
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import research
 
 from pvvjax.synth import CampaignDraw, Planted, Span, draw_campaign, generate, law_amplitudes
-
-ROOT = Path(__file__).parents[1]
 
 
 @pytest.fixture(scope="module")
 def wt():
-    spec = importlib.util.spec_from_file_location("world_truth", ROOT / "research" / "world_truth.py")
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = mod
-    spec.loader.exec_module(mod)
-    return mod
+    return research("world_truth")
 
 
 @pytest.fixture(scope="module")
