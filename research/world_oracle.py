@@ -76,9 +76,8 @@ BASE_ACCEPT = {
 
 
 def _window_means(t, v, a, b):
-    c = np.concatenate([[0.0], np.cumsum(v)])
-    i0, i1 = np.searchsorted(t, a), np.searchsorted(t, b)
-    return (c[i1] - c[i0]) / np.maximum(i1 - i0, 1)
+    """Means of the samples `v` (at times `t`) in each window [a, b)."""
+    return wt._means(v, np.searchsorted(t, a), np.searchsorted(t, b))
 
 
 def features(world: dict, truth: dict, win: pd.DataFrame, offset_s: float) -> dict[str, np.ndarray]:

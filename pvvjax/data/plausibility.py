@@ -171,18 +171,7 @@ def plausibility(df: pd.DataFrame, file: str, aircraft: Aircraft, harmonic: int,
         problems.append(Problem(file, s, None, "within 0–1 throughout the record while the other sticks are not: a "
                                 "fraction, not %? (map it with unit = \"fraction\")", warning=True))
 
-    w, sigma = float(_numeric(df["gross_weight_lb"])[0]), float(_numeric(df["density_ratio"])[0])
-    rho = aircraft.rho0_slug_ft3 * sigma
-    ct_sigma = w / (rho * aircraft.disk_area_ft2 * (aircraft.nominal_omega_rad_s * aircraft.rotor_radius_ft) ** 2
-                    ) / aircraft.solidity
-    err, warn, _ = LIMITS["blade loading"]
-    for bounds, warning in ((err, False), (warn, True)):
-        if _outside(ct_sigma, bounds):
-            problems.append(Problem(file, "gross_weight_lb", None,
-                                    f"blade loading C_T/σ {ct_sigma:.3g} at {w:g} lb outside {_span(bounds)}: " +
-                                    unit_hint(ct_sigma, 0.08, {"kg": 2.20462, "N": 0.224809,
-                                                               "tonnes": 2204.62}, "weight"), warning=warning))
-            break
+    _blade_loading_rule(df, aircraft, file, problems)
     return problems
 
 
@@ -237,6 +226,23 @@ def _vibration_rule(t, x, rpm, file, problems, column: str = "az_g") -> bool:
         problems.append(Problem(file, column, None, text))
         return True
     return False
+
+
+def _blade_loading_rule(df, aircraft: Aircraft, file, problems):
+    """The record's blade loading C_T/σ at its weight and density, at nominal rotor speed,
+    within the plausible span: outside it, the weight is likely in another unit."""
+    w, sigma = float(_numeric(df["gross_weight_lb"])[0]), float(_numeric(df["density_ratio"])[0])
+    rho = aircraft.rho0_slug_ft3 * sigma
+    ct_sigma = w / (rho * aircraft.disk_area_ft2 * (aircraft.nominal_omega_rad_s * aircraft.rotor_radius_ft) ** 2
+                    ) / aircraft.solidity
+    err, warn, _ = LIMITS["blade loading"]
+    for bounds, warning in ((err, False), (warn, True)):
+        if _outside(ct_sigma, bounds):
+            problems.append(Problem(file, "gross_weight_lb", None,
+                                    f"blade loading C_T/σ {ct_sigma:.3g} at {w:g} lb outside {_span(bounds)}: " +
+                                    unit_hint(ct_sigma, 0.08, {"kg": 2.20462, "N": 0.224809,
+                                                               "tonnes": 2204.62}, "weight"), warning=warning))
+            break
 
 
 def _harmonic_rule(az, azimuth, harmonic: int, file, problems):
