@@ -129,8 +129,9 @@ def explain(residual, table: pd.DataFrame, inputs, groups, *, candidates: list[C
     fold = unit_folds(groups, folds, seed)
     capacity = capacity_test(y, Z, groups, folds, seed, learner)
     pool = candidates if candidates is not None else library(table, model_inputs=tuple(inputs))
-    carried = tuple(c.key for c in pool if carried_by(c, inputs))
-    pool = [c for c in pool if not carried_by(c, inputs)]
+    of_inputs = [carried_by(c, inputs) for c in pool]
+    carried = tuple(c.key for c, k in zip(pool, of_inputs) if k)
+    pool = [c for c, k in zip(pool, of_inputs) if not k]
     X = np.column_stack([values(c, table) for c in pool]) if pool else np.zeros((len(y), 0))
     keep = np.ptp(X, axis=0) > 0 if X.size else np.zeros(0, bool)
     pool, X = [c for c, k in zip(pool, keep) if k], X[:, keep]
