@@ -24,7 +24,7 @@ _EXPORTS = {
              "RecordBatch", "advance_ratio", "blade_loading", "campaign_from_frames", "derive_features",
              "load_campaign", "maneuver_load_factor", "thrust_coefficient", "to_batch", "validate_campaign",
              "write_campaign"],
-    "discovery": ["Candidate", "Discovery", "delag", "discover", "forward_select", "library", "localize",
+    "discovery": ["Candidate", "Discovery", "discover", "explain", "library", "localize",
                   "residual_windows", "summary", "window_table", "write_discovery"],
     "nets": ["condition_folds", "fit", "heldout_models", "load_params", "make_data", "mlp_apply", "mlp_init",
              "rbf_apply", "rbf_fit", "run_sweep"],

@@ -34,7 +34,6 @@ MODULES = [
     "discovery.residuals",
     "discovery.candidates",
     "discovery.effects",
-    "discovery.selection",
     "discovery.report",
     "dynamics.response",
     "dynamics.checks",

@@ -56,8 +56,16 @@ def _research(name: str):
 
 
 bw = _research("benchmark_worlds")
-matches = _research("discovery_benchmark").matches  # a named effect against the accepted forms
 wt = _research("world_truth")
+
+
+def matches(effect: dict, accept) -> bool:
+    """Whether a named effect is one of the accepted operator[:channel] forms."""
+    for a in accept:
+        op, _, ch = a.partition(":")
+        if effect["operator"] == op and (not ch or ch in effect["channels"]):
+            return True
+    return False
 
 
 def effect_size(world: dict, family: str, null: dict) -> float:

@@ -264,11 +264,7 @@ class LinearLearner:
 
 _SECTION_OF = {"hidden": ("ensemble", "hidden"), "seeds": ("ensemble", "seeds"), "folds": ("ensemble", "folds"),
                "split_seed": ("ensemble", "split_seed"), "offset_step_s": ("offset", "step_s"),
-               "calibrate_offset": ("offset", "calibrate"), "offset_s": ("offset", "fixed_s"),
-               "proposals": ("selection", "proposals"), "alpha": ("selection", "alpha"),
-               "permutations": ("selection", "permutations"), "source_tries": ("selection", "source_tries"),
-               "lag_test": ("lag_test", "enabled"), "lag_slow_s": ("lag_test", "slow_s"),
-               "resonance_probe": ("resonance", "probe"), "resonance_input": ("resonance", "as_input")}
+               "calibrate_offset": ("offset", "calibrate"), "offset_s": ("offset", "fixed_s")}
 
 
 def discovery_config(**settings):
@@ -419,40 +415,3 @@ def small_sweep(small_campaign_dir) -> Path:
     return cached_folder("sweeps", "results.parquet", make)
 
 
-_DISCOVERY_BASELINES: dict = {}
-
-
-@pytest.fixture
-def small_discovery(small_campaign_dir, monkeypatch):
-    """The small campaign's folder, with discovery's context and baseline (its peak nets,
-    their offset and replay) computed once per test process for each config and rule
-    constants: the tests that run `discover` on it with patched later stages share them.
-    Each run gets its own copy of the context (its replay cache shallow-copied)."""
-    import dataclasses
-
-    from pvvjax.discovery import _rules, _workflow
-
-    context, baseline = _workflow._context, _workflow._baseline
-
-    def key_of(campaign, cfg):
-        rules = {k: v for k, v in vars(_rules).items() if k.isupper()}
-        return campaign.fingerprint, repr(cfg), repr(sorted(rules.items()))
-
-    def shared_context(campaign, cfg, log):
-        key = key_of(campaign, cfg)
-        if key not in _DISCOVERY_BASELINES:
-            _DISCOVERY_BASELINES[key] = {"ctx": context(campaign, cfg, log)}
-        ctx = _DISCOVERY_BASELINES[key]["ctx"]
-        return dataclasses.replace(ctx, replay_params=dict(ctx.replay_params), cache=dict(ctx.cache))
-
-    def shared_baseline(ctx, clock, log, lag_trials):
-        entry = _DISCOVERY_BASELINES[key_of(ctx.campaign, ctx.cfg)]
-        if lag_trials not in entry:
-            entry[lag_trials] = (baseline(ctx, clock, log, lag_trials), ctx.replay_params, dict(ctx.cache))
-        base, ctx.replay_params, cache = entry[lag_trials]
-        ctx.cache.update(cache)
-        return base
-
-    monkeypatch.setattr(_workflow, "_context", shared_context)
-    monkeypatch.setattr(_workflow, "_baseline", shared_baseline)
-    return small_campaign_dir

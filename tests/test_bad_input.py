@@ -524,8 +524,7 @@ CONFIG = {
     "analysis hop below one sample": ("[analysis]\nhop_revs = 1e-6\n", "analysis.hop_revs"),
     "a campaign folder and a synthetic campaign at once": ('[campaign]\npath = "a"\nsynthetic = "b.toml"\n',
                                                            "campaign.path = 'a' and campaign.synthetic"),
-    "a discovery lag test without effect rounds": ("[discovery]\nmax_effects = 0\n[discovery.lag_test]\n"
-                                                   "enabled = true\n", "discovery.lag_test.enabled = true contradicts"),
+    "a discovery level that is not a probability": ("[discovery]\nlevel = 5.0\n", "discovery.level must lie in (0, 1)"),
     "a column map of scale 0": ('[campaign.columns.airspeed_kt]\nto = "airspeed_kt"\nscale = 0.0\n',
                                 "campaign.columns.airspeed_kt: scale 0"),
     "config list with a value twice": ('[sweep]\ndatabases = ["db1", "db1"]\n', "sweep.databases: 'db1' given twice"),

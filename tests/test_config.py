@@ -51,13 +51,11 @@ def test_full_config_round_trip(tmp_path):
     ("[discovery.ensemble]\nfolds = 2", "discovery.ensemble.folds = 2: must lie within 3 to 50"),
     ("[discovery.ensemble]\nhidden = [10, 0]", "discovery.ensemble.hidden = [10, 0]: give 1 to 8 layers of 1 to "
                                                "1024 units"),
-    ("[discovery.lag_test]\nenabled = 'yes'", "discovery.lag_test.enabled: expected"),
-    ("[discovery.lag_test]\nslow_s = 0.0", "discovery.lag_test.slow_s must be > 0 s, got 0.0"),
-    ("[discovery.selection]\nalpha = 1.5", "discovery.selection.alpha must lie in (0, 1), got 1.5"),
-    ("[discovery.selection]\nsource_tries = -1", "discovery.selection.source_tries must be >= 0, got -1"),
+    ("[discovery]\nlevel = 1.5", "discovery.level must lie in (0, 1) (a family-wise error rate), got 1.5"),
+    ("[discovery]\nlevel = 'five percent'", "discovery.level: expected"),
+    ("[discovery.selection]\nalpha = 0.05", "discovery.selection: unknown key"),
     ("[discovery.offset]\nbounds = [2.0, 1.0]", "discovery.offset.bounds must be [lo, hi] with lo < hi"),
-    ("[discovery.resonance]\nprobes = true", "discovery.resonance.probes: unknown key (did you mean 'probe'?)"),
-    ("[discovery]\nmin_shrink = 1.5", "discovery.min_shrink must lie in [0, 1), got 1.5"),
+    ("[discovery]\nlevels = 0.05", "discovery.levels: unknown key (did you mean 'level'?)"),
     ("[discovery]\ndatabase = 'db4'", "discovery.database: unknown ['db4']; use db1, db2, db3"),
     ("name = ", "not valid TOML"),
 ])
@@ -103,11 +101,11 @@ def test_config_hash_is_the_hash_of_every_setting_nested_sections_included(tmp_p
     cfg = ExperimentConfig()
     assert config_hash(cfg) == config_hash(load_config(_write(tmp_path, "")))
     alpha = cfg.with_(discovery=dataclasses.replace(
-        cfg.discovery, selection=dataclasses.replace(cfg.discovery.selection, alpha=0.05)))
+        cfg.discovery, ensemble=dataclasses.replace(cfg.discovery.ensemble, seeds=5)))
     assert config_hash(alpha) != config_hash(cfg)
     p = _write(tmp_path, """
-        [discovery.selection]
-        alpha = 0.05
+        [discovery.ensemble]
+        seeds = 5
     """)
     assert load_config(p) == alpha and config_hash(load_config(p)) == config_hash(alpha)
 

@@ -1,7 +1,9 @@
 """Naming by one calibrated test (`pvvjax.discovery.explain`): on window tables where the
-answer is known, it names the missing channel and nothing else, names nothing where nothing
-is missing (at about the stated rate over many draws), never tests a candidate built from
-the model's own inputs, and names a second effect given the first."""
+answer is known, it names the missing channel and nothing else, names nothing missing where
+nothing is (at about the stated rate over many draws), never tests a candidate built from
+the model's own inputs as missing but names their misfit by its form, names a second effect
+given the first, names a stand-in that the data cannot tell apart beside it, and tests
+responses given as columns."""
 
 import numpy as np
 import pandas as pd
@@ -37,26 +39,31 @@ def _world(rng, yaw=0.0, sideslip=0.0):
     return y, table, g
 
 
+def _missing(res):
+    return [n.candidate.key for n in res.named if n.kind == "missing"]
+
+
 def test_the_missing_channel_is_named_and_nothing_else():
     y, table, g = _world(np.random.default_rng(0), yaw=0.08)
     res = explain(y, table, INPUTS, g, candidates=CANDS)
-    assert [n.candidate.key for n in res.named] == [CANDS[0].key]
-    assert res.named[0].adjusted_p < 0.05 and res.named[0].theta > 0
-    assert CANDS[4].key in res.carried and CANDS[4].key not in set(res.tests.key)  # a knee of an input
+    assert _missing(res) == [CANDS[0].key]
+    assert res.named[0].adjusted_p < 0.05 and res.named[0].theta > 0 and res.named[0].tied == ()
+    assert CANDS[4].key in res.carried  # a knee of an input: never tested as missing
+    assert CANDS[4].key not in set(res.tests[res.tests["round"] > 0].key)
     assert set(res.tests["round"]) == {1, 2}  # a second round given it, where nothing passed
 
 
 def test_a_second_effect_is_named_given_the_first():
     y, table, g = _world(np.random.default_rng(1), yaw=0.08, sideslip=0.15)
     res = explain(y, table, INPUTS, g, candidates=CANDS)
-    keys = [n.candidate.key for n in res.named]
+    keys = _missing(res)
     assert set(keys[:2]) == {CANDS[0].key, CANDS[1].key} or set(keys[:2]) == {CANDS[0].key, CANDS[2].key}
     assert len(keys) == 2  # the pedal, which follows the sideslip, has nothing left once it is named
 
 
 def test_where_nothing_is_missing_nothing_is_named_at_about_the_level():
     rng = np.random.default_rng(2)
-    named = [bool(explain(y, t, INPUTS, g, candidates=CANDS, learner=LinearLearner).named)
+    named = [bool(_missing(explain(y, t, INPUTS, g, candidates=CANDS, learner=LinearLearner)))
              for y, t, g in (_world(rng) for _ in range(60))]
     assert np.mean(named) <= 0.12  # 5 % family-wise, within about three Monte Carlo errors
 
@@ -70,3 +77,40 @@ def test_candidates_of_the_inputs_are_carried_and_arguments_are_checked():
         explain(y, table, ("no_such",), g, candidates=CANDS)
     with pytest.raises(ValueError, match="one row per window"):
         explain(y[:-1], table, INPUTS, g, candidates=CANDS)
+
+
+def test_a_stand_in_the_data_cannot_tell_apart_is_named_beside_the_effect():
+    # The pedal follows the sideslip within a little noise: where the sideslip acts, either
+    # explains the residual and neither has anything left given the other.
+    rng = np.random.default_rng(4)
+    y, table, g = _world(rng, sideslip=0.15)
+    table["x:pedal_pct"] = 50 + 2 * table["x:sideslip_deg"] + 0.02 * rng.standard_normal(len(y))
+    res = explain(y, table, INPUTS, g, candidates=CANDS, learner=LinearLearner)
+    first = res.named[0]
+    assert {first.candidate.key, *first.tied} == {CANDS[1].key, CANDS[2].key}
+    assert _missing(res) == [first.candidate.key]  # the tied one is named with it, not again
+
+
+def test_a_misfit_of_the_inputs_is_named_by_its_form_never_as_missing():
+    # The residual holds a knee of rotor speed (an input): the capacity test finds it, and the
+    # knee is named as a misfit; no channel is named as missing.
+    rng = np.random.default_rng(5)
+    y, table, g = _world(rng)
+    rpm = table["x:rotor_rpm"].to_numpy()
+    y = 0.5 * np.maximum(rpm - 0.5, 0) + 0.02 * rng.standard_normal(len(y))
+    res = explain(y, table, INPUTS, g, candidates=CANDS)
+    assert res.capacity.p_value < 0.05
+    assert [(n.candidate.key, n.kind, n.round) for n in res.named] == [(CANDS[4].key, "misfit", 0)]
+    # Airspeed, which the advance ratio and rotor speed determine, is a form of the inputs too.
+    assert set(res.tests[res.tests["round"] == 0].key) == {CANDS[3].key, CANDS[4].key}
+
+
+def test_a_response_given_as_a_column_is_tested_and_named():
+    rng = np.random.default_rng(6)
+    y, table, g = _world(rng)
+    lag = rng.standard_normal(len(y)) * 0.5 + rng.standard_normal(UNITS)[g]  # a lagged prediction minus it
+    resp = [Candidate("lag", (), {"tau_s": 4.0}), Candidate("lag", (), {"tau_s": 8.0})]
+    cols = np.column_stack([lag, rng.standard_normal(len(y))])
+    res = explain(y + 0.2 * lag, table, INPUTS, g, candidates=CANDS[:3], responses=(resp, cols),
+                  learner=LinearLearner)
+    assert _missing(res) == [resp[0].key] and res.named[0].explained > 0

@@ -21,7 +21,7 @@ AS_WRITTEN = ("discovery", "paper")  # they assert on their own campaigns
 IN_A_KERNEL = {"offset_window": SMALL, "quickstart": SMALL, "dynamics": SMALL + QUICK_DYNAMICS}
 MICRO = {**IN_A_KERNEL, "paper": SMALL,
          "discovery": "\ncounts = dict(level=6, climb=1, descent=2, turn=1, roll=1, pushover=1, pullup=1, flare=1)"
-                      "\nseeds, max_steps, proposals = 1, 100, 1"}
+                      "\nseeds, max_steps = 1, 100"}
 
 
 def _cells(path: Path, settings: str, checks: bool):

@@ -8,14 +8,7 @@ the working directory the command runs in.
 from .._strict import ConfigError, from_dict, to_dict
 from ..data.units import ColumnMap
 from ._axes import AxesConfig
-from ._discovery import (
-    DiscoveryConfig,
-    EnsembleConfig,
-    LagTestConfig,
-    OffsetConfig,
-    ResonanceConfig,
-    SelectionConfig,
-)
+from ._discovery import DiscoveryConfig, EnsembleConfig, OffsetConfig
 from ._dynamic import MODELS as DYNAMIC_MODELS
 from ._dynamic import ZETA_RANGE, DynamicConfig
 from ._experiment import ExperimentConfig, config_hash, load_config, load_toml
@@ -42,12 +35,9 @@ __all__ = [
     "DynamicConfig",
     "EnsembleConfig",
     "ExperimentConfig",
-    "LagTestConfig",
     "OffsetConfig",
     "ReplayConfig",
-    "ResonanceConfig",
     "RunConfig",
-    "SelectionConfig",
     "SweepConfig",
     "TRANSIENT_MANEUVERS",
     "TrainConfig",

@@ -55,117 +55,33 @@ class OffsetConfig:
 
 
 @dataclass(frozen=True)
-class SelectionConfig:
-    """Which candidates a round proposes (`discovery.selection.forward_select`).
-
-    Attributes:
-        proposals: significant candidates retrained per round, in rank order.
-        alpha: significance level of the selection's block-permutation test.
-        permutations: permutations of that test.
-        source_tries: candidates built only from the channels that the model's derived
-            inputs are computed from but that it does not take (for db1, the load factor's
-            roll angle and pitch rate), tried beside the proposals, the best by held-out gain
-            first. The nets learn part of such an effect through the derived input, so the
-            residual can under-rank it. Each costs two retrainings a round.
-    """
-
-    proposals: int = 3
-    alpha: float = 0.01
-    permutations: int = 99
-    source_tries: int = 0
-
-    def __post_init__(self):
-        for name in ("proposals", "permutations"):
-            if getattr(self, name) < 1:
-                raise ValueError(f"discovery.selection.{name} must be >= 1, got {getattr(self, name)}")
-        if not 0 < self.alpha < 1:
-            raise ValueError(f"discovery.selection.alpha must lie in (0, 1), got {self.alpha}")
-        if self.source_tries < 0:
-            raise ValueError(f"discovery.selection.source_tries must be >= 0, got {self.source_tries}")
-        _within("discovery.selection.proposals", self.proposals, 1, 50)
-        _within("discovery.selection.permutations", self.permutations, 1, 100_000)
-        _within("discovery.selection.source_tries", self.source_tries, 0, 50)
-
-
-@dataclass(frozen=True)
-class LagTestConfig:
-    """The test for a slow lag of the vibration behind the flight state, before the first round.
-
-    Window nets and a lag of learnable τ between them and the measured PVV are trained
-    jointly; a τ (median over folds × seeds) of at least `slow_s` confirms a slow lag, which
-    window nets trained through it then add as the first effect. The rounds then propose no
-    lag of the prediction.
-
-    Attributes:
-        enabled: run the test.
-        slow_s: the learned τ from which a lag counts as slow, s. The learned τ includes the
-            fast rotor dynamics that the offset stands for, so it sits above them.
-    """
-
-    enabled: bool = False
-    slow_s: float = 2.0
-
-    def __post_init__(self):
-        if not self.slow_s > 0:
-            raise ValueError(f"discovery.lag_test.slow_s must be > 0 s, got {self.slow_s}")
-        _within("discovery.lag_test.slow_s", self.slow_s, 0, MAX_OFFSET_S, " s")
-
-
-@dataclass(frozen=True)
-class ResonanceConfig:
-    """Resonances of a structural mode at a rotor speed (a gain on the nets' output).
-
-    Attributes:
-        probe: in a round that proposes no resonance, train a gain on every rotor-speed band
-            at once and propose the band of the largest gain (the confirmation decides). A
-            mode the nets learned as a mean per rotor-speed level leaves no residual that a
-            prediction × band column explains.
-        as_input: also try a band as an extra network input beside its gain, the better
-            confirmed kept. Where the nets already learned most of a mode through rotor speed,
-            what is left is not proportional to their prediction.
-    """
-
-    probe: bool = False
-    as_input: bool = False
-
-
-@dataclass(frozen=True)
 class DiscoveryConfig:
-    """The discovery workflow (see `pvvjax.discovery`). Its decision rules, which no user
-    tunes, are constants beside the code (`pvvjax.discovery` documents them).
+    """The discovery workflow (see `pvvjax.discovery`): one test at one stated level decides
+    what is named; no other decision rule is a setting.
 
     Attributes:
         database: the model's database (db1, db2 or db3).
-        max_effects: effects added at most (0: the baseline and its residual map only).
-        min_shrink: the smallest relative drop of the ensemble's held-out RMS, where the
-            effect acts, that confirms an effect after retraining (or twice this over all
-            windows): less is retraining noise.
+        level: the family-wise error of each round of the test (Holm over the candidates):
+            on a campaign where nothing is missing, discovery names something at about this
+            rate.
+        max_effects: effects named at most (0: the baseline and its residual map only).
         exclude_channels: campaign channels never offered as candidates (e.g. one a user
             knows to be derived from the vibration).
-        ensemble, offset, selection, lag_test, resonance: the sections above.
+        ensemble, offset: the sections above.
     """
 
     database: str = "db1"
+    level: float = 0.05
     max_effects: int = 3
-    min_shrink: float = 0.05
     exclude_channels: tuple[str, ...] = ()
     ensemble: EnsembleConfig = field(default_factory=EnsembleConfig)
     offset: OffsetConfig = field(default_factory=OffsetConfig)
-    selection: SelectionConfig = field(default_factory=SelectionConfig)
-    lag_test: LagTestConfig = field(default_factory=LagTestConfig)
-    resonance: ResonanceConfig = field(default_factory=ResonanceConfig)
 
     def __post_init__(self):
         _check_databases("discovery", (self.database,), "database")
+        if not 0 < self.level < 1:
+            raise ValueError(f"discovery.level must lie in (0, 1) (a family-wise error rate), got {self.level}")
         if self.max_effects < 0:
             raise ValueError(f"discovery.max_effects must be >= 0 (0: baseline and residual map only), "
                              f"got {self.max_effects}")
         _within("discovery.max_effects", self.max_effects, 0, 20)
-        if not 0 <= self.min_shrink < 1:
-            raise ValueError(f"discovery.min_shrink must lie in [0, 1), got {self.min_shrink}")
-        if self.max_effects == 0:  # no rounds: what runs in a round would be skipped without a word
-            asked = [k for k, on in (("lag_test.enabled", self.lag_test.enabled),
-                                     ("resonance.probe", self.resonance.probe)) if on]
-            if asked:
-                raise ValueError(f"discovery.{asked[0]} = true contradicts discovery.max_effects = 0 (no effect "
-                                 "rounds, where it runs); set max_effects >= 1 or turn it off")

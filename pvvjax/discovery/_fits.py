@@ -1,5 +1,5 @@
-"""Least-squares fits of discovery: a lag's time constant, a knee or band refined on the
-selection's design, the offset of a model."""
+"""Least-squares fits of discovery: a lag's time constant, a knee or a band, the offset of
+a model."""
 
 from __future__ import annotations
 
@@ -11,19 +11,17 @@ import numpy as np
 import optimistix as optx
 import pandas as pd
 
-from . import _rules
-from ._model import Model, _Ctx, _grid, _lag_grid, _lag_windows, _replay, _selection_column, _Windows, predictions
+from ._model import Model, _Ctx, _grid, _lag_grid, _replay, _Windows, predictions
 from .candidates import Candidate
 from .effects import band
-from .selection import _standardise, gains
 
 
 # The least-squares residuals are module functions with their data in `args` (optimistix's
 # fn(y, args)): a closure over the arrays would make them constants of the compiled solve, and
 # XLA would compile a new solve (~3 s) for every candidate and every fit.
 def _tau_residuals(log_tau, args):
-    y, tg, i, k, target = args
-    return _lag_grid(y, tg, jnp.exp(log_tau))[i, k] - target
+    y, tg, i, k, target, sw = args
+    return (_lag_grid(y, tg, jnp.exp(log_tau))[i, k] - target) * sw
 
 
 def _band(theta, center, width):
@@ -32,81 +30,78 @@ def _band(theta, center, width):
 
 
 def _refine_residuals(theta, args):
-    x, r, yhat, B, softness, center, width, operator, above, shape = args  # operator, above, shape: static
+    x, r, yhat, B, sw, softness, center, width, operator, above, shape = args  # operator, above, shape: static
     if operator == "threshold":
         u = (x - theta[0]) if above else (theta[0] - x)
         column = softness * jax.nn.softplus(u / softness)
     else:
         c, w = _band(theta, center, width)
         column = yhat * band((x - c) / w, shape)
-    A = jnp.column_stack([B, column])
-    coef = jnp.linalg.lstsq(A, r)[0]
-    return r - A @ coef
+    A = jnp.column_stack([B, column]) * sw[:, None]
+    coef = jnp.linalg.lstsq(A, r * sw)[0]
+    return r * sw - A @ coef
 
 
-def _fit_tau(yhat, meas, win: _Windows, full, taus, refine: bool = True) -> tuple[float, float]:
-    """Time constant of a lag of the (ensemble) prediction that best fits the measured PVV:
-    the best of `taus`, refined (if `refine`) by Levenberg–Marquardt in log τ. Returns (τ, SSE)."""
-    sse = [float(np.sum((_lag_windows(yhat[None], win, t)[0][full] - meas[full]) ** 2)) for t in taus]
-    t_best = float(taus[int(np.argmin(sse))])
-    if not refine:
-        return t_best, min(sse)
+def fit_lag(yhat, meas, win: _Windows, rows, tau_s: float, weights=None, bounds=(0.05, 120.0)) -> float:
+    """The time constant of a first-order lag of the prediction `yhat` (n,) that best fits
+    the measured PVV `meas` on `rows` (weighted least squares, `weights` per row: a bootstrap
+    over conditions keeps every shape), by Levenberg–Marquardt in log τ from `tau_s`; no
+    grid caps it (within `bounds`, s: beyond them a lag is a delay of nothing or a constant)."""
     i, k, to_grid, tg = _grid(win)
-    args = (jnp.asarray(to_grid(yhat)), jnp.asarray(tg), jnp.asarray(i[full]), jnp.asarray(k[full]),
-            jnp.asarray(meas[full]))
-    sol = optx.least_squares(_tau_residuals, optx.LevenbergMarquardt(rtol=1e-6, atol=1e-9), jnp.log(t_best), args,
+    w = np.ones(int(np.sum(rows))) if weights is None else np.asarray(weights, float)
+    args = (jnp.asarray(to_grid(yhat)), jnp.asarray(tg), jnp.asarray(i[rows]), jnp.asarray(k[rows]),
+            jnp.asarray(meas[rows]), jnp.asarray(np.sqrt(w)))
+    sol = optx.least_squares(_tau_residuals, optx.LevenbergMarquardt(rtol=1e-6, atol=1e-9), jnp.log(tau_s), args,
                              max_steps=64, throw=False)
     tau = float(jnp.exp(sol.value))
-    fit = float(jnp.sum(_tau_residuals(sol.value, args) ** 2))
-    # Within the grid's span: beyond it a lag only smooths the prediction flat.
-    ok = np.isfinite(fit) and fit <= min(sse) and min(taus) <= tau <= max(taus)
-    return (tau, fit) if ok else (t_best, min(sse))
+    return float(np.clip(tau, *bounds)) if np.isfinite(tau) else float(tau_s)
 
 
-def _lag_identified(tau: float, taus) -> bool:
-    """Whether a fitted lag time constant measures a lag: inside the grid `taus`, not at its
-    largest value, where the fit only asks for more smoothing (see `_confirm`)."""
-    return 0.0 < tau < max(taus) - 1e-9
-
-
-def _fit_offset(ctx: _Ctx, model: Model, with_lag: bool) -> Model:
-    """The offset (grid over `offset_bounds`) and, with `with_lag`, the lag time constant
-    (grid, then refined by LM at the best offset) that minimise the held-out window SSE of
-    the ensemble median (without `with_lag`, of the model with its own lag)."""
+def _fit_offset(ctx: _Ctx, model: Model) -> Model:
+    """The model at the offset (grid over `offset.bounds`, or `offset.fixed_s`) that
+    minimises the held-out window SSE of its ensemble median, its own lag applied."""
     d = ctx.cfg.discovery
     if not d.offset.calibrate:
         offsets = np.array([d.offset.fixed_s])
     else:
         offsets = np.arange(d.offset.bounds[0], d.offset.bounds[1] + 1e-9, d.offset.step_s)
-    best = (np.inf, 0.0, 0.0)
+    best = (np.inf, 0.0)
     for off in offsets:
         win = _replay(ctx, float(off))
         full = win.table.weight.to_numpy() >= 0.999
-        meas = win.table.measured_g.to_numpy()
-        yhat = np.median(predictions(ctx, model._replace(lag_tau_s=0.0) if with_lag else model, win), axis=0)
-        if with_lag:
-            tau, sse = _fit_tau(yhat, meas, win, full, _rules.LAG_TAUS, refine=False)
-        else:
-            tau, sse = model.lag_tau_s, float(np.sum((yhat[full] - meas[full]) ** 2))
+        yhat = np.median(predictions(ctx, model, win), axis=0)
+        sse = float(np.sum((yhat[full] - win.table.measured_g.to_numpy()[full]) ** 2))
         if sse < best[0]:
-            best = (sse, float(off), tau, yhat, meas, full)
-    tau = best[2]
-    if with_lag:
-        win = _replay(ctx, best[1])
-        tau = _fit_tau(best[3], best[4], win, best[5], sorted({tau, *_rules.LAG_TAUS}))[0]
-    return model._replace(offset_s=best[1], lag_tau_s=tau)
+            best = (sse, float(off))
+    return model._replace(offset_s=best[1])
 
 
-def _refine(c: Candidate, residual, cands: pd.DataFrame, prediction, base=None) -> Candidate:
+def _standardise(A):
+    """Columns centred and scaled to unit spread; constant columns dropped."""
+    A = np.asarray(A, float)
+    sd = A.std(axis=0)
+    return ((A - A.mean(axis=0)) / np.where(sd > 0, sd, 1.0))[:, sd > 0]
+
+
+def _refine(c: Candidate, residual, cands: pd.DataFrame, prediction, base=None, weights=None) -> Candidate:
     """Refine a knee, or a resonance's centre and width, by variable-projection least
     squares: residual ≈ b0 + base·β + b·candidate(θ) (for a resonance, a gain:
-    b·prediction·band(θ)), (b0, β, b) solved inside, θ by LM. `base`: the selection's floor
-    covariates on the same windows (a fit without them moves the knee or band to where the
-    floor explains as much: measured, a band refined 267.5 → 264.2 rpm that the selection
-    credited with a held-out gain of −0.10 against the grid's 0.08). A resonance stays in its
-    grid cell: the centre within one grid width of the grid's (c0 + w0·tanh θ0), the width
-    within a factor 2 (w0·2^tanh θ1); a band that walks further is another candidate, one the
-    selection did not choose (a free fit moved 267.5 → 257.2 rpm, which did not confirm)."""
+    b·prediction·band(θ)), (b0, β, b) solved inside, θ by Levenberg–Marquardt.
+
+    Args:
+        c: the candidate (other operators are returned as they are).
+        residual, prediction: (n,) per window, g. cands: the `window_table` of the windows.
+        base: (n, p) covariates fitted beside it (the model's inputs: a knee of a channel
+            that follows them would otherwise take their part).
+        weights: (n,) per window (a bootstrap over conditions keeps every shape).
+
+    Returns:
+        The candidate with the fitted parameters, or `c` where the fit does not lower the
+        error or leaves the data: a knee beyond the 2-98 % range of its channel is a line
+        through a few windows; a band stays within one width of where the test found it and
+        its width within a factor 2 (further, it is another candidate, which the test did
+        not name).
+    """
     if c.operator not in ("threshold", "resonance"):
         return c
     x = jnp.asarray(cands[f"x:{c.channels[0]}"].to_numpy())
@@ -114,7 +109,8 @@ def _refine(c: Candidate, residual, cands: pd.DataFrame, prediction, base=None) 
     # Standardised (float32 least squares).
     B = jnp.asarray(np.column_stack([np.ones(len(x)), *([] if base is None else [_standardise(np.asarray(base))])]))
     f32 = lambda v: jnp.asarray(v, jnp.float32)  # noqa: E731
-    args = (x, jnp.asarray(residual), jnp.asarray(prediction), B, f32(p.get("softness", 1.0)),
+    sw = jnp.asarray(np.sqrt(np.ones(len(x)) if weights is None else np.asarray(weights, float)))
+    args = (x, jnp.asarray(residual), jnp.asarray(prediction), B, sw, f32(p.get("softness", 1.0)),
             f32(p.get("center", 0.0)), f32(p.get("width", 1.0)), c.operator, bool(p.get("above", True)),
             p.get("shape", "gaussian"))
     th0 = jnp.array([p["knee"]]) if c.operator == "threshold" else jnp.zeros(2)
@@ -125,25 +121,9 @@ def _refine(c: Candidate, residual, cands: pd.DataFrame, prediction, base=None) 
     better = sse(sol.value) <= sse(th0)
     if not (np.all(np.isfinite(th)) and better):
         return c
-    lo, hi = float(x.min()), float(x.max())
+    lo, hi = np.quantile(np.asarray(x), [0.02, 0.98])
     if c.operator == "threshold":
-        return replace(c, parameters={**p, "knee": float(np.clip(th[0], lo, hi))})
+        # A knee beyond the bulk of the data is a line through a few windows, not a knee.
+        return replace(c, parameters={**p, "knee": float(th[0])}) if lo <= th[0] <= hi else c
     center, width = (float(v) for v in _band(sol.value, p["center"], p["width"]))
     return replace(c, parameters={**p, "center": float(np.clip(center, lo, hi)), "width": width})
-
-
-def _keep_better(grid: Candidate, refined: Candidate, win: _Windows, yhat, resid, rows, floor, folds: int, seed: int,
-                 log=print) -> Candidate:
-    """The refined candidate if the selection's design (its rows and floor covariates, the
-    same folds) credits it with at least the grid candidate's held-out gain, else the grid's.
-    `_refine` minimises the in-sample error, which a knee fitted to a few conditions can
-    lower without predicting the others (measured: knees refined to a held-out gain of 0.027
-    against the grid's 0.052, and 0.019 against 0.047)."""
-    if refined.key == grid.key:
-        return refined
-    cols = np.column_stack([_selection_column(c, win.values(c), yhat)[rows] for c in (grid, refined)])
-    g = gains(resid[rows], cols, win.table.condition.to_numpy()[rows], base=floor, folds=folds, seed=seed)
-    if g[1] >= g[0]:
-        return refined
-    log(f"  {grid.name}: refined to {refined.name}, held-out gain {g[1]:.3f} < {g[0]:.3f}: kept")
-    return grid

@@ -21,9 +21,11 @@ from ..nets.batched import stack_trees, train_nets
 from ..nets.networks import mlp_apply, mlp_init, scaling
 from ..replay.quasistatic import FEATURES, input_index
 from ..replay.tables import replay_all
-from . import _rules
 from .candidates import Candidate, values, window_table, window_tables
 from .effects import lag as _first_order_lag
+
+# Replay windows of the workflow start every revolution: fine enough to place a transient's peak.
+HOP_REVS = 1.0
 
 TRANSIENT = ("pullup", "pushover", "roll", "autorotation", "flare")
 # The canonical inputs each derived feature is computed from (`features`): a derived feature
@@ -33,22 +35,6 @@ _DERIVED_FROM = {
     "thrust_coefficient": ("gross_weight_lb", "density_ratio", "rotor_rpm", "mlf"),  # with the MLF as load factor
     "blade_loading": ("gross_weight_lb", "density_ratio", "rotor_rpm", "mlf"),
 }
-
-
-# The campaign channels the two derived inputs are computed from (`features`).
-_CHANNELS_OF = {"advance_ratio": ("airspeed_kt", "rotor_rpm"),
-                "mlf": ("roll_angle_deg", "pitch_rate_dps", "airspeed_kt")}
-
-
-def source_channels(names) -> frozenset[str]:
-    """The campaign channels that features or channels are computed from (a channel is its
-    own): blade loading from the weight, density, rotor speed and, through the MLF, the roll
-    angle, pitch rate and airspeed."""
-    out = set()
-    for n in names:
-        for k in _DERIVED_FROM.get(n, (n,)):
-            out.update(_CHANNELS_OF.get(k, (k,)))
-    return frozenset(out)
 
 
 # Campaign channels that the model's inputs determine exactly (airspeed = μ·ΩR).
@@ -136,19 +122,15 @@ def _predict(params, fold, x) -> np.ndarray:
 
 
 class Model(NamedTuple):
-    """A model under discovery: nets, extra inputs, additive effect terms, gains, offset
-    and an optional learned lag.
+    """A model under discovery: nets, extra inputs, gains, offset and an optional lag.
 
     Attributes:
         params: nets (k, seeds, ...). inputs: database inputs. extra: candidates added as
-        network inputs. terms: (candidate, (k, 2) intercept and coefficient per fold)
-        added to the nets' output (the nets are trained on the peaks minus the terms).
-        gains: candidates whose learned gain multiplies the nets' output (`gain_apply`; the
-        coefficients are in `params["gain"]`, in units of 1 / the candidate's `gain_unit`
-        parameter, default 1: see `_columns`).
+        network inputs. gains: candidates whose learned gain multiplies the nets' output
+        (`gain_apply`; the coefficients are in `params["gain"]`, in units of 1 / the
+        candidate's `gain_unit` parameter, default 1: see `_columns`).
         offset_s: input-to-vibration offset, s. lag_tau_s: first-order lag of the replayed
-        prediction, s (0: none). through_lag: the nets train on the replay windows with the
-        lag undone in their targets (`delag`), as the lag test trains them.
+        prediction, s (0: none).
     """
 
     params: dict
@@ -156,9 +138,7 @@ class Model(NamedTuple):
     extra: tuple[Candidate, ...] = ()
     offset_s: float = 0.0
     lag_tau_s: float = 0.0
-    terms: tuple = ()
     gains: tuple = ()
-    through_lag: bool = False
 
 
 @dataclass
@@ -252,7 +232,7 @@ def _replay(ctx: _Ctx, offset: float) -> _Windows:
     rep = jax.device_get(replay_all(model, ctx.recs, theta, settings=ctx.settings))
     W = rep.time.shape[1]
     # Input windows in record time: measured window edges (revolutions) -> time -> − offset.
-    a = np.asarray(ctx.recs.rev_start)[:, None] + _rules.HOP_REVS * np.arange(W)[None, :]
+    a = np.asarray(ctx.recs.rev_start)[:, None] + HOP_REVS * np.arange(W)[None, :]
     t0 = np.zeros((N, W))
     t1 = np.zeros((N, W))
     for i in range(N):
@@ -334,34 +314,6 @@ def _lag_windows(pred, win: _Windows, tau: float) -> np.ndarray:
 _lag_grid = jax.jit(_lag_rows)
 
 
-def delag(y, time_s, counter, tau_s: float, span: int = 4) -> np.ndarray:
-    """The input of a first-order lag whose output is `y`: u = y + τ·dy/dt per counter.
-
-    dy/dt is a central difference over ±`span` windows (one-sided at a counter's ends): an
-    8-revolution window series is smooth over that span, and a shorter difference would
-    amplify the harmonic analysis' noise by τ/Δt.
-
-    Args:
-        y, time_s, counter: (n,) window values, their times, s, and the counter of each
-            (windows of one counter in any order). tau_s: time constant, s (0: `y` itself).
-        span: half-width of the difference, windows.
-
-    Returns:
-        (n,) the de-lagged series.
-    """
-    y, t = np.asarray(y, float), np.asarray(time_s, float)
-    if tau_s <= 0:
-        return y.copy()
-    out = np.empty_like(y)
-    for idx in pd.Series(np.arange(len(y))).groupby(np.asarray(counter)).indices.values():
-        idx = idx[np.argsort(t[idx], kind="stable")]
-        n = np.arange(len(idx))
-        lo, hi = idx[np.maximum(n - span, 0)], idx[np.minimum(n + span, len(idx) - 1)]
-        dt = t[hi] - t[lo]
-        out[idx] = y[idx] + tau_s * np.divide(y[hi] - y[lo], dt, out=np.zeros(len(idx)), where=dt > 0)
-    return out
-
-
 def _inputs(model: Model, win: _Windows) -> np.ndarray:
     """The nets' columns: database inputs, extra inputs, then the gains' candidates."""
     return _columns(win.table[list(model.inputs)].to_numpy(np.float64), model, win.values)
@@ -381,20 +333,10 @@ def _gain_unit(c: Candidate) -> float:
     return c.parameters.get("gain_unit", 1.0)
 
 
-def _terms(model: Model, value, fold) -> np.ndarray:
-    """The additive effect terms of a model, (n,); `value(candidate)` gives its values."""
-    out = np.zeros(len(fold))
-    for c, coef in model.terms:
-        out += coef[fold, 0] + coef[fold, 1] * value(c)
-    return out
-
-
 def predictions(ctx: _Ctx, model: Model, win: _Windows) -> np.ndarray:
     """(S, n) held-out predictions of every window (weight > 0), per seed."""
     fold = ctx.counter_fold[win.table.i.to_numpy()]
     pred = _predict(model.params, fold, _inputs(model, win))
-    if model.terms:
-        pred = pred + _terms(model, win.values, fold)[None]
     return _lag_windows(pred, win, model.lag_tau_s)
 
 
@@ -429,13 +371,6 @@ def metrics(pred, win: _Windows, full=None) -> dict:
     ens = _rms_by_seed(np.median(np.atleast_2d(pred), axis=0)[None], win, full)[0]
     return dict(rms_g=float(med[0]), peak_error_g=float(med[1]), phase_error_s=float(med[2]), rms_by_seed=per[:, 0],
                 ensemble_rms_g=float(ens))
-
-
-def _selection_column(c: Candidate, v, yhat) -> np.ndarray:
-    """A candidate's column in the selection, from its values `v` per window: the values,
-    for a resonance times the prediction `yhat` (a mode magnifies the response, so its
-    residual is a·prediction·band: `gain_apply`)."""
-    return v * yhat if c.operator == "resonance" else v
 
 
 def _rms_by_seed(pred, win: _Windows, rows) -> np.ndarray:

@@ -1,75 +1,39 @@
-"""Discovery's outcome as typed records: a trial's confirmation, a named effect and a round
-(the discovery itself, `Discovery`, is built from them in `_workflow`)."""
+"""Discovery's outcome as typed records: a named effect and a round (the discovery itself,
+`Discovery`, is built from them in `_workflow`)."""
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from typing import Any, NamedTuple
+from dataclasses import dataclass, field
 
-import numpy as np
 import pandas as pd
 
 from .candidates import Candidate
 
-__all__ = ["Confirmation", "Effect", "Predicted", "Round"]
-
-
-class Predicted(NamedTuple):
-    """A model's held-out predictions (seeds, n) on its replay windows (`_Windows`): what two
-    trials are compared on, window by window."""
-
-    pred: np.ndarray
-    win: Any
-
-
-@dataclass(frozen=True)
-class Confirmation:
-    """A trial model tested against the current one (`_confirm._confirm`).
-
-    Attributes:
-        confirmed: the trial's effect confirms. why: why not ("" when it does).
-        pred: (seeds, n) the trial's held-out predictions, g, on `win`, its replay windows.
-        metrics: the trial's `metrics`.
-        shrink: relative drop of the ensemble's held-out RMS over all windows.
-        local: the same where the effect acts (`judged_in`, maneuver kinds joined by ", ").
-        region: where the effect acts and the RMS there before and after (`where`,
-            `before_rms_g`, `after_rms_g`).
-        ensemble: the ensemble's held-out RMS over all windows, before and after, g.
-    """
-
-    confirmed: bool
-    why: str
-    pred: np.ndarray | None
-    win: Any
-    metrics: dict
-    shrink: float
-    local: float
-    region: dict
-    judged_in: str
-    ensemble: tuple[float, float]
-
-    @classmethod
-    def not_run(cls) -> "Confirmation":
-        """The record of a test that did not run (its shrinks NaN)."""
-        return cls(False, "not run", None, None, {}, math.nan, math.nan, {}, "", (math.nan, math.nan))
+__all__ = ["Effect", "Round"]
 
 
 @dataclass(frozen=True)
 class Effect:
-    """A confirmed effect, in the order named.
+    """A named effect, in the order named.
 
     Attributes:
-        rank: 1 for the first named. round: the round that named it (0: the lag test).
+        rank: 1 for the first named. round: the test's round that named it (0: a misfit,
+            named by its form once the rounds end).
         name: in words. operator: the candidate's operator (`effects.OPERATORS`, or "lag").
         channels: the campaign channels it is built from (a lag: the model's inputs).
-        parameters: its fitted parameters (knee, centre, τ, coefficient, ...).
-        explained_fraction: of the residual, by the selection (or the retraining that
-            tested it). p_value: the selection's (or the retraining's) p-value.
-        region: where it acts and the held-out RMS there before and after (`where`,
-            `before_rms_g`, `after_rms_g`).
+        parameters: its fitted parameters (knee, centre and width, τ, ...).
+        explained_fraction: the share of the residual's variance (partialled out of the
+            model's inputs) it explains in its round. p_value: its Holm-adjusted p-value.
+        region: where the model with the named effects changed the prediction and the
+            held-out RMS there before and after (`where`, `before_rms_g`, `after_rms_g`).
         key: the candidate's key. candidate: the candidate as added.
-        found_in: the maneuver kind it was found in, or "all".
+        found_in: the windows it was tested on ("all").
+        kind: "missing" (beyond any function of the model's inputs) or "misfit" (a function
+            of them that the model did not learn).
+        statistic: its test's t on conditions.
+        intervals: per fitted parameter, its (low, high) over a bootstrap of conditions.
+        tied: the keys of the candidates the data cannot tell from it.
     """
 
     rank: int
@@ -84,6 +48,10 @@ class Effect:
     key: str
     candidate: Candidate
     found_in: str
+    kind: str = "missing"
+    statistic: float = math.nan
+    intervals: dict = field(default_factory=dict)
+    tied: tuple[str, ...] = ()
 
     def summary(self) -> dict:
         """Its entry in `discovery.json` (data-contract §3)."""
@@ -91,16 +59,19 @@ class Effect:
         return dict(rank=self.rank, name=self.name, operator=self.operator, channels=list(self.channels),
                     parameters={k: r(v) for k, v in self.parameters.items()},
                     explained_fraction=round(float(self.explained_fraction), 4), p_value=round(float(self.p_value), 4),
-                    region={k: r(v) for k, v in self.region.items()})
+                    region={k: r(v) for k, v in self.region.items()}, kind=self.kind,
+                    statistic=round(float(self.statistic), 4), adjusted_p=round(float(self.p_value), 6),
+                    intervals={k: [r(float(v)) for v in iv] for k, iv in self.intervals.items()},
+                    tied=list(self.tied))
 
 
 @dataclass(frozen=True)
 class Round:
-    """One round of discovery: every try of it and the effect it named.
+    """One round of discovery's test: every candidate tested in it and the effect it named.
 
     Attributes:
-        number: 0 for the lag test, then 1, 2, ...
-        tries: its rows of `Discovery.tries` (one per proposal and way it was added).
+        number: 1, 2, ... (0: the misfit's forms, tested once the rounds end).
+        tries: its rows of `Discovery.tries` (one per candidate).
         named: the effect it named, or None (the round that named nothing ends discovery).
     """
 

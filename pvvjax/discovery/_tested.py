@@ -1,0 +1,158 @@
+"""Discovery's decision as one calibrated test: the baseline's out-of-fold residual
+explained (`explain`), the named effects' parameters fitted by gradient with their spread over
+a bootstrap of conditions, then added to the model, which is retrained once.
+
+Candidates are the library of the window table (channels, magnitudes, rates, spreads, knees,
+bands, products) at the model's offset, and the responses: first-order lags of the model's
+own prediction (the lagged prediction minus the prediction) over a grid of time constants
+that only places the start of the fit, never caps it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import NamedTuple
+
+import numpy as np
+import pandas as pd
+
+from ..analysis.databases import DB_INPUTS
+from ._explain import Explanation, Named, explain
+from ._fits import _fit_offset, _refine, fit_lag
+from ._model import Model, _Ctx, _lag_windows, _replay, _Windows, metrics, predictions
+from ._train import _region, _train_model
+from .candidates import Candidate, library
+
+# Time constants of the lag candidates, s: a log grid from the rotor's fast response to lags
+# slower than most maneuvers (a named lag's τ is then fitted freely from the nearest).
+LAG_TAUS = tuple(float(0.25 * 2 ** (k / 2)) for k in range(13))
+
+# Draws of the bootstrap over conditions that gives each fitted parameter its interval.
+BOOTSTRAP = 40
+
+# A band's learned gain is trained in steps of 1 / GAIN_UNIT: Adam moves every parameter by
+# about one step, and in unit steps the nets' many weights take the mode before the one gain
+# grows.
+GAIN_UNIT = 10.0
+
+# The interval of a fitted parameter: these quantiles of its bootstrap draws.
+INTERVAL = (0.05, 0.95)
+
+
+class Fitted(NamedTuple):
+    """A named candidate with its parameters fitted on all conditions and their interval
+    (`INTERVAL` quantiles over the bootstrap), one (low, high) per fitted parameter."""
+
+    named: Named
+    candidate: Candidate
+    intervals: dict
+
+
+class Tested(NamedTuple):
+    """A tested discovery: the explanation, the named candidates fitted, and the model with
+    them (retrained once; the baseline where nothing was named)."""
+
+    explanation: Explanation
+    fitted: tuple[Fitted, ...]
+    model: Model
+
+
+def response_candidates(yhat, win: _Windows, taus=LAG_TAUS) -> tuple[list[Candidate], np.ndarray]:
+    """Lags of the model's prediction `yhat` (n,) on its replay windows: candidates and their
+    (n, len(taus)) columns, the lagged prediction minus the prediction."""
+    cols = [_lag_windows(yhat[None], win, t)[0] - yhat for t in taus]
+    return [Candidate("lag", (), {"tau_s": float(t)}) for t in taus], np.column_stack(cols)
+
+
+def bootstrap_weights(groups, draws: int, seed: int) -> np.ndarray:
+    """(draws, n) weights of a bootstrap over units: each draw deals the units with
+    replacement, and a row weighs as often as its unit was drawn (every shape kept)."""
+    units, inverse = np.unique(np.asarray(groups), return_inverse=True)
+    counts = np.random.default_rng(seed).multinomial(len(units), np.full(len(units), 1.0 / len(units)), size=draws)
+    return counts[:, inverse].astype(float)
+
+
+def _interval(draws) -> tuple[float, float]:
+    lo, hi = np.quantile(np.asarray(draws, float), INTERVAL)
+    return float(lo), float(hi)
+
+
+def _fit(n: Named, ctx: _Ctx, win: _Windows, rows, yhat, resid, table: pd.DataFrame, Z, groups) -> Fitted:
+    """A named candidate's parameters on all conditions, then on each bootstrap draw from
+    that fit: a lag's τ, a knee, a band's centre and width."""
+    c, seed = n.candidate, ctx.cfg.seed
+    meas = win.table.measured_g.to_numpy()
+    weights = bootstrap_weights(groups, BOOTSTRAP, seed)
+    if c.operator == "lag":
+        tau = fit_lag(yhat, meas, win, rows, c.parameters["tau_s"])
+        draws = [fit_lag(yhat, meas, win, rows, tau, weights=w) for w in weights]
+        return Fitted(n, replace(c, parameters={"tau_s": tau}), {"tau_s": _interval(draws)})
+    if c.operator not in ("threshold", "resonance"):
+        return Fitted(n, c, {})
+    base = None if n.kind == "misfit" else Z
+    fitted = _refine(c, resid[rows], table, yhat[rows], base=base)
+    names = ("knee",) if c.operator == "threshold" else ("center", "width")
+    draws = [_refine(fitted, resid[rows], table, yhat[rows], base=base, weights=w).parameters for w in weights]
+    return Fitted(n, fitted, {k: _interval([d[k] for d in draws]) for k in names})
+
+
+def _with_effects(ctx: _Ctx, model: Model, fitted) -> Model:
+    """The model with the fitted effects, retrained once: a lag of its prediction, a band as
+    a learned gain on the nets' output (a mode magnifies the whole response), any other
+    candidate as a network input at the model's offset; then the offset refitted."""
+    extra, gains, tau = list(model.extra), list(model.gains), model.lag_tau_s
+    for f in fitted:
+        c = f.candidate
+        if c.operator == "lag":
+            tau = c.parameters["tau_s"]
+        elif c.operator == "resonance":
+            gains.append(replace(c, parameters={**c.parameters, "gain_unit": GAIN_UNIT}))
+        else:
+            extra.append(replace(c, parameters={**c.parameters, "offset_s": model.offset_s}))
+    trial = model._replace(extra=tuple(extra), gains=tuple(gains), lag_tau_s=tau)
+    trial = trial._replace(params=_train_model(ctx, trial))
+    return _fit_offset(ctx, trial)
+
+
+def tested(ctx: _Ctx, model: Model, pred, log=print) -> Tested:
+    """Explain the residual of `model` (its held-out predictions `pred`, seeds × windows,
+    on its replay windows) at `discovery.level`, fit what is named and add it.
+
+    Returns:
+        `Tested`.
+    """
+    d = ctx.cfg.discovery
+    win = _replay(ctx, model.offset_s)
+    rows = win.table.weight.to_numpy() >= 0.999
+    yhat = np.median(pred, axis=0)
+    resid = win.table.measured_g.to_numpy() - yhat
+    table = win.cands[rows].reset_index(drop=True)
+    inputs = tuple(DB_INPUTS[d.database])
+    groups = win.table.condition.astype(str).to_numpy()[rows]
+    lags, L = response_candidates(yhat, win)
+    ex = explain(resid[rows], table, inputs, groups, candidates=library(table, model_inputs=inputs),
+                 responses=(lags, L[rows]), prediction=yhat[rows], level=d.level, folds=d.ensemble.folds,
+                 seed=ctx.cfg.seed, max_named=d.max_effects)
+    log(f"capacity of {d.database}: t = {ex.capacity.statistic:.2f}, p = {ex.capacity.p_value:.3g}; "
+        f"{len(ex.tests)} tests at {d.level:g} family-wise, named: "
+        + (", ".join(f"{n.candidate.name} ({n.kind}, p = {n.adjusted_p:.2g})" for n in ex.named) or "none"))
+    if not ex.named:
+        return Tested(ex, (), model)
+    Z = table[[f"x:{k}" for k in inputs]].to_numpy(float)
+    fitted = tuple(_fit(n, ctx, win, rows, yhat, resid, table, Z, groups) for n in ex.named)
+    return Tested(ex, fitted, _with_effects(ctx, model, fitted))
+
+
+def effect_region(ctx: _Ctx, before: Model, after: Model) -> dict:
+    """Where the added effects changed the prediction (the maneuver kinds holding 80 % of
+    the squared change), with the held-out RMS there before and after, on `after`'s windows."""
+    win = _replay(ctx, after.offset_s)
+    full = win.table.weight.to_numpy() >= 0.999
+    return _region(win, full, predictions(ctx, before, win), predictions(ctx, after, win))
+
+
+def held_out(ctx: _Ctx, model: Model) -> tuple[np.ndarray, _Windows, dict]:
+    """A model's held-out predictions on its replay windows and their `metrics`."""
+    win = _replay(ctx, model.offset_s)
+    pred = predictions(ctx, model, win)
+    return pred, win, metrics(pred, win)
