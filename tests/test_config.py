@@ -56,6 +56,8 @@ def test_full_config_round_trip(tmp_path):
     ("[discovery.selection]\nalpha = 0.05", "discovery.selection: unknown key"),
     ("[discovery.offset]\nbounds = [2.0, 1.0]", "discovery.offset.bounds must be [lo, hi] with lo < hi"),
     ("[discovery]\nlevels = 0.05", "discovery.levels: unknown key (did you mean 'level'?)"),
+    ("[discovery]\nsimulation = 'sim_g'", "discovery.simulation and discovery.simulation_inputs go together"),
+    ("[discovery]\nsimulation = 'sim_g'\nsimulation_inputs = ['sim_g']", "'sim_g' is the simulation's own output"),
     ("[discovery]\ndatabase = 'db4'", "discovery.database: unknown ['db4']; use db1, db2, db3"),
     ("name = ", "not valid TOML"),
 ])

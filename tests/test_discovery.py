@@ -71,6 +71,24 @@ def test_floor_features_are_what_the_inputs_determine():
     assert "thrust_coefficient" not in floor_features(DB_INPUTS["db2"])  # db2 has no load factor
 
 
+def test_what_inputs_compute_is_what_derive_features_computes_from_them():
+    # A derived feature is a function of the channels it depends on (moving one moves it),
+    # and of no fewer: the rules `computable` follows, against derive_features itself.
+    from pvvjax.data.features import derive_features
+    from pvvjax.discovery._model import computable
+
+    state = dict(airspeed_kt=120.0, rotor_rpm=258.0, roll_angle_deg=20.0, pitch_rate_dps=5.0, gross_weight_lb=16000.0,
+                 density_ratio=0.9)
+    f0 = derive_features(state)
+    moved = {ch: derive_features({**state, ch: 1.05 * v + 0.5}) for ch, v in state.items()}
+    for feature in ("advance_ratio", "mlf", "thrust_coefficient", "blade_loading"):
+        depends = {ch for ch, f in moved.items() if not np.isclose(float(f[feature]), float(f0[feature]), rtol=1e-5)}
+        assert feature in computable(depends), feature
+        for ch in depends:
+            assert feature not in computable(depends - {ch}), (feature, ch)
+    assert "roll_angle_deg" not in computable(DB_INPUTS["db1"])  # the MLF is one number of three channels
+
+
 def test_airspeed_is_determined_by_advance_ratio_and_rotor_speed():
     from pvvjax.data.constants import KT_TO_FT_S, RPM_TO_RAD_S
     from pvvjax.data.features import advance_ratio
@@ -319,3 +337,36 @@ def test_a_slow_lag_is_named_with_its_time_constant_and_its_interval(tmp_path):
     lo, hi = first.intervals["tau_s"]
     assert lo <= first.parameters["tau_s"] <= hi
     assert res.after["rms_g"] < res.before["rms_g"]
+
+
+@pytest.mark.check
+@pytest.mark.parametrize("hidden", [False, True])
+def test_the_users_own_simulation_is_a_baseline_and_what_it_lacks_is_named(hidden):
+    # A simulation that is the world's law without noise (the generator's own, taking the
+    # channels its law uses) leaves nothing to name but what the world adds to it: a hidden
+    # sideslip effect is named, beyond any function of the simulation's inputs; without it,
+    # nothing missing is named.
+    from conftest import SMALL_COUNTS, research
+
+    from pvvjax.config import ExperimentConfig, TrainConfig, from_dict
+    from pvvjax.data.campaign import campaign_from_frames
+    from pvvjax.discovery import discover
+    from pvvjax.synth import SynthConfig, generate
+
+    wt = research("world_truth")
+    effects = {**_BASE["effects"], **({"sideslip": {"enabled": True, "scale": 6.0}} if hidden else {})}
+    world = from_dict(SynthConfig, {**_BASE, "counts": SMALL_COUNTS, "name": "sim", "seed": 53, "effects": effects})
+    counters, records, _ = generate(world)
+    records = wt.with_simulation(world, records, spread=0.0)  # the base law, planted effects left out
+    inputs = ["airspeed_kt", "rotor_rpm", "gross_weight_lb", "density_ratio", "roll_angle_deg", "pitch_rate_dps",
+              "climb_rate_fpm"]
+    d = discovery_config(folds=5, simulation=wt.SIMULATION_COLUMN, simulation_inputs=inputs)
+    res = discover(campaign_from_frames(counters, records, source="sim"),
+                   ExperimentConfig(train=TrainConfig(max_steps=100), discovery=d), log=lambda m: None)
+    missing = [e for e in res.effects if e.kind == "missing"]
+    if hidden:
+        assert missing and any("sideslip" in k for k in (missing[0].key, *missing[0].tied)), [e.name for e in missing]
+        assert res.after["rms_g"] < res.before["rms_g"]
+    else:
+        assert missing == [], [e.name for e in missing]
+    assert res.database == f"simulation:{wt.SIMULATION_COLUMN}" and res.baseline.params == {}

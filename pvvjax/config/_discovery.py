@@ -67,6 +67,11 @@ class DiscoveryConfig:
         max_effects: effects named at most (0: the baseline and its residual map only).
         exclude_channels: campaign channels never offered as candidates (e.g. one a user
             knows to be derived from the vibration).
+        simulation: a column of every record that holds the user's own simulated PVV (g,
+            per sample, from whatever code produced it): the baseline instead of the
+            database's nets ("" for the nets). Its windows are the measured ones at offset 0.
+        simulation_inputs: the channels (or derived features) that simulation took as its
+            inputs: what explains the residual beyond any function of them is named.
         ensemble, offset: the sections above.
     """
 
@@ -74,6 +79,8 @@ class DiscoveryConfig:
     level: float = 0.05
     max_effects: int = 3
     exclude_channels: tuple[str, ...] = ()
+    simulation: str = ""
+    simulation_inputs: tuple[str, ...] = ()
     ensemble: EnsembleConfig = field(default_factory=EnsembleConfig)
     offset: OffsetConfig = field(default_factory=OffsetConfig)
 
@@ -85,3 +92,10 @@ class DiscoveryConfig:
             raise ValueError(f"discovery.max_effects must be >= 0 (0: baseline and residual map only), "
                              f"got {self.max_effects}")
         _within("discovery.max_effects", self.max_effects, 0, 20)
+        if bool(self.simulation) != bool(self.simulation_inputs):
+            raise ValueError("discovery.simulation and discovery.simulation_inputs go together: the column of the "
+                             "simulated PVV and the channels the simulation took as its inputs"
+                             + (f" (simulation = {self.simulation!r} has no inputs)" if self.simulation else
+                                f" (simulation_inputs = {list(self.simulation_inputs)} without a simulation)"))
+        if self.simulation in self.simulation_inputs:
+            raise ValueError(f"discovery.simulation_inputs: {self.simulation!r} is the simulation's own output")

@@ -30,7 +30,7 @@ import pandas as pd
 from scipy import sparse, stats
 
 from ._citest import UnitTest, capacity_test, cross_fit, default_learner, holm, regression_tests, unit_folds
-from ._model import _DERIVED_FROM, _determined
+from ._model import computable
 from .candidates import Candidate, library, values
 
 __all__ = ["Explanation", "Named", "carried_by", "explain", "neighbour_left"]
@@ -89,21 +89,11 @@ class Explanation(NamedTuple):
     level: float
 
 
-def _inputs_of(names) -> set[str]:
-    out = set()
-    for n in names:
-        out |= set(_DERIVED_FROM.get(n, (n,)))
-    return out
-
-
 def carried_by(c: Candidate, inputs) -> bool:
     """Whether a candidate is a function of the model's inputs: a static operator (`STATIC`)
-    of the inputs, of features computed from them only, or of channels they determine
-    (airspeed = μ·ΩR)."""
-    if c.operator not in STATIC:
-        return False
-    have = _inputs_of(inputs) | set(_determined(tuple(inputs)))
-    return all(ch in have or set(_DERIVED_FROM.get(ch, (None,))) <= have for ch in c.channels)
+    of channels or features computable from the inputs alone (`computable`: the advance
+    ratio from airspeed and rotor speed, airspeed from the advance ratio and rotor speed)."""
+    return c.operator in STATIC and set(c.channels) <= computable(inputs)
 
 
 def neighbour_left(X, Z, fold, neighbours: int = 30) -> np.ndarray:

@@ -37,6 +37,10 @@ _DERIVED_FROM = {
 }
 
 
+# The campaign channels the two derived inputs are computed from (`features`).
+_CHANNELS_OF = {"advance_ratio": ("airspeed_kt", "rotor_rpm"),
+                "mlf": ("roll_angle_deg", "pitch_rate_dps", "airspeed_kt")}
+
 # Campaign channels that the model's inputs determine exactly (airspeed = μ·ΩR).
 _DETERMINED_BY = {"airspeed_kt": ("advance_ratio", "rotor_rpm")}
 
@@ -46,6 +50,20 @@ def floor_features(inputs) -> tuple[str, ...]:
     on these can express anything built from them, so a misfit in them is the map's error
     floor (too few peaks to learn it), not a missing effect."""
     return tuple(inputs) + tuple(k for k, src in _DERIVED_FROM.items() if k not in inputs and set(src) <= set(inputs))
+
+
+def computable(inputs) -> frozenset[str]:
+    """The channels and derived features that are functions of `inputs` alone: the inputs,
+    the features computed from them (the advance ratio from airspeed and rotor speed, blade
+    loading from weight, density, rotor speed and the MLF, ...) and the channels they
+    determine (airspeed from the advance ratio and rotor speed), to a fixed point."""
+    rules = [*_CHANNELS_OF.items(), *_DERIVED_FROM.items(), *_DETERMINED_BY.items()]
+    have, grown = set(inputs), True
+    while grown:
+        new = {f for f, src in rules if f not in have and set(src) <= have}
+        have |= new
+        grown = bool(new)
+    return frozenset(have)
 
 
 def _determined(inputs) -> tuple[str, ...]:

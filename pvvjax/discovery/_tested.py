@@ -16,7 +16,6 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
-from ..analysis.databases import DB_INPUTS
 from ._explain import Explanation, Named, explain
 from ._fits import _fit_offset, _refine, fit_lag
 from ._model import Model, _Ctx, _lag_windows, _replay, _Windows, metrics, predictions
@@ -46,15 +45,6 @@ class Fitted(NamedTuple):
     named: Named
     candidate: Candidate
     intervals: dict
-
-
-class Tested(NamedTuple):
-    """A tested discovery: the explanation, the named candidates fitted, and the model with
-    them (retrained once; the baseline where nothing was named)."""
-
-    explanation: Explanation
-    fitted: tuple[Fitted, ...]
-    model: Model
 
 
 def response_candidates(yhat, win: _Windows, taus=LAG_TAUS) -> tuple[list[Candidate], np.ndarray]:
@@ -96,7 +86,36 @@ def _fit(n: Named, ctx: _Ctx, win: _Windows, rows, yhat, resid, table: pd.DataFr
     return Fitted(n, fitted, {k: _interval([d[k] for d in draws]) for k in names})
 
 
-def _with_effects(ctx: _Ctx, model: Model, fitted) -> Model:
+def tested(ctx: _Ctx, win: _Windows, pred, inputs, log=print, exclude=()) -> tuple[Explanation, tuple[Fitted, ...]]:
+    """Explain the residual of a baseline (its held-out predictions `pred`, seeds × windows,
+    on the replay windows `win`) beyond any function of its `inputs` (`x:` columns of the
+    window table) at `discovery.level`, and fit what is named.
+
+    Args:
+        exclude: channels never offered as candidates here (a simulation's own column).
+
+    Returns:
+        The `Explanation` and the named candidates fitted (`Fitted`), in order.
+    """
+    d = ctx.cfg.discovery
+    rows = win.table.weight.to_numpy() >= 0.999
+    yhat = np.median(pred, axis=0)
+    resid = win.table.measured_g.to_numpy() - yhat
+    table = win.cands[rows].reset_index(drop=True)
+    groups = win.table.condition.astype(str).to_numpy()[rows]
+    lags, L = response_candidates(yhat, win)
+    lib = [c for c in library(table, model_inputs=inputs) if not set(c.channels) & set(exclude)]
+    ex = explain(resid[rows], table, inputs, groups, candidates=lib, responses=(lags, L[rows]),
+                 prediction=yhat[rows], level=d.level, folds=d.ensemble.folds, seed=ctx.cfg.seed,
+                 max_named=d.max_effects)
+    log(f"capacity of the baseline: t = {ex.capacity.statistic:.2f}, p = {ex.capacity.p_value:.3g}; "
+        f"{len(ex.tests)} tests at {d.level:g} family-wise, named: "
+        + (", ".join(f"{n.candidate.name} ({n.kind}, p = {n.adjusted_p:.2g})" for n in ex.named) or "none"))
+    Z = table[[f"x:{k}" for k in inputs]].to_numpy(float)
+    return ex, tuple(_fit(n, ctx, win, rows, yhat, resid, table, Z, groups) for n in ex.named)
+
+
+def with_effects(ctx: _Ctx, model: Model, fitted) -> Model:
     """The model with the fitted effects, retrained once: a lag of its prediction, a band as
     a learned gain on the nets' output (a mode magnifies the whole response), any other
     candidate as a network input at the model's offset; then the offset refitted."""
@@ -114,41 +133,11 @@ def _with_effects(ctx: _Ctx, model: Model, fitted) -> Model:
     return _fit_offset(ctx, trial)
 
 
-def tested(ctx: _Ctx, model: Model, pred, log=print) -> Tested:
-    """Explain the residual of `model` (its held-out predictions `pred`, seeds × windows,
-    on its replay windows) at `discovery.level`, fit what is named and add it.
-
-    Returns:
-        `Tested`.
-    """
-    d = ctx.cfg.discovery
-    win = _replay(ctx, model.offset_s)
-    rows = win.table.weight.to_numpy() >= 0.999
-    yhat = np.median(pred, axis=0)
-    resid = win.table.measured_g.to_numpy() - yhat
-    table = win.cands[rows].reset_index(drop=True)
-    inputs = tuple(DB_INPUTS[d.database])
-    groups = win.table.condition.astype(str).to_numpy()[rows]
-    lags, L = response_candidates(yhat, win)
-    ex = explain(resid[rows], table, inputs, groups, candidates=library(table, model_inputs=inputs),
-                 responses=(lags, L[rows]), prediction=yhat[rows], level=d.level, folds=d.ensemble.folds,
-                 seed=ctx.cfg.seed, max_named=d.max_effects)
-    log(f"capacity of {d.database}: t = {ex.capacity.statistic:.2f}, p = {ex.capacity.p_value:.3g}; "
-        f"{len(ex.tests)} tests at {d.level:g} family-wise, named: "
-        + (", ".join(f"{n.candidate.name} ({n.kind}, p = {n.adjusted_p:.2g})" for n in ex.named) or "none"))
-    if not ex.named:
-        return Tested(ex, (), model)
-    Z = table[[f"x:{k}" for k in inputs]].to_numpy(float)
-    fitted = tuple(_fit(n, ctx, win, rows, yhat, resid, table, Z, groups) for n in ex.named)
-    return Tested(ex, fitted, _with_effects(ctx, model, fitted))
-
-
-def effect_region(ctx: _Ctx, before: Model, after: Model) -> dict:
-    """Where the added effects changed the prediction (the maneuver kinds holding 80 % of
-    the squared change), with the held-out RMS there before and after, on `after`'s windows."""
-    win = _replay(ctx, after.offset_s)
-    full = win.table.weight.to_numpy() >= 0.999
-    return _region(win, full, predictions(ctx, before, win), predictions(ctx, after, win))
+def effect_region(win: _Windows, before, after) -> dict:
+    """Where the added effects changed the prediction ((S, n) before and after on `win`):
+    the maneuver kinds holding 80 % of the squared change, with the held-out RMS there
+    before and after."""
+    return _region(win, win.table.weight.to_numpy() >= 0.999, before, after)
 
 
 def held_out(ctx: _Ctx, model: Model) -> tuple[np.ndarray, _Windows, dict]:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -18,9 +19,10 @@ from ..replay.quasistatic import make_settings, prepare
 from ._citest import UnitTest
 from ._explain import Explanation
 from ._fits import _fit_offset
-from ._model import HOP_REVS, Model, _Ctx, _lag_windows, _replay
+from ._model import HOP_REVS, Model, _Ctx, _lag_windows, metrics, predictions
 from ._results import Effect, Round
-from ._tested import effect_region, held_out, tested
+from ._simulation import placeholder_params, simulated_after, simulation_windows
+from ._tested import effect_region, held_out, tested, with_effects
 from ._train import _train_model
 from .candidates import Candidate, sample_series, values, window_table
 from .residuals import localize
@@ -33,7 +35,8 @@ class Discovery:
     """The outcome of `discover` (`summary` turns it into data-contract §3).
 
     Attributes:
-        campaign: path or name. database: the model's database.
+        campaign: path or name. database: the model's database, or "simulation:<column>"
+            for the user's own simulation as the baseline.
         baseline, final: the baseline and the final (augmented) `Model`.
         before, after: their held-out metrics (`metrics`: medians over seeds, `rms_by_seed`
             per seed, `ensemble_rms_g` of the median prediction).
@@ -141,6 +144,11 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
     effects' parameters with their intervals, and the model with them, retrained once (see
     the package docstring).
 
+    The baseline is the database's nets, or, with `discovery.simulation`, the user's own
+    simulation: a column of predicted vibration in every record, with the channels it took
+    as inputs (`discovery.simulation_inputs`); the named effects then join it as a lag of
+    its prediction and a linear term fitted out of fold by condition.
+
     Args:
         campaign: any campaign in the data-contract format, loaded or its folder.
         cfg: experiment config (`analysis`, `train` and `discovery` sections), or only the
@@ -152,23 +160,55 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
         `Discovery`.
     """
     campaign, cfg, name = _workflow_inputs("discover", campaign, cfg, name)
-    clock = Stopwatch()
+    d, clock = cfg.discovery, Stopwatch()
     with clock("prepare"):
         ctx = _context(campaign, cfg, log)
-    with clock("train_baseline"):
-        ctx.replay_params = _train_model(ctx, Model({}, tuple(DB_INPUTS[cfg.discovery.database])))
-    with clock("offset_and_replay"):
-        base = _fit_offset(ctx, Model(ctx.replay_params, tuple(DB_INPUTS[cfg.discovery.database])))
-        pred, win, before = held_out(ctx, base)
-    log(f"baseline {cfg.discovery.database}: offset {base.offset_s:.2f} s, held-out RMS {before['rms_g']:.4f} g, "
+    if d.simulation:
+        with clock("offset_and_replay"):
+            ctx.replay_params = placeholder_params(ctx)
+            win, pred = simulation_windows(ctx)
+        base, inputs, exclude = Model({}, tuple(d.simulation_inputs)), tuple(d.simulation_inputs), (d.simulation,)
+    else:
+        inputs, exclude = tuple(DB_INPUTS[d.database]), ()
+        with clock("train_baseline"):
+            ctx.replay_params = _train_model(ctx, Model({}, inputs))
+        with clock("offset_and_replay"):
+            base = _fit_offset(ctx, Model(ctx.replay_params, inputs))
+            pred, win, _ = held_out(ctx, base)
+    before = metrics(pred, win)
+    log(f"baseline {d.simulation or d.database}: offset {base.offset_s:.2f} s, held-out RMS {before['rms_g']:.4f} g, "
         f"peak error {before['peak_error_g']:.4f} g, phase error {before['phase_error_s']:.2f} s")
     localized = _localized(ctx, win, pred, log)
-    if cfg.discovery.max_effects == 0:
-        return _outcome(ctx, name or str(campaign.source), base, pred, before, None, base, clock.seconds, localized,
-                        log)
-    with clock("test"):
-        t = tested(ctx, base, pred, log)
-    return _outcome(ctx, name or str(campaign.source), base, pred, before, t, t.model, clock.seconds, localized, log)
+    ex, fitted, final, after_pred, after_win = None, (), base, pred, win
+    if d.max_effects > 0:
+        with clock("test"):
+            ex, fitted = tested(ctx, win, pred, inputs, log, exclude)
+        if fitted:
+            with clock("add_and_retrain"):
+                if d.simulation:
+                    final = base._replace(extra=tuple(f.candidate for f in fitted))
+                    after_pred = simulated_after(ctx, win, pred, fitted)
+                else:
+                    final = with_effects(ctx, base, fitted)
+                    after_pred, after_win, _ = held_out(ctx, final)
+    return _outcome(ctx, name or str(campaign.source), _Run(base, win, pred, before, ex, fitted, final, after_win,
+                                                           after_pred), clock.seconds, localized, log)
+
+
+class _Run(NamedTuple):
+    """What a discovery ran: the baseline model, its windows, predictions (S, n) and metrics;
+    the explanation and the fitted named effects (None and () without a test); the final
+    model, its windows and predictions."""
+
+    base: Model
+    win: object
+    pred: np.ndarray
+    before: dict
+    ex: Explanation | None
+    fitted: tuple
+    final: Model
+    after_win: object
+    after_pred: np.ndarray
 
 
 def _localized(ctx: _Ctx, win, pred, log) -> dict:
@@ -181,53 +221,51 @@ def _localized(ctx: _Ctx, win, pred, log) -> dict:
     return localized
 
 
-def _effects(ctx: _Ctx, base: Model, final: Model, t) -> list[Effect]:
+def _effects(run: _Run, before_there, after_there) -> list[Effect]:
     """The named effects as typed records: each with its test, fitted parameters and their
-    intervals, and where the model with them changed the prediction."""
-    if t is None or not t.fitted:
+    intervals, and where the model with them changed the prediction (predictions (S, n) of
+    the baseline and the final model on the final model's windows)."""
+    if not run.fitted:
         return []
-    region = effect_region(ctx, base, final)
+    region = effect_region(run.after_win, before_there, after_there)
     out = []
-    for rank, f in enumerate(t.fitted, start=1):
+    for rank, f in enumerate(run.fitted, start=1):
         n, c = f.named, f.candidate
         out.append(Effect(rank=rank, round=n.round, name=c.name, operator=c.operator,
-                          channels=tuple(c.channels) or tuple(base.inputs), parameters=_public_parameters(c),
+                          channels=tuple(c.channels) or tuple(run.base.inputs), parameters=_public_parameters(c),
                           explained_fraction=n.explained, p_value=n.adjusted_p, region=region, key=c.key, candidate=c,
                           found_in="all", kind=n.kind, statistic=n.statistic, intervals=f.intervals, tied=n.tied))
     return out
 
 
-def _outcome(ctx: _Ctx, name: str, base: Model, base_pred, before: dict, t, final: Model, seconds: dict,
-             localized: dict, log) -> Discovery:
+def _outcome(ctx: _Ctx, name: str, run: _Run, seconds: dict, localized: dict, log) -> Discovery:
     """Before and after on the final model's windows (the same counters and windows; the
     baseline re-predicted there if the offset moved), each effect's column as it was tested
     beside them."""
-    final_pred, win, after = held_out(ctx, final) if final is not base else (base_pred, None, before)
-    base_win = _replay(ctx, base.offset_s)
-    yb = np.median(base_pred, axis=0)
-    table = base_win.table.assign(predicted_before_g=yb)
-    if win is None:
-        table["predicted_after_g"] = yb
-    else:
-        table = table.merge(win.table[["counter", "window"]].assign(predicted_after_g=np.median(final_pred, axis=0)),
-                            on=["counter", "window"], how="left")
-    effects = _effects(ctx, base, final, t)
+    after = metrics(run.after_pred, run.after_win)
+    yb = np.median(run.pred, axis=0)
+    table = run.win.table.assign(predicted_before_g=yb)
+    table = table.merge(run.after_win.table[["counter", "window"]].assign(
+        predicted_after_g=np.median(run.after_pred, axis=0)), on=["counter", "window"], how="left")
+    before_there = run.pred if run.after_win is run.win else predictions(ctx, run.base, run.after_win)
+    effects = _effects(run, before_there, run.after_pred)
     for e in effects:  # for its partial-dependence plot
         c = e.candidate
         if c.operator == "lag":
-            table[f"effect_{e.rank}"] = _lag_windows(yb[None], base_win, c.parameters["tau_s"])[0] - yb
+            table[f"effect_{e.rank}"] = _lag_windows(yb[None], run.win, c.parameters["tau_s"])[0] - yb
         else:
-            v = base_win.values(c) if "offset_s" in c.parameters else values(c, base_win.cands)
+            v = values(c, run.win.cands)
             table[f"effect_{e.rank}"] = v * yb if c.operator == "resonance" else v
-    log(f"final: {len(effects)} effect(s); held-out RMS {before['rms_g']:.4f} -> {after['rms_g']:.4f} g")
-    ex: Explanation | None = None if t is None else t.explanation
+    log(f"final: {len(effects)} effect(s); held-out RMS {run.before['rms_g']:.4f} -> {after['rms_g']:.4f} g")
+    ex = run.ex
     tries = ex.tests if ex is not None else pd.DataFrame(columns=list(TEST_COLUMNS))
     by_round = {e.round: e for e in effects}
     typed = tuple(Round(int(n), tries[tries["round"] == n].reset_index(drop=True), by_round.get(int(n)))
                   for n in sorted(set(tries["round"])))
-    return Discovery(name, ctx.cfg.discovery.database, base, final, before, after, tuple(effects), tries, localized,
-                     table, seconds, None if ex is None else ex.capacity, () if ex is None else ex.carried,
-                     ctx.cfg.discovery.level, typed)
+    d = ctx.cfg.discovery
+    return Discovery(name, f"simulation:{d.simulation}" if d.simulation else d.database, run.base, run.final,
+                     run.before, after, tuple(effects), tries, localized, table, seconds,
+                     None if ex is None else ex.capacity, () if ex is None else ex.carried, d.level, typed)
 
 
 def summary(res: Discovery) -> dict:
