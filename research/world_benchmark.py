@@ -15,7 +15,12 @@ truth and the null world of its seed:
 - parameter error: |fitted − true| / true of the first right effect's parameter.
 
     python research/world_benchmark.py research/configs/worlds.toml [--fresh] [--only a,b] [--out DIR]
-        [--docs]   # also research/discovery-benchmark.md (fresh seeds only)
+        [--lane simulation] [--docs]   # also research/discovery-benchmark.md (fresh seeds only)
+
+The db1 lane (the default) runs discovery from the db1 nets; the simulation lane from the
+world's base law with its coefficients drawn wrong and its planted effects left out
+(`world_truth.with_simulation`), given as a column with the channels that law takes: a lane
+whose null worlds have nothing missing.
 
 Resumes: a world whose row is in OUT/rows.csv is read back, not run again; OUT/provenance.json
 keeps the commit and date the run started at.
@@ -78,7 +83,7 @@ def effect_size(world: dict, family: str, null: dict) -> float:
     return float(np.sqrt(np.mean(d**2)))
 
 
-def run_world(world: dict, out: Path, cfg: ExperimentConfig | None = None) -> dict:
+def run_world(world: dict, out: Path, cfg: ExperimentConfig | None = None, lane: str = "db1") -> dict:
     """Generate a world, write its truth file (the generator's truth, the draws, the judged
     truth and every discrepancy against db1 with its size and the world's floor:
     `world_truth.discrepancies`), run `discover` with the defaults (`cfg`: other settings,
@@ -90,18 +95,22 @@ def run_world(world: dict, out: Path, cfg: ExperimentConfig | None = None) -> di
         (out / sub).mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     counters, records, _ = generate(world["synth"])
-    truth = {**bw.world_truth(world), "discrepancies": wt.discrepancies(world["synth"], records, world["drawn"])}
+    truth = {**bw.world_truth(world),
+             "discrepancies": wt.discrepancies(world["synth"], records, world["drawn"], lane=lane)}
+    if lane == "simulation":
+        records = wt.with_simulation(world["synth"], records)
     (out / "truth" / f"{world['name']}.truth.json").write_text(json.dumps(truth, indent=1))
     t_truth = time.perf_counter() - t0
     campaign = campaign_from_frames(counters, records, aircraft=world["synth"].aircraft_constants(),
                                     source=world["name"])
-    cfg = cfg or ExperimentConfig(name=world["name"],
-                                  discovery=from_dict(DiscoveryConfig, {"database": world["database"]}))
+    own = {"database": world["database"]} if lane == "db1" else {
+        "simulation": wt.SIMULATION_COLUMN, "simulation_inputs": list(wt.SIMULATION_INPUTS)}
+    cfg = cfg or ExperimentConfig(name=world["name"], discovery=from_dict(DiscoveryConfig, own))
     res = discover(campaign, cfg, name=world["name"], log=lambda m: None)
     js = summary(res)
     keep = [c for c in res.windows.columns if not c.startswith("effect_") and c not in ("i", "k")]
     res.windows[keep].to_parquet(out / "windows" / f"{world['name']}.parquet", index=False)
-    row = dict(world=world["name"], seed=world["seed"], database=world["database"],
+    row = dict(world=world["name"], seed=world["seed"], database=world["database"] if lane == "db1" else lane,
                family=world["truth"]["effect"] if world["truth"] else "none",
                also=world["truth"].get("also", {}).get("effect", "") if world["truth"] else "",
                aircraft=world["drawn"]["aircraft"], conditions=world["drawn"]["conditions"],
@@ -239,10 +248,14 @@ def main():
     ap.add_argument("--fresh", action="store_true", help="the fresh seeds (default: the tuning seeds)")
     ap.add_argument("--only", default="", help="comma-separated world names")
     ap.add_argument("--out", default=None, help="default runs/world-benchmark/{tuning,fresh}")
+    ap.add_argument("--lane", choices=("db1", "simulation"), default="db1",
+                    help="the baseline: db1's nets, or the world's own law drawn wrong as a simulation column")
     ap.add_argument("--docs", action="store_true", help="write the table into research/discovery-benchmark.md")
     args = ap.parse_args()
     if args.docs and not args.fresh:
         raise SystemExit("--docs reports the fresh seeds only (--fresh)")
+    if args.docs and args.lane != "db1":
+        raise SystemExit("--docs reports the db1 lane's table")
     enable_compilation_cache()
     plan = bw.load_plan(args.config)
     worlds = bw.worlds(plan, args.fresh)
@@ -258,7 +271,7 @@ def main():
     for i, w in enumerate(worlds):
         if w["name"] in done:
             continue
-        row = run_world(w, out)
+        row = run_world(w, out, lane=args.lane)
         rows = pd.concat([rows, pd.DataFrame([row])], ignore_index=True)
         rows.to_csv(path, index=False)
         print(f"[{i + 1}/{len(worlds)}] {w['name']}: named {row['named']}; {row['seconds']:.0f} s", flush=True)

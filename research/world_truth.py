@@ -150,6 +150,10 @@ def floor_g(cfg: SynthConfig, records: dict, win: dict | None = None) -> float:
 
 
 SIMULATION_COLUMN = "simulated_pvv_g"
+# The channels the generator's base law takes (its default effects' inputs, the measured load
+# factor among them): the simulation lane's inputs.
+SIMULATION_INPUTS = ("airspeed_kt", "rotor_rpm", "gross_weight_lb", "density_ratio", "nz_g", "climb_rate_fpm",
+                     "pitch_rate_dps", "roll_rate_dps")
 
 
 def with_simulation(cfg: SynthConfig, records: dict, spread: float = 0.3) -> dict:

@@ -80,9 +80,10 @@ def test_of_two_effects_the_larger_must_come_first_and_both_be_named(wb):
 
 
 @pytest.mark.check
-def test_a_micro_world_runs_end_to_end_and_writes_its_truth(wb, tmp_path):
+@pytest.mark.parametrize("lane", ["db1", "simulation"])
+def test_a_micro_world_runs_end_to_end_and_writes_its_truth(wb, tmp_path, lane):
     """The runner's path on a few conditions with short trainings (the table runs the
-    defaults on 80-300 conditions)."""
+    defaults on 80-300 conditions), in each lane."""
     from conftest import discovery_config
 
     from pvvjax.config import ExperimentConfig, TrainConfig
@@ -92,13 +93,17 @@ def test_a_micro_world_runs_end_to_end_and_writes_its_truth(wb, tmp_path):
     synth = SynthConfig(name="micro", conditions=cids)
     world = dict(name="micro", seed=0, database="db1", truth=None, synth=synth, alone={},
                  drawn={"aircraft": "uh60a", "conditions": len(cids)})
+    sim = dict(simulation=wb.wt.SIMULATION_COLUMN, simulation_inputs=wb.wt.SIMULATION_INPUTS) if lane != "db1" else {}
     cfg = ExperimentConfig(train=TrainConfig(max_steps=50),
-                           discovery=discovery_config(seeds=1, folds=3, max_effects=1, offset_step_s=0.5))
-    row = wb.run_world(world, tmp_path, cfg)
+                           discovery=discovery_config(seeds=1, folds=3, max_effects=1, offset_step_s=0.5, **sim))
+    row = wb.run_world(world, tmp_path, cfg, lane=lane)
     truth = json.loads((tmp_path / "truth" / "micro.truth.json").read_text())
     assert truth["drawn"] == world["drawn"] and truth["judged"] is None
     names = {e["name"] for e in truth["discrepancies"]["entries"]}
-    assert {"measured load factor", "0.6 s lag", "pitch rate"} <= names
+    if lane == "db1":
+        assert {"measured load factor", "0.6 s lag", "pitch rate"} <= names
+    else:
+        assert names == {"the simulation's coefficients"} and row["database"] == "simulation"
     assert row["family"] == "none" and row["ensemble_rms_g_before"] > 0 and row["seconds"] > 0
     assert row["floor_g"] == truth["discrepancies"]["floor_g"] > 0
     windows = pd.read_parquet(tmp_path / "windows" / "micro.parquet")  # what the oracle tests
