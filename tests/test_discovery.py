@@ -370,3 +370,27 @@ def test_the_users_own_simulation_is_a_baseline_and_what_it_lacks_is_named(hidde
     else:
         assert missing == [], [e.name for e in missing]
     assert res.database == f"simulation:{wt.SIMULATION_COLUMN}" and res.baseline.params == {}
+
+
+def test_a_simulation_takes_a_named_lag_and_a_named_channel_fitted_out_of_fold():
+    # measured = the simulation lagged by 2 s, plus 0.3 per unit of a channel it lacks: with
+    # both named, the simulation after matches the measured level within the noise, its
+    # linear term fitted on the other folds' conditions only.
+    from types import SimpleNamespace
+
+    from pvvjax.discovery._explain import Named
+    from pvvjax.discovery._simulation import simulated_after
+
+    win, sim = _steps(n_counters=12)
+    rng = np.random.default_rng(7)
+    x = rng.standard_normal(12)[win.table.i.to_numpy()]
+    win._cands = pd.DataFrame({"x:beta": x})
+    noise = 0.002 * rng.standard_normal(len(x))
+    win.table["measured_g"] = _lag_windows(sim[None], win, 2.0)[0] + 0.3 * x + noise
+    ctx = SimpleNamespace(counter_fold=np.arange(12) % 3)
+    named = lambda c: _tested.Fitted(Named(c, 1, 5.0, 0.0, 0.0, 1.0), c, {})  # noqa: E731
+    lag, beta = Candidate("lag", (), {"tau_s": 2.0}), Candidate("input", ("beta",))
+    after = simulated_after(ctx, win, sim[None], (named(lag), named(beta)))[0]
+    assert np.sqrt(np.mean((after - win.table.measured_g) ** 2)) < 0.004
+    only_lag = simulated_after(ctx, win, sim[None], (named(lag),))[0]
+    np.testing.assert_allclose(only_lag, _lag_windows(sim[None], win, 2.0)[0])
