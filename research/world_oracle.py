@@ -38,6 +38,7 @@ from pvvjax.analysis import DB_INPUTS  # noqa: E402
 from pvvjax.discovery import (  # noqa: E402
     capacity_test,
     cross_fit,
+    from_key,
     neighbour_left,
     regression_tests,
     unit_folds,
@@ -152,6 +153,19 @@ def _rate(k, n) -> str:
     return f"{int(k)} / {int(n)} ({100 * p:.0f} ± {100 * np.sqrt(p * (1 - p) / n):.0f} %)"
 
 
+def _forms(e: dict) -> list[dict]:
+    """A named effect and the candidates of its tied set (keys), each as operator and channels."""
+    tied = [from_key(k) for k in e.get("tied", [])]
+    return [e] + [dict(operator=c.operator, channels=list(c.channels)) for c in tied]
+
+
+def _names(e: dict, accept, capacity: bool = False) -> bool:
+    """Whether a named effect (or a candidate of its tied set) is one of the accepted forms;
+    a misfit is right wherever the baseline's residual is predictable from its inputs at all
+    (the capacity test: what a misfit names is the baseline's, not the world's)."""
+    return (e.get("kind") == "misfit" and capacity) or any(matches(f, accept) for f in _forms(e))
+
+
 def judged(rows: pd.DataFrame, orc: pd.DataFrame, worlds: list[dict], truths: dict, plan) -> pd.DataFrame:
     """One row per world: its planted entry (the first family's), its size against the floor,
     the oracle's and discovery's detection of it, and the naming against the whole truth."""
@@ -170,26 +184,28 @@ def judged(rows: pd.DataFrame, orc: pd.DataFrame, worlds: list[dict], truths: di
             accepts[effect_of[fam["effect"]]] = fam["accept"]
             if "also" in fam:
                 accepts[effect_of[fam["also"]["effect"]]] = fam["also"]["accept"]
-        in_truth = [any(matches(e, a) for a in accepts.values()) for e in effects]
         o = orc[orc.world == r["world"]].set_index("name")
+        capacity = "capacity" in o.index and bool(o.loc["capacity", "detected"])
+        in_truth = [any(_names(e, a, capacity) for a in accepts.values()) for e in effects]
         # The largest entry the oracle detects: is it what discovery names first?
         seen = [e for e in truth["entries"] if e["name"] in o.index and bool(o.loc[e["name"], "detected"])
                 and e["name"] in accepts]
         largest = max(seen, key=lambda e: e["rms_g"]) if seen else None
         row = dict(world=r["world"], family=r["family"], aircraft=r["aircraft"], conditions=r["conditions"],
                    named=r["named"], named_count=len(effects), false_named=int(len(effects) - sum(in_truth)),
-                   base_named=int(sum(any(matches(e, a) for e in effects) for a in BASE_ACCEPT.values())),
+                   base_named=int(sum(any(_names(e, a) for e in effects) for a in BASE_ACCEPT.values())),
+                   set_sizes=json.dumps([1 + len(e.get("tied", [])) for e in effects]),
                    capacity_p=float(o.loc["capacity", "p_value"]) if "capacity" in o.index else np.nan,
                    named_in_truth=int(sum(in_truth)),
                    largest_first=(np.nan if largest is None else
-                                  bool(effects) and any(matches(effects[0], a) for a in [accepts[largest["name"]]])),
+                                  bool(effects) and _names(effects[0], accepts[largest["name"]])),
                    floor_g=r["floor_g"], before_g=r["ensemble_rms_g_before"], after_g=r["ensemble_rms_g_after"],
                    seconds=r["seconds"])
         if planted is not None:
             row.update(size=planted["against_noise"], size_mg=1e3 * planted["where_acts_g"],
                        oracle=bool(o.loc[planted["name"], "detected"]) if planted["name"] in o.index else np.nan,
-                       discovered=any(matches(e, fam["accept"]) for e in effects),
-                       first=bool(effects) and matches(effects[0], fam["accept"]))
+                       discovered=any(_names(e, fam["accept"]) for e in effects),
+                       first=bool(effects) and _names(effects[0], fam["accept"]))
         out.append(row)
     df = pd.DataFrame(out)
     if "size" in df:
@@ -230,10 +246,12 @@ def tables(df: pd.DataFrame, orc: pd.DataFrame) -> dict[str, pd.DataFrame]:
                           "baseline's residual predictable from its inputs (capacity, 5 %)":
                               _rate((nulls.capacity_p < LEVEL).sum(), len(nulls))}])
     largest = df.largest_first.dropna()
+    sizes = [n for v in df.get("set_sizes", pd.Series(dtype=str)) for n in json.loads(v)]
     overall = pd.DataFrame([{"named effects": int(df.named_count.sum()),
                              "precision (named effects in the truth)": _rate(df.named_in_truth.sum(),
                                                                              df.named_count.sum()),
                              "the largest entry the oracle detects named first": _rate(largest.sum(), len(largest)),
+                             "median named set size": f"{np.median(sizes):.0f}" if len(sizes) else "",
                              "median seconds per world": f"{df.seconds.median():.0f}"}])
     base = orc[orc.source == "base"]
     terms = pd.DataFrame([{"term": n, "worlds": len(g), "median size / floor": f"{g.against_noise.median():.2f}",

@@ -90,3 +90,31 @@ def test_a_named_effect_counts_against_the_whole_truth(wo):
     assert t["by_bin"].set_index("").loc["1-2", "oracle detects"].startswith("1 / 1")
     assert t["nulls"].iloc[0]["name something not in the truth"].startswith("0 / 1")
     assert t["overall"].iloc[0]["precision (named effects in the truth)"].startswith("2 / 3")
+
+
+def test_a_tied_set_that_holds_the_truth_is_right_and_a_misfit_is_right_where_the_capacity_test_sees_one(wo):
+    plan = wo.bw.load_plan(ROOT / "research" / "configs" / "worlds.toml")
+    fam = next(f for f in plan.family if f.name == "yaw-rate")
+    worlds = [dict(name="yaw-rate-1", seed=1, truth=dict(effect="yaw-rate", accept=list(fam.accept))),
+              dict(name="null-1", seed=1, truth=None)]
+    tied = dict(operator="rate", channels=["roll_rate_dps"], kind="missing", tied=["input:yaw_rate_dps"])
+    misfit = dict(operator="threshold", channels=["airspeed_kt"], kind="misfit", tied=[])
+    rows = pd.DataFrame([
+        dict(world="yaw-rate-1", family="yaw-rate", aircraft="uh60a", conditions=90, named="roll acceleration",
+             effects=json.dumps([tied]), floor_g=0.01, ensemble_rms_g_before=0.04, ensemble_rms_g_after=0.03,
+             seconds=30.0),
+        dict(world="null-1", family="none", aircraft="uh60a", conditions=90, named="airspeed knee",
+             effects=json.dumps([misfit]), floor_g=0.01, ensemble_rms_g_before=0.03, ensemble_rms_g_after=0.03,
+             seconds=30.0)])
+    truths = {"yaw-rate-1": dict(entries=[dict(name="yaw_rate", source="planted", kind="missing input",
+                                               against_noise=2.5, where_acts_g=0.02, rms_g=0.01)]),
+              "null-1": dict(entries=[])}
+    for seen in (True, False):
+        orc = pd.DataFrame([dict(world="yaw-rate-1", name="yaw_rate", source="planted", detected=True, p_value=0.001,
+                                 against_noise=2.5, rms_g=0.01),
+                            dict(world="null-1", name="capacity", source="baseline", detected=seen,
+                                 p_value=0.01 if seen else 0.4, against_noise=np.nan, rms_g=np.nan)])
+        df = wo.judged(rows, orc, worlds, truths, plan).set_index("world")
+        assert df.loc["yaw-rate-1", "first"] and df.loc["yaw-rate-1", "false_named"] == 0
+        assert df.loc["null-1", "false_named"] == (0 if seen else 1)
+        assert json.loads(df.loc["yaw-rate-1", "set_sizes"]) == [2]
