@@ -294,7 +294,7 @@ def main():
         print(f"\n{name}\n{tab.to_string(index=False)}")
     if args.docs:
         target = ROOT / "research" / "discovery-benchmark.md"
-        target.write_text(docs(t, df, provs[0], args.config, len(worlds)))
+        target.write_text(docs(t, df, provs[0], args.config, len(worlds), [str(o) for o in outs]))
         print(f"wrote {target}")
 
 
@@ -316,16 +316,15 @@ def _oracle_of(out: Path, rows: pd.DataFrame, by: dict, truths: dict) -> pd.Data
     return orc
 
 
-def docs(t: dict, df: pd.DataFrame, prov: dict, config: str, planned: int) -> str:
+def docs(t: dict, df: pd.DataFrame, prov: dict, config: str, planned: int, outs=("runs/world-benchmark/fresh",)) -> str:
     cols = ["world", "aircraft", "conditions", "named", "size", "oracle", "discovered", "false_named", "capacity_p",
             "attributable", "parameter_error", "before_g", "after_g", "floor_g", "seconds"]
     return f"""# Discovery: the drawn-world benchmark against the truth
 
-Commands: `python research/world_benchmark.py {config} --fresh --out runs/world-benchmark/fresh-9100`
-(discovery, run once at {prov['commit']} from {prov['date']}, the last 50 worlds in a second process of
-the same commit with `--only ... --out runs/world-benchmark/fresh-9100-b`; {len(df)} of {planned}
-worlds), then `python research/world_oracle.py {config} --fresh --out runs/world-benchmark/fresh-9100
---out runs/world-benchmark/fresh-9100-b --docs`
+Commands: `python research/world_benchmark.py {config} --fresh --only ... --out OUT` (discovery, run once
+at {prov['commit']} from {prov['date']}, in processes of that commit side by side, each on a part of the
+worlds with its own OUT: {', '.join(f'`{o}`' for o in outs)}; {len(df)} of {planned} worlds), then
+`python research/world_oracle.py {config} --fresh {' '.join(f'--out {o}' for o in outs)} --docs`
 (the oracle and the scores). The machine: the 2-core VM ({prov['machine']}).
 
 Each world's truth (`research/world_truth.py`) lists every discrepancy against db1, sized by
