@@ -19,9 +19,14 @@ from .effects import band
 # The least-squares residuals are module functions with their data in `args` (optimistix's
 # fn(y, args)): a closure over the arrays would make them constants of the compiled solve, and
 # XLA would compile a new solve (~3 s) for every candidate and every fit.
-def _tau_residuals(log_tau, args):
-    y, tg, i, k, target, sw = args
-    return (_lag_grid(y, tg, jnp.exp(log_tau))[i, k] - target) * sw
+def _cell_tau(theta, tau0, cell):
+    """A time constant kept within a factor `cell` of `tau0`: τ0 · cell^tanh θ."""
+    return tau0 * cell ** jnp.tanh(theta)
+
+
+def _tau_residuals(theta, args):
+    y, tg, i, k, target, sw, tau0, cell = args
+    return (_lag_grid(y, tg, _cell_tau(theta, tau0, cell))[i, k] - target) * sw
 
 
 def _band(theta, center, width):
@@ -42,19 +47,22 @@ def _refine_residuals(theta, args):
     return r * sw - A @ coef
 
 
-def fit_lag(yhat, meas, win: _Windows, rows, tau_s: float, weights=None, bounds=(0.05, 120.0)) -> float:
+def fit_lag(yhat, meas, win: _Windows, rows, tau_s: float, weights=None, cell: float = 2.0) -> float:
     """The time constant of a first-order lag of the prediction `yhat` (n,) that best fits
     the measured PVV `meas` on `rows` (weighted least squares, `weights` per row: a bootstrap
-    over conditions keeps every shape), by Levenberg–Marquardt in log τ from `tau_s`; no
-    grid caps it (within `bounds`, s: beyond them a lag is a delay of nothing or a constant)."""
+    over conditions keeps every shape), by Levenberg–Marquardt from `tau_s`, within a factor
+    `cell` of it (τ = tau_s · cell^tanh θ): the test named the lag at `tau_s`, and a τ that walks
+    further is another candidate. Against the measured level alone, a longer lag also smooths
+    the prediction's own noise, so an unbounded fit can run to a lag that only smooths."""
     i, k, to_grid, tg = _grid(win)
     w = np.ones(int(np.sum(rows))) if weights is None else np.asarray(weights, float)
+    f32 = lambda v: jnp.asarray(v, jnp.float32)  # noqa: E731
     args = (jnp.asarray(to_grid(yhat)), jnp.asarray(tg), jnp.asarray(i[rows]), jnp.asarray(k[rows]),
-            jnp.asarray(meas[rows]), jnp.asarray(np.sqrt(w)))
-    sol = optx.least_squares(_tau_residuals, optx.LevenbergMarquardt(rtol=1e-6, atol=1e-9), jnp.log(tau_s), args,
+            jnp.asarray(meas[rows]), jnp.asarray(np.sqrt(w)), f32(tau_s), f32(cell))
+    sol = optx.least_squares(_tau_residuals, optx.LevenbergMarquardt(rtol=1e-6, atol=1e-9), jnp.zeros(()), args,
                              max_steps=64, throw=False)
-    tau = float(jnp.exp(sol.value))
-    return float(np.clip(tau, *bounds)) if np.isfinite(tau) else float(tau_s)
+    tau = float(_cell_tau(sol.value, tau_s, cell))
+    return tau if np.isfinite(tau) else float(tau_s)
 
 
 def _fit_offset(ctx: _Ctx, model: Model) -> Model:
