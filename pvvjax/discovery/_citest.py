@@ -87,6 +87,14 @@ def _t_on_units(scores, groups) -> UnitTest:
     return UnitTest(t, float(stats.t.sf(t, g - 1)), g, float(s.mean()))
 
 
+def unit_members(groups) -> sparse.csr_matrix:
+    """(G, n) the membership of each row in its unit (`groups`: G distinct units): a product
+    with it sums rows' scores per unit."""
+    units, inverse = np.unique(np.asarray(groups), return_inverse=True)
+    n = len(inverse)
+    return sparse.csr_matrix((np.ones(n), (inverse, np.arange(n))), shape=(len(units), n))
+
+
 def regression_tests(ry, RX, groups) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per column of RX ((n, m) candidates left after the inputs): θ of ry = θ·rx, its t and
     two-sided p on G − 1 degrees of freedom (G units). The variance is the units' jackknife
@@ -94,12 +102,11 @@ def regression_tests(ry, RX, groups) -> tuple[np.ndarray, np.ndarray, np.ndarray
     carries much of a candidate's spread would make the plain cluster-robust variance too
     small, and the test reject more often than its level."""
     RX = np.asarray(RX, float).reshape(len(ry), -1)
-    units, inverse = np.unique(np.asarray(groups), return_inverse=True)
-    g = len(units)
+    member = unit_members(groups)
+    g = member.shape[0]
     if g < 2:
         m = RX.shape[1]
         return np.zeros(m), np.zeros(m), np.ones(m)
-    member = sparse.csr_matrix((np.ones(len(inverse)), (inverse, np.arange(len(inverse)))), shape=(g, len(inverse)))
     sxx = np.sum(RX**2, axis=0)
     safe = np.where(sxx > 0, sxx, 1.0)
     theta = np.where(sxx > 0, ry @ RX / safe, 0.0)

@@ -27,9 +27,18 @@ from typing import Callable, NamedTuple
 
 import numpy as np
 import pandas as pd
-from scipy import sparse, stats
+from scipy import stats
 
-from ._citest import UnitTest, capacity_test, cross_fit, default_learner, holm, regression_tests, unit_folds
+from ._citest import (
+    UnitTest,
+    capacity_test,
+    cross_fit,
+    default_learner,
+    holm,
+    regression_tests,
+    unit_folds,
+    unit_members,
+)
 from ._model import computable
 from .candidates import Candidate, library, values
 
@@ -115,17 +124,17 @@ def neighbour_left(X, Z, fold, neighbours: int = 30) -> np.ndarray:
 def _given(ry, a, b, groups) -> float:
     """Two-sided p of a's coefficient in ry ≈ α·a + β·b, the variance clustered by units:
     does `a` explain anything that `b` does not."""
-    units, inverse = np.unique(np.asarray(groups), return_inverse=True)
+    member = unit_members(groups)
+    g = member.shape[0]
     A = np.column_stack([a, b])
     gram = A.T @ A
-    if abs(np.linalg.det(gram)) <= 1e-12 * np.prod(np.diag(gram)) or len(units) < 3:
+    if abs(np.linalg.det(gram)) <= 1e-12 * np.prod(np.diag(gram)) or g < 3:
         return 1.0
     inv = np.linalg.inv(gram)
     coef = inv @ (A.T @ ry)
-    member = sparse.csr_matrix((np.ones(len(inverse)), (inverse, np.arange(len(inverse)))), shape=(len(units), len(ry)))
     score = member @ (A * (ry - A @ coef)[:, None])
     se = np.sqrt((inv @ (score.T @ score) @ inv)[0, 0])
-    return float(2 * stats.t.sf(abs(coef[0]) / se, len(units) - 1)) if se > 0 else 1.0
+    return float(2 * stats.t.sf(abs(coef[0]) / se, g - 1)) if se > 0 else 1.0
 
 
 def _ties(ry, RX, best: int, passed, groups, level: float) -> list[int]:
@@ -135,11 +144,17 @@ def _ties(ry, RX, best: int, passed, groups, level: float) -> list[int]:
             and _given(ry, RX[:, j], RX[:, best], groups) >= level]
 
 
+def tested_column(c: Candidate, table: pd.DataFrame, prediction=None) -> np.ndarray:
+    """(n,) a candidate's column as the test sees it: its window values from `table`, a
+    resonance's times the model's `prediction` (a mode magnifies the response; None: the band
+    alone)."""
+    v = values(c, table)
+    return v * prediction if c.operator == "resonance" and prediction is not None else v
+
+
 def _columns(pool, table, prediction) -> np.ndarray:
-    """The candidates' columns: their window values, a resonance's times the prediction (a
-    mode magnifies the response)."""
-    cols = [values(c, table) * (prediction if c.operator == "resonance" and prediction is not None else 1.0)
-            for c in pool]
+    """The candidates' columns (`tested_column`), (n, len(pool))."""
+    cols = [tested_column(c, table, prediction) for c in pool]
     return np.column_stack(cols) if cols else np.zeros((len(table), 0))
 
 

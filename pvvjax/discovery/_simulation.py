@@ -9,8 +9,8 @@ import jax
 import numpy as np
 
 from ..nets.networks import mlp_init
+from ._explain import tested_column
 from ._model import _Ctx, _lag_windows, _replay, _Windows
-from .candidates import values
 
 
 def placeholder_params(ctx: _Ctx) -> dict:
@@ -46,8 +46,7 @@ def simulated_after(ctx: _Ctx, win: _Windows, sim, fitted) -> np.ndarray:
     y = np.asarray(sim, float)[0]
     tau = next((f.candidate.parameters["tau_s"] for f in fitted if f.candidate.operator == "lag"), 0.0)
     y = _lag_windows(y[None], win, tau)[0] if tau > 0 else y
-    cols = [values(f.candidate, win.cands) * (y if f.candidate.operator == "resonance" else 1.0)
-            for f in fitted if f.candidate.operator != "lag"]
+    cols = [tested_column(f.candidate, win.cands, y) for f in fitted if f.candidate.operator != "lag"]
     if not cols:
         return y[None]
     A = np.column_stack([np.ones(len(y)), *cols])

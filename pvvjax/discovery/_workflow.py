@@ -17,14 +17,14 @@ from ..data.campaign import Campaign, load_campaign
 from ..nets import train as _train
 from ..replay.quasistatic import make_settings, prepare
 from ._citest import UnitTest
-from ._explain import Explanation
+from ._explain import Explanation, tested_column
 from ._fits import _fit_offset
 from ._model import HOP_REVS, Model, _Ctx, _lag_windows, metrics, predictions
 from ._results import Effect, Round
 from ._simulation import placeholder_params, simulated_after, simulation_windows
 from ._tested import effect_region, held_out, tested, with_effects
 from ._train import _train_model
-from .candidates import Candidate, sample_series, values, window_table
+from .candidates import Candidate, sample_series, window_table
 from .residuals import localize
 
 TEST_COLUMNS = ("round", "key", "name", "kind", "statistic", "p_value", "adjusted_p", "theta", "left")
@@ -254,8 +254,7 @@ def _outcome(ctx: _Ctx, name: str, run: _Run, seconds: dict, localized: dict, lo
         if c.operator == "lag":
             table[f"effect_{e.rank}"] = _lag_windows(yb[None], run.win, c.parameters["tau_s"])[0] - yb
         else:
-            v = values(c, run.win.cands)
-            table[f"effect_{e.rank}"] = v * yb if c.operator == "resonance" else v
+            table[f"effect_{e.rank}"] = tested_column(c, run.win.cands, yb)
     log(f"final: {len(effects)} effect(s); held-out RMS {run.before['rms_g']:.4f} -> {after['rms_g']:.4f} g")
     ex = run.ex
     tries = ex.tests if ex is not None else pd.DataFrame(columns=list(TEST_COLUMNS))
