@@ -17,7 +17,7 @@ add it to the model and show the gap shrink (data-contract §3).
    never named as missing; where the residual is predictable from those inputs at all
    (`capacity_test`), the misfit is named by the simplest form that carries it.
 4. **Fit and add.** A named knee, band or lag gets its parameters by least squares
-   (optimistix Levenberg–Marquardt: no grid caps them), and their intervals over a bootstrap
+   (optimistix Levenberg–Marquardt, from where the test named them), and their intervals over a bootstrap
    of conditions. The named effects join the model at once (a channel or a knee as a network
    input, a band as a learned gain on the nets' output, a lag as a first-order lag of the
    replayed prediction), which is retrained once; before and after are held out by condition.

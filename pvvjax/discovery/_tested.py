@@ -5,7 +5,7 @@ a bootstrap of conditions, then added to the model, which is retrained once.
 Candidates are the library of the window table (channels, magnitudes, rates, spreads, knees,
 bands, products) at the model's offset, and the responses: first-order lags of the model's
 own prediction (the lagged prediction minus the prediction) over a grid of time constants
-that only places the start of the fit, never caps it.
+that places the start of the fit (a named lag's τ moves within a factor 2 of its grid point).
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from ._train import _region, _train_model
 from .candidates import Candidate, library
 
 # Time constants of the lag candidates, s: a log grid from the rotor's fast response to lags
-# slower than most maneuvers (a named lag's τ is then fitted freely from the nearest).
+# slower than most maneuvers (a named lag's τ is then fitted within a factor 2 of its point).
 LAG_TAUS = tuple(float(0.25 * 2 ** (k / 2)) for k in range(13))
 
 # Draws of the bootstrap over conditions that gives each fitted parameter its interval.
