@@ -3,14 +3,17 @@ answer is known, it names the missing channel and nothing else, names nothing mi
 nothing is (at about the stated rate over many draws), never tests a candidate built from
 the model's own inputs as missing but names their misfit by its form, names a second effect
 given the first, names a stand-in that the data cannot tell apart beside it, and tests
-responses given as columns."""
+responses given as columns; the misfit is named first (by forward selection over the forms)
+and taken off, so a channel that follows it is not named missing, and a named lag joins the
+inputs with every lag."""
 
 import numpy as np
 import pandas as pd
 import pytest
 from conftest import LinearLearner
 
-from pvvjax.discovery import Candidate, carried_by, explain
+from pvvjax.discovery import Candidate, carried_by, explain, misfits, out_of_fold_linear, unit_folds
+from pvvjax.discovery.candidates import values
 
 UNITS, PER = 50, 16
 INPUTS = ("advance_ratio", "rotor_rpm")
@@ -100,9 +103,67 @@ def test_a_misfit_of_the_inputs_is_named_by_its_form_never_as_missing():
     y = 0.5 * np.maximum(rpm - 0.5, 0) + 0.02 * rng.standard_normal(len(y))
     res = explain(y, table, INPUTS, g, candidates=CANDS)
     assert res.capacity.p_value < 0.05
-    assert [(n.candidate.key, n.kind, n.round) for n in res.named] == [(CANDS[4].key, "misfit", 0)]
+    assert [(n.candidate.key, n.kind, n.round) for n in res.named] == [(CANDS[4].key, "misfit", 1)]
     # Airspeed, which the advance ratio and rotor speed determine, is a form of the inputs too.
-    assert set(res.tests[res.tests["round"] == 0].key) == {CANDS[3].key, CANDS[4].key}
+    assert set(res.tests[res.tests.kind == "misfit"].key) == {CANDS[3].key, CANDS[4].key}
+
+
+def test_the_misfit_is_taken_off_the_residual_before_anything_is_tested_as_missing():
+    # A knee of rotor speed (an input) and a sideslip effect: the knee is named first as the
+    # misfit; the missing round sees the residual less the knee's out-of-fold fit, exactly
+    # as if the caller had taken it off and passed the misfit as given.
+    rng = np.random.default_rng(7)
+    y, table, g = _world(rng, sideslip=0.15)
+    y = y + 8.0 * np.maximum(table["x:rotor_rpm"].to_numpy() - 0.5, 0)
+    res = explain(y, table, INPUTS, g, candidates=CANDS)
+    assert [n.kind for n in res.named][:1] == ["misfit"] and res.named[0].candidate.key == CANDS[4].key
+    assert _missing(res)[:1] in ([CANDS[1].key], [CANDS[2].key])
+    m = misfits(y, table, INPUTS, g, candidates=CANDS)
+    shift = out_of_fold_linear(np.column_stack(
+        [values(n.candidate, table) for n in m.named]), y, np.ones(len(y), bool), unit_folds(g, 5, 0))
+    again = explain(y - shift, table, INPUTS, g, candidates=CANDS, given=m)
+    pd.testing.assert_frame_equal(res.tests, again.tests)
+    # Without the correction, the missing round would have seen the knee in the residual.
+    raw = explain(y, table, INPUTS, g, candidates=CANDS, given=m)
+    assert not np.allclose(raw.tests.theta, res.tests.theta)
+
+
+def test_misfit_forms_are_named_by_forward_selection_each_given_the_ones_before():
+    rng = np.random.default_rng(8)
+    y, table, g = _world(rng)
+    mu, rpm = table["x:advance_ratio"].to_numpy(), table["x:rotor_rpm"].to_numpy()
+    knee_mu = Candidate("threshold", ("advance_ratio",), {"knee": 0.2, "above": True, "softness": 0.01})
+    y = 0.5 * np.maximum(rpm - 0.5, 0) + 2.0 * np.maximum(mu - 0.2, 0) + 0.02 * rng.standard_normal(len(y))
+    res = misfits(y, table, INPUTS, g, candidates=CANDS + [knee_mu])
+    assert {n.candidate.key for n in res.named} == {CANDS[4].key, knee_mu.key}
+    assert [n.round for n in res.named] == [1, 2] and all(n.kind == "misfit" for n in res.named)
+    # The third round tested the rest given both and named nothing.
+    assert set(res.tests["round"]) == {1, 2, 3}
+
+
+def test_a_named_lag_joins_the_inputs_with_every_lag_so_a_stand_in_of_another_lag_is_not_named():
+    rng = np.random.default_rng(9)
+    y, table, g = _world(rng)
+    lag_a = rng.standard_normal(len(y)) * 0.5 + rng.standard_normal(UNITS)[g]
+    lag_b = rng.standard_normal(len(y)) * 0.5 + rng.standard_normal(UNITS)[g]
+    table["rate:collective_pct"] = lag_b + 0.3 * rng.standard_normal(len(y))  # stands in for the second lag
+    resp = [Candidate("lag", (), {"tau_s": 1.0}), Candidate("lag", (), {"tau_s": 8.0})]
+    cands = CANDS[:3] + [Candidate("rate", ("collective_pct",))]
+    res = explain(y + 0.3 * lag_a + 0.15 * lag_b, table, INPUTS, g, candidates=cands,
+                  responses=(resp, np.column_stack([lag_a, lag_b])), learner=LinearLearner)
+    assert _missing(res) == [resp[0].key]
+
+
+def test_out_of_fold_linear_fits_each_fold_on_the_others_only():
+    rng = np.random.default_rng(10)
+    A, fold = rng.standard_normal((60, 2)), np.repeat(np.arange(3), 20)
+    target = A @ [1.0, -2.0] + 0.1 * rng.standard_normal(60)
+    fit = rng.uniform(size=60) > 0.2
+    got = out_of_fold_linear(A, target, fit, fold)
+    for k in range(3):
+        rows = (fold != k) & fit
+        coef = np.linalg.lstsq(np.column_stack([np.ones(rows.sum()), A[rows]]), target[rows], rcond=None)[0]
+        np.testing.assert_allclose(got[fold == k], np.column_stack([np.ones(20), A[fold == k]]) @ coef, atol=1e-12)
 
 
 def test_a_response_given_as_a_column_is_tested_and_named():

@@ -47,7 +47,7 @@ from ._citest import (
     regression_tests,
     unit_folds,
 )
-from ._explain import Explanation, Named, carried_by, explain, neighbour_left
+from ._explain import Explanation, Named, carried_by, explain, misfits, neighbour_left, out_of_fold_linear
 from ._model import Model, fit_ensemble, floor_features, gain_apply, metrics
 from ._results import Effect, Round
 from ._tested import bootstrap_weights
@@ -73,6 +73,7 @@ __all__ = [
     "describe",
     "discover",
     "explain",
+    "misfits",
     "effects",
     "fit_ensemble",
     "floor_features",
@@ -84,6 +85,7 @@ __all__ = [
     "localize",
     "metrics",
     "neighbour_left",
+    "out_of_fold_linear",
     "regression_tests",
     "residual_windows",
     "summary",

@@ -18,8 +18,8 @@ class Effect:
     """A named effect, in the order named.
 
     Attributes:
-        rank: 1 for the first named. round: the test's round that named it (0: a misfit,
-            named by its form once the rounds end).
+        rank: 1 for the first named. round: the test's round that named it (the misfit's
+            forms are named first, then the missing effects).
         name: in words. operator: the candidate's operator (`effects.OPERATORS`, or "lag").
         channels: the campaign channels it is built from (a lag: the model's inputs).
         parameters: its fitted parameters (knee, centre and width, τ, ...).
@@ -70,7 +70,7 @@ class Round:
     """One round of discovery's test: every candidate tested in it and the effect it named.
 
     Attributes:
-        number: 1, 2, ... (0: the misfit's forms, tested once the rounds end).
+        number: 1, 2, ... (the misfit's rounds first, then the missing candidates').
         tries: its rows of `Discovery.tries` (one per candidate).
         named: the effect it named, or None (the round that named nothing ends discovery).
     """

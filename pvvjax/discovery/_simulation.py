@@ -9,7 +9,7 @@ import jax
 import numpy as np
 
 from ..nets.networks import mlp_init
-from ._explain import tested_column
+from ._explain import out_of_fold_linear, tested_column
 from ._model import _Ctx, _lag_windows, _replay, _Windows
 
 
@@ -49,12 +49,6 @@ def simulated_after(ctx: _Ctx, win: _Windows, sim, fitted) -> np.ndarray:
     cols = [tested_column(f.candidate, win.cands, y) for f in fitted if f.candidate.operator != "lag"]
     if not cols:
         return y[None]
-    A = np.column_stack([np.ones(len(y)), *cols])
-    r = win.table.measured_g.to_numpy() - y
-    full = win.table.weight.to_numpy() >= 0.999
+    fit = win.table.weight.to_numpy() >= 0.999
     fold = ctx.counter_fold[win.table.i.to_numpy()]
-    out = y.copy()
-    for f in np.unique(fold):
-        fit = full & (fold != f)
-        out[fold == f] += A[fold == f] @ np.linalg.lstsq(A[fit], r[fit], rcond=None)[0]
-    return out[None]
+    return (y + out_of_fold_linear(np.column_stack(cols), win.table.measured_g.to_numpy() - y, fit, fold))[None]

@@ -1,11 +1,13 @@
-"""Discovery's decision as one calibrated test: the baseline's out-of-fold residual
-explained (`explain`), the named effects' parameters fitted by gradient with their spread over
-a bootstrap of conditions, then added to the model, which is retrained once.
+"""Discovery's decision as one calibrated test: the baseline's misfit named by form and
+taken off its out-of-fold residual, what is left explained (`misfits`, `explain`), the named
+effects' parameters fitted by gradient with their spread over a bootstrap of conditions,
+then added to the model, which is retrained once.
 
 Candidates are the library of the window table (channels, magnitudes, rates, spreads, knees,
 bands, products) at the model's offset, and the responses: first-order lags of the model's
-own prediction (the lagged prediction minus the prediction) over a grid of time constants
-that places the start of the fit (a named lag's τ moves within a factor 2 of its grid point).
+own prediction corrected by the misfit's forms (the lagged prediction minus the prediction)
+over a grid of time constants that places the start of the fit (a named lag's τ moves within
+a factor 2 of its grid point).
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
-from ._explain import Explanation, Named, explain
+from ._explain import Explanation, Named, explain, misfits, out_of_fold_linear, tested_column
 from ._fits import _fit_offset, _refine, fit_lag
 from ._model import Model, _Ctx, _lag_windows, _replay, _Windows, metrics, predictions
 from ._train import _region, _train_model
@@ -67,9 +69,10 @@ def _interval(draws) -> tuple[float, float]:
     return float(lo), float(hi)
 
 
-def _fit(n: Named, ctx: _Ctx, win: _Windows, rows, yhat, resid, table: pd.DataFrame, Z, groups) -> Fitted:
+def _fit(n: Named, ctx: _Ctx, win: _Windows, rows, yhat, resid, table: pd.DataFrame, base, groups) -> Fitted:
     """A named candidate's parameters on all conditions, then on each bootstrap draw from
-    that fit: a lag's τ, a knee, a band's centre and width."""
+    that fit: a lag's τ (of the prediction `yhat`, all windows), a knee, a band's centre and
+    width (of the residual `resid` on `rows`, beside the covariates `base`)."""
     c, seed = n.candidate, ctx.cfg.seed
     meas = win.table.measured_g.to_numpy()
     weights = bootstrap_weights(groups, BOOTSTRAP, seed)
@@ -79,17 +82,30 @@ def _fit(n: Named, ctx: _Ctx, win: _Windows, rows, yhat, resid, table: pd.DataFr
         return Fitted(n, replace(c, parameters={"tau_s": tau}), {"tau_s": _interval(draws)})
     if c.operator not in ("threshold", "resonance"):
         return Fitted(n, c, {})
-    base = None if n.kind == "misfit" else Z
     fitted = _refine(c, resid[rows], table, yhat[rows], base=base)
     names = ("knee",) if c.operator == "threshold" else ("center", "width")
     draws = [_refine(fitted, resid[rows], table, yhat[rows], base=base, weights=w).parameters for w in weights]
     return Fitted(n, fitted, {k: _interval([d[k] for d in draws]) for k in names})
 
 
+def _misfit_shift(ctx: _Ctx, win: _Windows, rows, yhat, named) -> np.ndarray:
+    """(n,) the misfit's named forms fitted to the residual out of fold by condition (the
+    ensemble's folds), on every window: what the model with its misfit would add."""
+    if not named:
+        return np.zeros(len(yhat))
+    cols = np.column_stack([tested_column(m.candidate, win.cands, yhat) for m in named])
+    fold = ctx.counter_fold[win.table.i.to_numpy()]
+    return out_of_fold_linear(cols, win.table.measured_g.to_numpy() - yhat, rows, fold)
+
+
 def tested(ctx: _Ctx, win: _Windows, pred, inputs, log=print, exclude=()) -> tuple[Explanation, tuple[Fitted, ...]]:
     """Explain the residual of a baseline (its held-out predictions `pred`, seeds × windows,
     on the replay windows `win`) beyond any function of its `inputs` (`x:` columns of the
     window table) at `discovery.level`, and fit what is named.
+
+    The misfit comes first (`misfits`); its forms' out-of-fold fit joins the prediction on
+    every window, and the missing candidates, lags of that corrected prediction among them,
+    are tested against what is left (`explain`).
 
     Args:
         exclude: channels never offered as candidates here (a simulation's own column).
@@ -100,19 +116,30 @@ def tested(ctx: _Ctx, win: _Windows, pred, inputs, log=print, exclude=()) -> tup
     d = ctx.cfg.discovery
     rows = win.table.weight.to_numpy() >= 0.999
     yhat = np.median(pred, axis=0)
-    resid = win.table.measured_g.to_numpy() - yhat
+    meas = win.table.measured_g.to_numpy()
     table = win.cands[rows].reset_index(drop=True)
     groups = win.table.condition.astype(str).to_numpy()[rows]
-    lags, L = response_candidates(yhat, win)
     lib = [c for c in library(table, model_inputs=inputs) if not set(c.channels) & set(exclude)]
-    ex = explain(resid[rows], table, inputs, groups, candidates=lib, responses=(lags, L[rows]),
-                 prediction=yhat[rows], level=d.level, folds=d.ensemble.folds, seed=ctx.cfg.seed,
-                 max_named=d.max_effects)
+    common = dict(level=d.level, folds=d.ensemble.folds, seed=ctx.cfg.seed, max_named=d.max_effects)
+    m = misfits(meas[rows] - yhat[rows], table, inputs, groups, candidates=lib, prediction=yhat[rows], **common)
+    yc = yhat + _misfit_shift(ctx, win, rows, yhat, m.named)
+    lags, L = response_candidates(yc, win)
+    ex = explain(meas[rows] - yc[rows], table, inputs, groups, candidates=lib, responses=(lags, L[rows]),
+                 prediction=yc[rows], given=m, **common)
     log(f"capacity of the baseline: t = {ex.capacity.statistic:.2f}, p = {ex.capacity.p_value:.3g}; "
         f"{len(ex.tests)} tests at {d.level:g} family-wise, named: "
         + (", ".join(f"{n.candidate.name} ({n.kind}, p = {n.adjusted_p:.2g})" for n in ex.named) or "none"))
     Z = table[[f"x:{k}" for k in inputs]].to_numpy(float)
-    return ex, tuple(_fit(n, ctx, win, rows, yhat, resid, table, Z, groups) for n in ex.named)
+    forms = [n for n in ex.named if n.kind == "misfit"]
+    fitted = []
+    for n in ex.named:
+        if n.kind == "misfit":  # each form beside the others named (two knees of one channel stay apart)
+            others = [tested_column(o.candidate, table, yhat[rows]) for o in forms if o is not n]
+            base = np.column_stack(others) if others else None
+            fitted.append(_fit(n, ctx, win, rows, yhat, meas - yhat, table, base, groups))
+        else:
+            fitted.append(_fit(n, ctx, win, rows, yc, meas - yc, table, Z, groups))
+    return ex, tuple(fitted)
 
 
 def with_effects(ctx: _Ctx, model: Model, fitted) -> Model:

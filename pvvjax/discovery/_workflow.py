@@ -40,10 +40,10 @@ class Discovery:
         baseline, final: the baseline and the final (augmented) `Model`.
         before, after: their held-out metrics (`metrics`: medians over seeds, `rms_by_seed`
             per seed, `ensemble_rms_g` of the median prediction).
-        effects: the named effects (`Effect`), in the order named (missing ones, then a
-            misfit).
+        effects: the named effects (`Effect`), in the order named (the misfit's forms, then
+            the missing ones).
         tries: every test of every round (`Explanation.tests`: one row per candidate and
-            round; round 0 holds the misfit's forms).
+            round; the misfit's rounds first).
         rounds: the rounds (`Round`): each one's tests and the effect it named.
         localized: `residuals.localize` tables of the baseline.
         windows: the baseline replay windows with `predicted_before_g`, `predicted_after_g` and
@@ -53,7 +53,7 @@ class Discovery:
         capacity: the baseline's capacity test (is its held-out residual predictable from
             its own inputs at all).
         carried: the keys of the candidates built only from the model's inputs: never
-            named as missing (a misfit's forms).
+            named as missing (the misfit's forms).
         level: the family-wise level of each round.
     """
 

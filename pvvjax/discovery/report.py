@@ -117,9 +117,10 @@ def _effect_lines(res: Discovery, js: dict) -> list[str]:
     lines = []
     if cap is not None:
         lines += [f"Capacity of the baseline (is its held-out residual predictable from its own inputs at all): "
-                  f"t = {cap['statistic']:.2f}, p = {cap['p_value']:.3g}. Every round tests each candidate for what "
-                  f"it explains beyond any function of the model's inputs, Holm at {res.level:g} family-wise over "
-                  f"the candidates, conditions as the units.", ""]
+                  f"t = {cap['statistic']:.2f}, p = {cap['p_value']:.3g}. Where it is, the misfit is named first "
+                  f"by the forms of the inputs that carry it, and taken off the residual; every later round tests "
+                  f"each candidate for what it explains beyond any function of the model's inputs. Holm at "
+                  f"{res.level:g} family-wise over the candidates of each round, conditions as the units.", ""]
     if not js["effects"]:
         return lines + [f"Nothing passed the test at {res.level:g}: the residual holds nothing that the "
                         "candidates explain beyond the model's inputs.", ""]
@@ -142,7 +143,7 @@ def _test_lines(res: Discovery, top: int = 8) -> list[str]:
         return []
     lines = ["## The tests, by round", "",
              f"The {top} smallest p-values of each round (`left`: the share of a candidate's variance left after "
-             "the model's inputs; round 0: the misfit's forms, the residual on each alone).", ""]
+             "the model's inputs; a misfit's round: the forms of the inputs, each given the forms named before).", ""]
     for r in res.rounds:
         t = r.tries.sort_values("p_value").head(top)
         lines += [f"Round {r.number}" + (f": named {r.named.name}" if r.named is not None else ": nothing passed"),
