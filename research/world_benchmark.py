@@ -90,7 +90,7 @@ def run_world(world: dict, out: Path, cfg: ExperimentConfig | None = None, lane:
     for the test suite's micro run only) and keep its baseline's windows (out-of-fold
     prediction, measured level, window edges: OUT/windows/<world>.parquet, what the oracle
     tests); the row of what scoring needs (the named effects as JSON, the metrics before and
-    after, the floor, seconds)."""
+    after, the floor, seconds, and the seconds of each stage of discovery as JSON)."""
     for sub in ("truth", "windows"):
         (out / sub).mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
@@ -116,7 +116,8 @@ def run_world(world: dict, out: Path, cfg: ExperimentConfig | None = None, lane:
                aircraft=world["drawn"]["aircraft"], conditions=world["drawn"]["conditions"],
                named=" > ".join(e["name"] for e in js["effects"]) or "none", effects=json.dumps(js["effects"]),
                offset_s=float(res.baseline.offset_s), floor_g=truth["discrepancies"]["floor_g"],
-               seconds=time.perf_counter() - t0 - t_truth, truth_seconds=t_truth, commit=_head())
+               seconds=time.perf_counter() - t0 - t_truth, truth_seconds=t_truth, commit=_head(),
+               stages=json.dumps({k: round(float(v), 1) for k, v in res.seconds.items()}))
     for k in ("ensemble_rms_g", "peak_error_g", "rms_g"):
         row[f"{k}_before"], row[f"{k}_after"] = float(res.before[k]), float(res.after[k])
     return row

@@ -1,12 +1,13 @@
 """Discovery's outcome as typed records: frozen, and an effect's discovery.json entry keeps
-the fields its readers know and adds its test and its parameters' intervals."""
+the fields its readers know and adds its test and its parameters' intervals; a model worse
+with its named effects than without is flagged."""
 
 import dataclasses
 
 import pandas as pd
 import pytest
 
-from pvvjax.discovery import Candidate, Discovery, Effect, Round
+from pvvjax.discovery import Candidate, Discovery, Effect, Round, summary
 
 
 def _effect(**kw):
@@ -37,3 +38,13 @@ def test_the_records_are_frozen():
     for obj, field in ((e, "rank"), (res, "effects"), (res.rounds[0], "named")):
         with pytest.raises(dataclasses.FrozenInstanceError):
             setattr(obj, field, None)
+
+
+def test_a_model_worse_with_its_named_effects_than_without_is_flagged_in_the_summary():
+    m = lambda rms: {"rms_g": rms, "peak_error_g": 0.1, "phase_error_s": 0.5}  # noqa: E731
+    worse = Discovery("w", "db1", None, None, m(0.040), m(0.045), (_effect(),), pd.DataFrame(), {}, pd.DataFrame(), {})
+    better = dataclasses.replace(worse, after=m(0.030))
+    empty = dataclasses.replace(worse, effects=(), after=m(0.045))
+    assert summary(worse)["augmented"]["worse_than_baseline"] is True
+    assert summary(better)["augmented"]["worse_than_baseline"] is False
+    assert summary(empty)["augmented"]["worse_than_baseline"] is False  # nothing named: nothing added

@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 
 from ._explain import Explanation, Named, explain, misfits, out_of_fold_linear, tested_column
-from ._fits import _fit_offset, _refine, fit_lag
+from ._fits import _refine, fit_lag
 from ._model import Model, _Ctx, _lag_windows, _replay, _Windows, metrics, predictions
 from ._train import _region, _train_model
 from .candidates import Candidate, library
@@ -98,10 +98,10 @@ def _misfit_shift(ctx: _Ctx, win: _Windows, rows, yhat, named) -> np.ndarray:
     return out_of_fold_linear(cols, win.table.measured_g.to_numpy() - yhat, rows, fold)
 
 
-def tested(ctx: _Ctx, win: _Windows, pred, inputs, log=print, exclude=()) -> tuple[Explanation, tuple[Fitted, ...]]:
+def tested(ctx: _Ctx, win: _Windows, pred, inputs, log=print, exclude=()) -> tuple[Explanation, np.ndarray]:
     """Explain the residual of a baseline (its held-out predictions `pred`, seeds × windows,
     on the replay windows `win`) beyond any function of its `inputs` (`x:` columns of the
-    window table) at `discovery.level`, and fit what is named.
+    window table) at `discovery.level`.
 
     The misfit comes first (`misfits`); its forms' out-of-fold fit joins the prediction on
     every window, and the missing candidates, lags of that corrected prediction among them,
@@ -111,7 +111,7 @@ def tested(ctx: _Ctx, win: _Windows, pred, inputs, log=print, exclude=()) -> tup
         exclude: channels never offered as candidates here (a simulation's own column).
 
     Returns:
-        The `Explanation` and the named candidates fitted (`Fitted`), in order.
+        The `Explanation`, and the prediction corrected by the misfit's forms, (n,) per window.
     """
     d = ctx.cfg.discovery
     rows = win.table.weight.to_numpy() >= 0.999
@@ -129,23 +129,37 @@ def tested(ctx: _Ctx, win: _Windows, pred, inputs, log=print, exclude=()) -> tup
     log(f"capacity of the baseline: t = {ex.capacity.statistic:.2f}, p = {ex.capacity.p_value:.3g}; "
         f"{len(ex.tests)} tests at {d.level:g} family-wise, named: "
         + (", ".join(f"{n.candidate.name} ({n.kind}, p = {n.adjusted_p:.2g})" for n in ex.named) or "none"))
+    return ex, yc
+
+
+def fitted(ctx: _Ctx, win: _Windows, pred, corrected, ex: Explanation, inputs) -> tuple[Fitted, ...]:
+    """The named candidates of `ex` with their parameters fitted and their intervals: each
+    misfit form against the baseline's residual beside the other forms named (two knees of one
+    channel stay apart), each missing one against the residual of the `corrected` prediction
+    beside the inputs."""
+    rows = win.table.weight.to_numpy() >= 0.999
+    yhat = np.median(pred, axis=0)
+    meas = win.table.measured_g.to_numpy()
+    table = win.cands[rows].reset_index(drop=True)
+    groups = win.table.condition.astype(str).to_numpy()[rows]
     Z = table[[f"x:{k}" for k in inputs]].to_numpy(float)
     forms = [n for n in ex.named if n.kind == "misfit"]
-    fitted = []
+    out = []
     for n in ex.named:
-        if n.kind == "misfit":  # each form beside the others named (two knees of one channel stay apart)
+        if n.kind == "misfit":
             others = [tested_column(o.candidate, table, yhat[rows]) for o in forms if o is not n]
-            base = np.column_stack(others) if others else None
-            fitted.append(_fit(n, ctx, win, rows, yhat, meas - yhat, table, base, groups))
+            out.append(_fit(n, ctx, win, rows, yhat, meas - yhat, table, np.column_stack(others) if others else None,
+                            groups))
         else:
-            fitted.append(_fit(n, ctx, win, rows, yc, meas - yc, table, Z, groups))
-    return ex, tuple(fitted)
+            out.append(_fit(n, ctx, win, rows, corrected, meas - corrected, table, Z, groups))
+    return tuple(out)
 
 
 def with_effects(ctx: _Ctx, model: Model, fitted) -> Model:
     """The model with the fitted effects, retrained once: a lag of its prediction, a band as
     a learned gain on the nets' output (a mode magnifies the whole response), any other
-    candidate as a network input at the model's offset; then the offset refitted."""
+    candidate as a network input at the model's offset (`_fit_offset` then refits the
+    offset)."""
     extra, gains, tau = list(model.extra), list(model.gains), model.lag_tau_s
     for f in fitted:
         c = f.candidate
@@ -156,8 +170,7 @@ def with_effects(ctx: _Ctx, model: Model, fitted) -> Model:
         else:
             extra.append(replace(c, parameters={**c.parameters, "offset_s": model.offset_s}))
     trial = model._replace(extra=tuple(extra), gains=tuple(gains), lag_tau_s=tau)
-    trial = trial._replace(params=_train_model(ctx, trial))
-    return _fit_offset(ctx, trial)
+    return trial._replace(params=_train_model(ctx, trial))
 
 
 def effect_region(win: _Windows, before, after) -> dict:

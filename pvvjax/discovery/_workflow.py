@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import warnings
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -22,7 +23,7 @@ from ._fits import _fit_offset
 from ._model import HOP_REVS, Model, _Ctx, _lag_windows, metrics, predictions
 from ._results import Effect, Round
 from ._simulation import placeholder_params, simulated_after, simulation_windows
-from ._tested import effect_region, held_out, tested, with_effects
+from ._tested import effect_region, fitted, held_out, tested, with_effects
 from ._train import _train_model
 from .candidates import Candidate, sample_series, window_table
 from .residuals import localize
@@ -49,7 +50,8 @@ class Discovery:
         windows: the baseline replay windows with `predicted_before_g`, `predicted_after_g` and
             `effect_<rank>`, each effect's column as it was tested (a resonance's band times
             the prediction, a lag as the lagged minus the plain prediction).
-        seconds: wall time per stage.
+        seconds: wall time per stage (prepare, train_baseline, offset_and_replay, test, fit,
+            retrain, offset_refit; a simulation: add instead of the last two).
         capacity: the baseline's capacity test (is its held-out residual predictable from
             its own inputs at all).
         carried: the keys of the candidates built only from the model's inputs: never
@@ -179,19 +181,24 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
     log(f"baseline {d.simulation or d.database}: offset {base.offset_s:.2f} s, held-out RMS {before['rms_g']:.4f} g, "
         f"peak error {before['peak_error_g']:.4f} g, phase error {before['phase_error_s']:.2f} s")
     localized = _localized(ctx, win, pred, log)
-    ex, fitted, final, after_pred, after_win = None, (), base, pred, win
+    ex, effects, final, after_pred, after_win = None, (), base, pred, win
     if d.max_effects > 0:
         with clock("test"):
-            ex, fitted = tested(ctx, win, pred, inputs, log, exclude)
-        if fitted:
-            with clock("add_and_retrain"):
-                if d.simulation:
-                    final = base._replace(extra=tuple(f.candidate for f in fitted))
-                    after_pred = simulated_after(ctx, win, pred, fitted)
-                else:
-                    final = with_effects(ctx, base, fitted)
+            ex, corrected = tested(ctx, win, pred, inputs, log, exclude)
+        with clock("fit"):
+            effects = fitted(ctx, win, pred, corrected, ex, inputs)
+        if effects:
+            if d.simulation:
+                final = base._replace(extra=tuple(f.candidate for f in effects))
+                with clock("add"):
+                    after_pred = simulated_after(ctx, win, pred, effects)
+            else:
+                with clock("retrain"):
+                    final = with_effects(ctx, base, effects)
+                with clock("offset_refit"):
+                    final = _fit_offset(ctx, final)
                     after_pred, after_win, _ = held_out(ctx, final)
-    return _outcome(ctx, name or str(campaign.source), _Run(base, win, pred, before, ex, fitted, final, after_win,
+    return _outcome(ctx, name or str(campaign.source), _Run(base, win, pred, before, ex, effects, final, after_win,
                                                            after_pred), clock.seconds, localized, log)
 
 
@@ -256,6 +263,11 @@ def _outcome(ctx: _Ctx, name: str, run: _Run, seconds: dict, localized: dict, lo
         else:
             table[f"effect_{e.rank}"] = tested_column(c, run.win.cands, yb)
     log(f"final: {len(effects)} effect(s); held-out RMS {run.before['rms_g']:.4f} -> {after['rms_g']:.4f} g")
+    if effects and after["rms_g"] > run.before["rms_g"]:
+        warnings.warn(f"discovery on {name}: the model with the named effects predicts worse held out than the "
+                      f"baseline (RMS {run.before['rms_g']:.4f} -> {after['rms_g']:.4f} g): "
+                      "what the test named is reported, but adding it as fitted did not help", UserWarning,
+                      stacklevel=3)
     ex = run.ex
     tries = ex.tests if ex is not None else pd.DataFrame(columns=list(TEST_COLUMNS))
     by_round = {e.round: e for e in effects}
@@ -275,7 +287,8 @@ def summary(res: Discovery) -> dict:
         "campaign": res.campaign,
         "baseline": {"database": res.database, "metrics": m(res.before)},
         "effects": [e.summary() for e in res.effects],
-        "augmented": {"added": [e.name for e in res.effects], "metrics": m(res.after)},
+        "augmented": {"added": [e.name for e in res.effects], "metrics": m(res.after),
+                      "worse_than_baseline": bool(res.effects) and res.after["rms_g"] > res.before["rms_g"]},
         "gap_shrink": round(1.0 - res.after["rms_g"] / res.before["rms_g"], 4),
         "level": res.level,
         "capacity": None if cap is None else {

@@ -130,6 +130,10 @@ def _effect_lines(res: Discovery, js: dict) -> list[str]:
                              explained_fraction=e["explained_fraction"], tied=", ".join(e["tied"]) or "none",
                              region=e["region"]["where"], region_before_rms_g=e["region"]["before_rms_g"],
                              region_after_rms_g=e["region"]["after_rms_g"]) for e in js["effects"]])
+    if js["augmented"]["worse_than_baseline"]:
+        lines += [f"**The model with the named effects predicts worse held out than the baseline** (RMS "
+                  f"{res.before['rms_g']:.4f} -> {res.after['rms_g']:.4f} g): what the test named is listed, but "
+                  "adding it as fitted did not help; do not take the augmented model as better.", ""]
     return lines + [_md(eff), "",
                     "`kind`: missing (beyond any function of the model's inputs) or misfit (a function of them "
                     "that the model did not learn). `intervals`: each fitted parameter's 5-95 % range over a "
