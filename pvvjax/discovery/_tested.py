@@ -158,8 +158,9 @@ def fitted(ctx: _Ctx, win: _Windows, pred, corrected, ex: Explanation, inputs) -
 def with_effects(ctx: _Ctx, model: Model, fitted) -> Model:
     """The model with the fitted effects, retrained once: a lag of its prediction, a band as
     a learned gain on the nets' output (a mode magnifies the whole response), any other
-    candidate as a network input at the model's offset (`_fit_offset` then refits the
-    offset)."""
+    candidate as a network input at the model's offset. The offset stays the model's: the
+    effects were tested and fitted at it (a lag's τ given it), so before and after differ by
+    the effects alone."""
     extra, gains, tau = list(model.extra), list(model.gains), model.lag_tau_s
     for f in fitted:
         c = f.candidate

@@ -51,7 +51,7 @@ class Discovery:
             `effect_<rank>`, each effect's column as it was tested (a resonance's band times
             the prediction, a lag as the lagged minus the plain prediction).
         seconds: wall time per stage (prepare, train_baseline, offset_and_replay, test, fit,
-            retrain, offset_refit; a simulation: add instead of the last two).
+            retrain; a simulation: add instead of retrain).
         capacity: the baseline's capacity test (is its held-out residual predictable from
             its own inputs at all).
         carried: the keys of the candidates built only from the model's inputs: never
@@ -195,8 +195,6 @@ def discover(campaign: Campaign | str | os.PathLike, cfg: ExperimentConfig | Dis
             else:
                 with clock("retrain"):
                     final = with_effects(ctx, base, effects)
-                with clock("offset_refit"):
-                    final = _fit_offset(ctx, final)
                     after_pred, after_win, _ = held_out(ctx, final)
     return _outcome(ctx, name or str(campaign.source), _Run(base, win, pred, before, ex, effects, final, after_win,
                                                            after_pred), clock.seconds, localized, log)
