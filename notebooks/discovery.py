@@ -61,11 +61,13 @@ len(campaign), len(campaign.conditions())
 # ## Run the workflow
 #
 # db1 nets, 5-fold by condition over 3 seeds; every counter is replayed by the nets that
-# held its condition out, at a fitted offset. Every candidate (channels, their magnitudes,
-# rates, spreads, knees, bands and products, and lags of the model's own prediction) is
-# tested for what it explains of that held-out residual beyond any function of db1's
-# inputs, with conditions as the units and Holm's step-down over the candidates; what passes
-# is named, its parameters fitted, and the model retrained once with it.
+# held its condition out, at a fitted offset. Where that held-out residual is predictable
+# from db1's own inputs, the misfit is named first by the forms of the inputs that carry it
+# (knees, bands) and taken off. Then every candidate (channels, their magnitudes, rates,
+# spreads, knees, bands and products, and lags of the model's own prediction) is tested for
+# what it explains of what is left beyond any function of db1's inputs, with conditions as
+# the units and Holm's step-down over the candidates; what passes is named, its parameters
+# fitted, and the model retrained once with everything named.
 
 # %%
 # Light settings for a notebook: 3 seeds, a coarser offset grid, and at most 2000 training
@@ -104,13 +106,14 @@ print(json.dumps(summary(res), indent=2))
 # %% [markdown]
 # ## 3. The effect's partial dependence and the closed gap
 #
-# The baseline residual, binned against the named effect's value per window, and what the
-# augmented model changed there.
+# The baseline residual, binned against the first missing effect's value per window, and
+# what the augmented model changed there.
 
 # %%
 w = res.windows[res.windows.weight >= 0.999]
-if res.effects:
-    e = res.effects[0]
+missing = [e for e in res.effects if e.kind == "missing"]
+if missing:
+    e = missing[0]
     fig = plots.partial_dependence(w[f"effect_{e.rank}"], w.measured_g - w.predicted_before_g,
                                    w.predicted_after_g - w.predicted_before_g, e.name, e.name)
 
@@ -161,6 +164,6 @@ print("named: ", [e.name for e in res.effects])
 plt.close("all")
 
 # %% tags=["checks"]
-first = summary(res)["effects"][0]
+first = next(e for e in summary(res)["effects"] if e["kind"] == "missing")
 assert "sideslip_deg" in first["channels"] or any("sideslip" in k for k in first["tied"]), first
 assert attributable >= 0.5, attributable

@@ -64,7 +64,8 @@ class DiscoveryConfig:
         level: the family-wise error of each round of the test (Holm over the candidates):
             on a campaign where nothing is missing, discovery names something at about this
             rate.
-        max_effects: effects named at most (0: the baseline and its residual map only).
+        max_effects: effects of each kind named at most: forms of the misfit, then missing
+            effects (0: the baseline and its residual map only).
         exclude_channels: campaign channels never offered as candidates (e.g. one a user
             knows to be derived from the vibration).
         simulation: a column of every record that holds the user's own simulated PVV (g,
