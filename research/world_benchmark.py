@@ -5,8 +5,9 @@ Each world is generated, its truth file written (the generator's ground truth, t
 the judged truth), and `discover` runs on the campaign alone. A world is scored against its
 truth and the null world of its seed:
 
-- right first: the first named effect is the truth (on a two-effect world, the larger of the
-  two: the one whose vibration differs more from the null's, RMS over every sample);
+- right first: the first effect named as missing is the truth (the misfit's forms are named
+  before any; on a two-effect world, the larger of the two: the one whose vibration differs
+  more from the null's, RMS over every sample);
 - both named (two-effect worlds): each truth among the named effects;
 - clean (null worlds): nothing named;
 - spurious: an effect named that no planted family accepts;
@@ -151,7 +152,8 @@ def score(rows: pd.DataFrame, worlds: list[dict]) -> pd.DataFrame:
                 sizes = [effect_size(w, x["effect"], null_records[w["seed"]]) for x in truths]
                 truths = [truths[i] for i in np.argsort(sizes)[::-1]]
                 s["both_named"] = all(any(matches(e, x["accept"]) for e in effects) for x in truths)
-            first = effects[0] if effects else None
+            # The first named as missing: the misfit's forms are named before any.
+            first = next((e for e in effects if e.get("kind") != "misfit"), None)
             s["right_first"] = bool(first and matches(first, truths[0]["accept"]))
             s["spurious"] = any(not any(matches(e, x["accept"]) for x in truths) for e in effects)
             null = nulls.get(r["seed"])

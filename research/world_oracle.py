@@ -187,6 +187,8 @@ def judged(rows: pd.DataFrame, orc: pd.DataFrame, worlds: list[dict], truths: di
         o = orc[orc.world == r["world"]].set_index("name")
         capacity = "capacity" in o.index and bool(o.loc["capacity", "detected"])
         in_truth = [any(_names(e, a, capacity) for a in accepts.values()) for e in effects]
+        # First: the first effect named as missing (the misfit's forms are named before any).
+        first = next((e for e in effects if e.get("kind") != "misfit"), None)
         # The largest entry the oracle detects: is it what discovery names first?
         seen = [e for e in truth["entries"] if e["name"] in o.index and bool(o.loc[e["name"], "detected"])
                 and e["name"] in accepts]
@@ -198,14 +200,14 @@ def judged(rows: pd.DataFrame, orc: pd.DataFrame, worlds: list[dict], truths: di
                    capacity_p=float(o.loc["capacity", "p_value"]) if "capacity" in o.index else np.nan,
                    named_in_truth=int(sum(in_truth)),
                    largest_first=(np.nan if largest is None else
-                                  bool(effects) and _names(effects[0], accepts[largest["name"]])),
+                                  first is not None and _names(first, accepts[largest["name"]])),
                    floor_g=r["floor_g"], before_g=r["ensemble_rms_g_before"], after_g=r["ensemble_rms_g_after"],
                    seconds=r["seconds"])
         if planted is not None:
             row.update(size=planted["against_noise"], size_mg=1e3 * planted["where_acts_g"],
                        oracle=bool(o.loc[planted["name"], "detected"]) if planted["name"] in o.index else np.nan,
                        discovered=any(_names(e, fam["accept"]) for e in effects),
-                       first=bool(effects) and _names(effects[0], fam["accept"]))
+                       first=first is not None and _names(first, fam["accept"]))
         out.append(row)
     df = pd.DataFrame(out)
     if "size" in df:
