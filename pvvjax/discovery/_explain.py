@@ -259,6 +259,35 @@ def out_of_fold_linear(A, target, fit, fold) -> np.ndarray:
     return out
 
 
+def _missing_rounds(y, Z, pool, X, groups, fold, rounds, level, neighbours, learner) -> tuple[list, list]:
+    """`explain`'s rounds of missing candidates: (named, test rows). Each round partials the
+    residual (trees) and the candidates X (neighbours) out of Z, names the best that passes
+    Holm at `level` with its tied set, and adds it to Z (a lag with every lag of the grid)."""
+    named, rows = [], []
+    for rnd in rounds:
+        if not pool:
+            break
+        ry = cross_fit(y, Z, fold, learner)
+        RX = neighbour_left(X, Z, fold, neighbours)
+        left = RX.var(axis=0) / np.maximum(X.var(axis=0), 1e-300)
+        theta, t, p = regression_tests(ry, RX, groups)
+        adj = holm(p)
+        rows += [dict(round=rnd, key=c.key, name=c.name, kind="missing", statistic=t[j], p_value=p[j],
+                      adjusted_p=adj[j], theta=theta[j], left=left[j]) for j, c in enumerate(pool)]
+        best = int(np.argmin(p))
+        if adj[best] >= level:
+            break
+        tied = _ties(ry, RX, best, np.flatnonzero(adj < level), groups, level)
+        named.append(Named(pool[best], rnd, float(t[best]), float(p[best]), float(adj[best]), float(theta[best]),
+                           "missing", tuple(pool[j].key for j in tied), _share(ry, RX[:, best])))
+        joins = {best} | ({j for j, c in enumerate(pool) if c.operator == "lag"} if pool[best].operator == "lag"
+                          else set())
+        Z = np.column_stack([Z, X[:, sorted(joins)]])  # the rest are tested given it
+        gone = joins | set(tied)
+        pool, X = [c for j, c in enumerate(pool) if j not in gone], np.delete(X, sorted(gone), axis=1)
+    return named, rows
+
+
 def explain(residual, table: pd.DataFrame, inputs, groups, *, candidates: list[Candidate] | None = None,
             responses: tuple[list[Candidate], np.ndarray] | None = None, prediction=None, level: float = 0.05,
             folds: int = 5, seed: int = 0, max_named: int = 3, neighbours: int = 30,
@@ -316,29 +345,9 @@ def explain(residual, table: pd.DataFrame, inputs, groups, *, candidates: list[C
     if responses is not None and len(responses[0]):
         more, R = _usable(list(responses[0]), np.asarray(responses[1], float).reshape(len(y), -1))
         pool, X = pool + more, np.column_stack([X, R])
-    named, rows = [], []
     first = max([n.round for n in given.named], default=0) + 1
-    for rnd in range(first, first + max_named):
-        if not pool:
-            break
-        ry = cross_fit(y, Z, fold, learner)
-        RX = neighbour_left(X, Z, fold, neighbours)
-        left = RX.var(axis=0) / np.maximum(X.var(axis=0), 1e-300)
-        theta, t, p = regression_tests(ry, RX, groups)
-        adj = holm(p)
-        rows += [dict(round=rnd, key=c.key, name=c.name, kind="missing", statistic=t[j], p_value=p[j],
-                      adjusted_p=adj[j], theta=theta[j], left=left[j]) for j, c in enumerate(pool)]
-        best = int(np.argmin(p))
-        if adj[best] >= level:
-            break
-        tied = _ties(ry, RX, best, np.flatnonzero(adj < level), groups, level)
-        named.append(Named(pool[best], rnd, float(t[best]), float(p[best]), float(adj[best]), float(theta[best]),
-                           "missing", tuple(pool[j].key for j in tied), _share(ry, RX[:, best])))
-        joins = {best} | ({j for j, c in enumerate(pool) if c.operator == "lag"} if pool[best].operator == "lag"
-                          else set())
-        Z = np.column_stack([Z, X[:, sorted(joins)]])  # the rest are tested given it
-        gone = joins | set(tied)
-        pool, X = [c for j, c in enumerate(pool) if j not in gone], np.delete(X, sorted(gone), axis=1)
+    named, rows = _missing_rounds(y, Z, pool, X, groups, fold, range(first, first + max_named), level, neighbours,
+                                  learner)
     frames = [f for f in (given.tests, pd.DataFrame(rows, columns=list(_TEST_COLUMNS))) if len(f)]
     tests = pd.concat(frames, ignore_index=True) if frames else given.tests
     return Explanation(given.named + tuple(named), tests, given.carried, given.capacity, level)
