@@ -6,21 +6,24 @@ add it to the model and show the gap shrink (data-contract §3).
    condition out; the input-to-vibration offset is fitted on the held-out windows.
 2. **Localize.** Window residuals (measured − predicted, median over seeds) by maneuver
    kind, flight regime and position inside the maneuvers (`residuals.localize`).
-3. **Explain, by one calibrated test** (`explain`). Every candidate (`candidates`: channels,
-   magnitudes, rates, spreads, knees, bands, products; and the responses, lags of the
-   model's own prediction) is tested for what it explains of the held-out residual beyond
-   any function of the model's inputs: both partialled out of the inputs by flexible
-   learners fitted out of fold, a t over conditions (the independent units), Holm's
-   step-down over the candidates at `discovery.level` family-wise. The best that passes is
-   named, the rest tested again given it, until nothing passes; candidates the data cannot
-   tell from it are named with it (`tied`). A candidate built only from the model's inputs is
-   never named as missing; where the residual is predictable from those inputs at all
-   (`capacity_test`), the misfit is named by the simplest form that carries it.
+3. **Explain, by one calibrated test** (`misfits`, then `explain`). Where the held-out
+   residual is predictable from the model's inputs at all (`capacity_test`), the misfit is
+   named first by the static forms of those inputs that carry it (knees, bands, products;
+   forward selection, Holm in each round), and its out-of-fold fit is taken off the
+   residual. Then every candidate (`candidates`: channels, magnitudes, rates, spreads,
+   knees, bands, products; and the responses, lags of the corrected prediction) is tested
+   for what it explains of what is left beyond any function of the model's inputs: both
+   partialled out of the inputs by flexible learners fitted out of fold, a t over
+   conditions (the independent units), Holm's step-down over the candidates at
+   `discovery.level` family-wise. The best that passes is named, the rest tested again
+   given it, until nothing passes; candidates the data cannot tell from it are named with
+   it (`tied`). A candidate built only from the model's inputs is never named as missing.
 4. **Fit and add.** A named knee, band or lag gets its parameters by least squares
    (optimistix Levenberg–Marquardt, from where the test named them), and their intervals over a bootstrap
    of conditions. The named effects join the model at once (a channel or a knee as a network
    input, a band as a learned gain on the nets' output, a lag as a first-order lag of the
-   replayed prediction), which is retrained once; before and after are held out by condition.
+   replayed prediction), which is retrained once at the baseline's offset; before and after
+   are held out by condition.
 
 The workflow reads the campaign only (never a generator's ground truth).
 
@@ -30,7 +33,7 @@ concentrates) and `report` (discovery.json, report.md, figures). Its private mod
 concept each: `_model` (the nets, the replay windows, the predictions and metrics),
 `_train` (a model's nets trained on the peaks), `_fits` (least-squares fits of a lag, a knee
 or band, the offset), `_citest` (cross-fitted conditional-independence tests with
-conditions as the units: `gcm_test`, `capacity_test`, `holm`), `_explain` (`explain`: the
+conditions as the units: `gcm_test`, `capacity_test`, `holm`), `_explain` (`misfits`, `explain`: the
 candidates named by that test at one level, stepwise), `_tested` (the discovery's test, fits
 and the model with the named effects), `_results` (the typed outcome: an `Effect`, a
 `Round`) and `_workflow` (`discover`, `summary`).
