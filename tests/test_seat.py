@@ -105,7 +105,8 @@ def test_an_axis_that_carries_no_vibration_is_said_so_never_scored_as_failing():
 @pytest.mark.check
 def test_the_discovery_on_the_lateral_axis_names_sideslip(default_campaign):
     """Kottapalli's finding on the embedded campaign: db1's inputs fail the lateral axis, and the
-    discovery run on it names sideslip first (the generator's lateral_sideslip effect). About a
+    discovery run on it names sideslip as the first missing effect (the generator's
+    lateral_sideslip effect; a misfit of db1's own inputs may be named before it). About a
     minute on 2 cores (`make check`); the main job's report shows the same on every `make demo`."""
     import dataclasses
 
@@ -116,5 +117,6 @@ def test_the_discovery_on_the_lateral_axis_names_sideslip(default_campaign):
     cfg = cfg.with_(analysis=dataclasses.replace(cfg.analysis, axis="ay_g"),
                     discovery=dataclasses.replace(cfg.discovery, max_effects=1))
     res = discover(default_campaign, cfg, log=lambda *a: None)
-    assert res.effects and "sideslip_deg" in res.effects[0].channels
+    first = next((e for e in res.effects if e.kind == "missing"), None)
+    assert first is not None and "sideslip_deg" in first.channels, [e.name for e in res.effects]
     assert res.after["rms_g"] < 0.7 * res.before["rms_g"]
