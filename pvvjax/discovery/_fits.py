@@ -3,6 +3,7 @@ a model."""
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import replace
 
 import jax
@@ -55,8 +56,9 @@ def fit_lag(yhat, meas, win: _Windows, rows, tau_s: float, weights=None, cell: f
     the measured PVV `meas` on `rows` (weighted least squares, `weights` per row: a bootstrap
     over conditions keeps every shape), by Levenberg–Marquardt from `tau_s`, within a factor
     `cell` of it (τ = tau_s · cell^tanh θ): the test named the lag at `tau_s`, and a τ that walks
-    further is another candidate. Against the measured level alone, a longer lag also smooths
-    the prediction's own noise, so an unbounded fit can run to a lag that only smooths."""
+    further is another candidate (a τ that stops at that bound is warned about). Against the
+    measured level alone, a longer lag also smooths the prediction's own noise, so an
+    unbounded fit can run to a lag that only smooths."""
     i, k, to_grid, tg = _grid(win)
     w = np.ones(int(np.sum(rows))) if weights is None else np.asarray(weights, float)
     f32 = lambda v: jnp.asarray(v, jnp.float32)  # noqa: E731
@@ -65,7 +67,13 @@ def fit_lag(yhat, meas, win: _Windows, rows, tau_s: float, weights=None, cell: f
     sol = optx.least_squares(_tau_residuals, optx.LevenbergMarquardt(rtol=1e-6, atol=1e-9), jnp.zeros(()), args,
                              max_steps=64, throw=False)
     tau = float(_cell_tau(sol.value, tau_s, cell))
-    return tau if np.isfinite(tau) else float(tau_s)
+    if not np.isfinite(tau):
+        return float(tau_s)
+    if weights is None and abs(float(jnp.tanh(sol.value))) > 0.99:  # a bootstrap draw is not warned about
+        warnings.warn(f"discovery: the lag's time constant stopped at its search bound ({tau:.3g} s, a factor "
+                      f"{cell:g} from the {tau_s:.3g} s the test named): the data hold a lag beyond it, which the "
+                      "test did not name; it is reported at the bound", UserWarning, stacklevel=2)
+    return tau
 
 
 def _fit_offset(ctx: _Ctx, model: Model) -> Model:
