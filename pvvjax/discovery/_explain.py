@@ -43,7 +43,8 @@ from .candidates import Candidate, library, values
 
 __all__ = ["Explanation", "Named", "carried_by", "explain", "misfits", "neighbour_left", "out_of_fold_linear"]
 
-_TEST_COLUMNS = ("round", "key", "name", "kind", "statistic", "p_value", "adjusted_p", "theta", "left")
+# The columns of `Explanation.tests` (one row per candidate and round).
+TEST_COLUMNS = ("round", "key", "name", "kind", "statistic", "p_value", "adjusted_p", "theta", "left")
 
 # Operators whose window value is a function of the channels' window means: built from the
 # model's inputs only, such a candidate is a function of Z. A rate, a window's spread or a lag
@@ -243,7 +244,7 @@ def misfits(residual, table: pd.DataFrame, inputs, groups, *, candidates: list[C
         chosen.append(best)
         named.append(Named(forms[best], rnd, float(t[best]), float(p[best]), float(adj[best]), float(theta[best]),
                            "misfit", (), _share(ry, RF[:, best])))
-    return Explanation(tuple(named), pd.DataFrame(rows, columns=list(_TEST_COLUMNS)), tuple(c.key for c in forms),
+    return Explanation(tuple(named), pd.DataFrame(rows, columns=list(TEST_COLUMNS)), tuple(c.key for c in forms),
                        capacity, level)
 
 
@@ -348,6 +349,6 @@ def explain(residual, table: pd.DataFrame, inputs, groups, *, candidates: list[C
     first = max([n.round for n in given.named], default=0) + 1
     named, rows = _missing_rounds(y, Z, pool, X, groups, fold, range(first, first + max_named), level, neighbours,
                                   learner)
-    frames = [f for f in (given.tests, pd.DataFrame(rows, columns=list(_TEST_COLUMNS))) if len(f)]
+    frames = [f for f in (given.tests, pd.DataFrame(rows, columns=list(TEST_COLUMNS))) if len(f)]
     tests = pd.concat(frames, ignore_index=True) if frames else given.tests
     return Explanation(given.named + tuple(named), tests, given.carried, given.capacity, level)

@@ -98,6 +98,15 @@ def _misfit_shift(ctx: _Ctx, win: _Windows, rows, yhat, named) -> np.ndarray:
     return out_of_fold_linear(cols, win.table.measured_g.to_numpy() - yhat, rows, fold)
 
 
+def _tested_windows(win: _Windows, pred):
+    """What the test and the fits see of the replay windows: the fully weighted rows (mask),
+    the ensemble's median prediction and the measured level (all windows), the candidates'
+    window table and each window's condition on those rows."""
+    rows = win.table.weight.to_numpy() >= 0.999
+    return (rows, np.median(pred, axis=0), win.table.measured_g.to_numpy(), win.cands[rows].reset_index(drop=True),
+            win.table.condition.astype(str).to_numpy()[rows])
+
+
 def tested(ctx: _Ctx, win: _Windows, pred, inputs, log=print, exclude=()) -> tuple[Explanation, np.ndarray]:
     """Explain the residual of a baseline (its held-out predictions `pred`, seeds × windows,
     on the replay windows `win`) beyond any function of its `inputs` (`x:` columns of the
@@ -114,11 +123,7 @@ def tested(ctx: _Ctx, win: _Windows, pred, inputs, log=print, exclude=()) -> tup
         The `Explanation`, and the prediction corrected by the misfit's forms, (n,) per window.
     """
     d = ctx.cfg.discovery
-    rows = win.table.weight.to_numpy() >= 0.999
-    yhat = np.median(pred, axis=0)
-    meas = win.table.measured_g.to_numpy()
-    table = win.cands[rows].reset_index(drop=True)
-    groups = win.table.condition.astype(str).to_numpy()[rows]
+    rows, yhat, meas, table, groups = _tested_windows(win, pred)
     lib = [c for c in library(table, model_inputs=inputs) if not set(c.channels) & set(exclude)]
     common = dict(level=d.level, folds=d.ensemble.folds, seed=ctx.cfg.seed, max_named=d.max_effects)
     m = misfits(meas[rows] - yhat[rows], table, inputs, groups, candidates=lib, prediction=yhat[rows], **common)
@@ -137,11 +142,7 @@ def fitted(ctx: _Ctx, win: _Windows, pred, corrected, ex: Explanation, inputs) -
     misfit form against the baseline's residual beside the other forms named (two knees of one
     channel stay apart), each missing one against the residual of the `corrected` prediction
     beside the inputs."""
-    rows = win.table.weight.to_numpy() >= 0.999
-    yhat = np.median(pred, axis=0)
-    meas = win.table.measured_g.to_numpy()
-    table = win.cands[rows].reset_index(drop=True)
-    groups = win.table.condition.astype(str).to_numpy()[rows]
+    rows, yhat, meas, table, groups = _tested_windows(win, pred)
     Z = table[[f"x:{k}" for k in inputs]].to_numpy(float)
     forms = [n for n in ex.named if n.kind == "misfit"]
     out = []

@@ -18,7 +18,7 @@ from ..data.campaign import Campaign, load_campaign
 from ..nets import train as _train
 from ..replay.quasistatic import make_settings, prepare
 from ._citest import UnitTest
-from ._explain import Explanation, tested_column
+from ._explain import TEST_COLUMNS, Explanation, tested_column
 from ._fits import _fit_offset
 from ._model import HOP_REVS, Model, _Ctx, _lag_windows, metrics, predictions
 from ._results import Effect, Round
@@ -27,8 +27,6 @@ from ._tested import effect_region, fitted, held_out, tested, with_effects
 from ._train import _train_model
 from .candidates import Candidate, sample_series, window_table
 from .residuals import localize
-
-TEST_COLUMNS = ("round", "key", "name", "kind", "statistic", "p_value", "adjusted_p", "theta", "left")
 
 
 @dataclass(frozen=True)
@@ -261,7 +259,7 @@ def _outcome(ctx: _Ctx, name: str, run: _Run, seconds: dict, localized: dict, lo
         else:
             table[f"effect_{e.rank}"] = tested_column(c, run.win.cands, yb)
     log(f"final: {len(effects)} effect(s); held-out RMS {run.before['rms_g']:.4f} -> {after['rms_g']:.4f} g")
-    if effects and after["rms_g"] > run.before["rms_g"]:
+    if _worse(effects, run.before, after):
         warnings.warn(f"discovery on {name}: the model with the named effects predicts worse held out than the "
                       f"baseline (RMS {run.before['rms_g']:.4f} -> {after['rms_g']:.4f} g): "
                       "what the test named is reported, but adding it as fitted did not help", UserWarning,
@@ -277,6 +275,11 @@ def _outcome(ctx: _Ctx, name: str, run: _Run, seconds: dict, localized: dict, lo
                      None if ex is None else ex.capacity, () if ex is None else ex.carried, d.level, typed)
 
 
+def _worse(effects, before: dict, after: dict) -> bool:
+    """Whether the model with named effects predicts worse held out than the baseline."""
+    return bool(effects) and after["rms_g"] > before["rms_g"]
+
+
 def summary(res: Discovery) -> dict:
     """The data-contract §3 summary (`discovery.json`)."""
     m = lambda x: {k: round(float(x[k]), 6) for k in ("rms_g", "peak_error_g", "phase_error_s")}  # noqa: E731
@@ -286,7 +289,7 @@ def summary(res: Discovery) -> dict:
         "baseline": {"database": res.database, "metrics": m(res.before)},
         "effects": [e.summary() for e in res.effects],
         "augmented": {"added": [e.name for e in res.effects], "metrics": m(res.after),
-                      "worse_than_baseline": bool(res.effects) and res.after["rms_g"] > res.before["rms_g"]},
+                      "worse_than_baseline": _worse(res.effects, res.before, res.after)},
         "gap_shrink": round(1.0 - res.after["rms_g"] / res.before["rms_g"], 4),
         "level": res.level,
         "capacity": None if cap is None else {
