@@ -422,3 +422,29 @@ def test_a_simulation_takes_a_named_lag_and_a_named_channel_fitted_out_of_fold()
     assert np.sqrt(np.mean((after - win.table.measured_g) ** 2)) < 0.004
     only_lag = simulated_after(ctx, win, sim[None], (named(lag),))[0]
     np.testing.assert_allclose(only_lag, _lag_windows(sim[None], win, 2.0)[0])
+
+
+def test_a_misfit_joins_the_model_as_an_out_of_fold_linear_term_without_retraining():
+    # measured = prediction + 0.3 × a form of the inputs: the misfit's form becomes the model's
+    # linear term (the nets are not retrained: no context to train with is needed), and its
+    # shift on one fold's conditions does not move when that fold's measured level changes.
+    from types import SimpleNamespace
+
+    from pvvjax.discovery._explain import Named
+
+    win, y = _steps(n_counters=12)
+    rng = np.random.default_rng(3)
+    x = rng.standard_normal(12)[win.table.i.to_numpy()]
+    win._cands = pd.DataFrame({"x:airspeed_kt": x})
+    win.table["measured_g"] = y + 0.3 * x + 0.002 * rng.standard_normal(len(x))
+    form = Candidate("input", ("airspeed_kt",))
+    base = _model.Model({"w": 1}, ("airspeed_kt",), offset_s=0.4)
+    fitted = _tested.Fitted(Named(form, 1, 5.0, 0.0, 0.0, 1.0, kind="misfit"), form, {})
+    final = _tested.with_effects(None, base, (fitted,))
+    assert final.linear == (form,) and final.params is base.params and final.extra == ()
+    ctx = SimpleNamespace(counter_fold=np.arange(12) % 3)
+    shift = _tested.linear_shift(ctx, win, y, final.linear)
+    assert np.sqrt(np.mean((y + shift - win.table.measured_g) ** 2)) < 0.004
+    fold0 = ctx.counter_fold[win.table.i.to_numpy()] == 0
+    win.table.loc[fold0, "measured_g"] += 1.0
+    np.testing.assert_array_equal(_tested.linear_shift(ctx, win, y, final.linear)[fold0], shift[fold0])

@@ -20,10 +20,12 @@ add it to the model and show the gap shrink (data-contract §3).
    it (`tied`). A candidate built only from the model's inputs is never named as missing.
 4. **Fit and add.** A named knee, band or lag gets its parameters by least squares
    (optimistix Levenberg–Marquardt, from where the test named them), and their intervals over a bootstrap
-   of conditions. The named effects join the model at once (a channel or a knee as a network
-   input, a band as a learned gain on the nets' output, a lag as a first-order lag of the
-   replayed prediction), which is retrained once at the baseline's offset; before and after
-   are held out by condition.
+   of conditions. The named effects join the model at once: the misfit's forms as a linear
+   term on its prediction, fitted out of fold by condition (more inputs of the same channels
+   would only be refitted by the nets); a missing channel or knee as a network input, a band
+   as a learned gain on the nets' output, a lag as a first-order lag of the replayed
+   prediction, with the model retrained once at the baseline's offset. Before and after are
+   held out by condition.
 
 The workflow reads the campaign only (never a generator's ground truth).
 

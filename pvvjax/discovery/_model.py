@@ -148,7 +148,9 @@ class Model(NamedTuple):
         (`gain_apply`; the coefficients are in `params["gain"]`, in units of 1 / the
         candidate's `gain_unit` parameter, default 1: see `_columns`).
         offset_s: input-to-vibration offset, s. lag_tau_s: first-order lag of the replayed
-        prediction, s (0: none).
+        prediction, s (0: none). linear: candidates added as a linear term on the prediction,
+        fitted to its residual out of fold by condition (`linear_shift`): the baseline's
+        misfit, a function of its own inputs that more net inputs would only refit.
     """
 
     params: dict
@@ -157,6 +159,7 @@ class Model(NamedTuple):
     offset_s: float = 0.0
     lag_tau_s: float = 0.0
     gains: tuple = ()
+    linear: tuple = ()
 
 
 @dataclass

@@ -9,8 +9,8 @@ import jax
 import numpy as np
 
 from ..nets.networks import mlp_init
-from ._explain import out_of_fold_linear, tested_column
 from ._model import _Ctx, _lag_windows, _replay, _Windows
+from ._tested import linear_shift
 
 
 def placeholder_params(ctx: _Ctx) -> dict:
@@ -46,9 +46,4 @@ def simulated_after(ctx: _Ctx, win: _Windows, sim, fitted) -> np.ndarray:
     y = np.asarray(sim, float)[0]
     tau = next((f.candidate.parameters["tau_s"] for f in fitted if f.candidate.operator == "lag"), 0.0)
     y = _lag_windows(y[None], win, tau)[0] if tau > 0 else y
-    cols = [tested_column(f.candidate, win.cands, y) for f in fitted if f.candidate.operator != "lag"]
-    if not cols:
-        return y[None]
-    fit = win.table.weight.to_numpy() >= 0.999
-    fold = ctx.counter_fold[win.table.i.to_numpy()]
-    return (y + out_of_fold_linear(np.column_stack(cols), win.table.measured_g.to_numpy() - y, fit, fold))[None]
+    return (y + linear_shift(ctx, win, y, [f.candidate for f in fitted if f.candidate.operator != "lag"]))[None]

@@ -88,14 +88,15 @@ def _fit(n: Named, ctx: _Ctx, win: _Windows, rows, yhat, resid, table: pd.DataFr
     return Fitted(n, fitted, {k: _interval([d[k] for d in draws]) for k in names})
 
 
-def _misfit_shift(ctx: _Ctx, win: _Windows, rows, yhat, named) -> np.ndarray:
-    """(n,) the misfit's named forms fitted to the residual out of fold by condition (the
-    ensemble's folds), on every window: what the model with its misfit would add."""
-    if not named:
-        return np.zeros(len(yhat))
-    cols = np.column_stack([tested_column(m.candidate, win.cands, yhat) for m in named])
+def linear_shift(ctx: _Ctx, win: _Windows, y, candidates) -> np.ndarray:
+    """(n,) the `candidates`' columns (`tested_column` beside the prediction `y`, (n,) per
+    window) fitted to the residual of `y` out of fold by condition (the ensemble's folds, on
+    the fully weighted windows), on every window: what a linear term of them adds to `y`."""
+    if not candidates:
+        return np.zeros(len(y))
+    cols = np.column_stack([tested_column(c, win.cands, y) for c in candidates])
     fold = ctx.counter_fold[win.table.i.to_numpy()]
-    return out_of_fold_linear(cols, win.table.measured_g.to_numpy() - yhat, rows, fold)
+    return out_of_fold_linear(cols, win.table.measured_g.to_numpy() - y, win.table.weight.to_numpy() >= 0.999, fold)
 
 
 def _tested_windows(win: _Windows, pred):
@@ -127,7 +128,7 @@ def tested(ctx: _Ctx, win: _Windows, pred, inputs, log=print, exclude=()) -> tup
     lib = [c for c in library(table, model_inputs=inputs) if not set(c.channels) & set(exclude)]
     common = dict(level=d.level, folds=d.ensemble.folds, seed=ctx.cfg.seed, max_named=d.max_effects)
     m = misfits(meas[rows] - yhat[rows], table, inputs, groups, candidates=lib, prediction=yhat[rows], **common)
-    yc = yhat + _misfit_shift(ctx, win, rows, yhat, m.named)
+    yc = yhat + linear_shift(ctx, win, yhat, [n.candidate for n in m.named])
     lags, L = response_candidates(yc, win)
     ex = explain(meas[rows] - yc[rows], table, inputs, groups, candidates=lib, responses=(lags, L[rows]),
                  prediction=yc[rows], given=m, **common)
@@ -157,22 +158,28 @@ def fitted(ctx: _Ctx, win: _Windows, pred, corrected, ex: Explanation, inputs) -
 
 
 def with_effects(ctx: _Ctx, model: Model, fitted) -> Model:
-    """The model with the fitted effects, retrained once: a lag of its prediction, a band as
-    a learned gain on the nets' output (a mode magnifies the whole response), any other
-    candidate as a network input at the model's offset. The offset stays the model's: the
-    effects were tested and fitted at it (a lag's τ given it), so before and after differ by
-    the effects alone."""
+    """The model with the fitted effects: the misfit's forms as its linear term (`Model.linear`:
+    a function of its own inputs, which as more net inputs the nets would refit from a few
+    hundred peaks), and the missing effects by retraining it once: a lag of its prediction,
+    a band as a learned gain on the nets' output (a mode magnifies the whole response), any
+    other candidate as a network input at the model's offset. The offset stays the model's:
+    the effects were tested and fitted at it (a lag's τ given it), so before and after differ
+    by the effects alone."""
     extra, gains, tau = list(model.extra), list(model.gains), model.lag_tau_s
+    linear = list(model.linear)
     for f in fitted:
         c = f.candidate
-        if c.operator == "lag":
+        if f.named.kind == "misfit":
+            linear.append(c)
+        elif c.operator == "lag":
             tau = c.parameters["tau_s"]
         elif c.operator == "resonance":
             gains.append(replace(c, parameters={**c.parameters, "gain_unit": GAIN_UNIT}))
         else:
             extra.append(replace(c, parameters={**c.parameters, "offset_s": model.offset_s}))
-    trial = model._replace(extra=tuple(extra), gains=tuple(gains), lag_tau_s=tau)
-    return trial._replace(params=_train_model(ctx, trial))
+    trial = model._replace(extra=tuple(extra), gains=tuple(gains), lag_tau_s=tau, linear=tuple(linear))
+    retrain = (trial.extra, trial.gains, trial.lag_tau_s) != (model.extra, model.gains, model.lag_tau_s)
+    return trial._replace(params=_train_model(ctx, trial)) if retrain else trial
 
 
 def effect_region(win: _Windows, before, after) -> dict:
@@ -183,7 +190,10 @@ def effect_region(win: _Windows, before, after) -> dict:
 
 
 def held_out(ctx: _Ctx, model: Model) -> tuple[np.ndarray, _Windows, dict]:
-    """A model's held-out predictions on its replay windows and their `metrics`."""
+    """A model's held-out predictions (seeds, n) on its replay windows, its linear term added
+    (fitted to the ensemble median's residual, `linear_shift`), and their `metrics`."""
     win = _replay(ctx, model.offset_s)
     pred = predictions(ctx, model, win)
+    if model.linear:
+        pred = pred + linear_shift(ctx, win, np.median(pred, axis=0), model.linear)[None]
     return pred, win, metrics(pred, win)

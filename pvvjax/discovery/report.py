@@ -138,8 +138,9 @@ def _effect_lines(res: Discovery, js: dict) -> list[str]:
                     "`kind`: missing (beyond any function of the model's inputs) or misfit (a function of them "
                     "that the model did not learn). `intervals`: each fitted parameter's 5-95 % range over a "
                     "bootstrap of conditions. `tied`: candidates the data cannot tell from it (each has nothing "
-                    "left given the other). `region`: where the model with all named effects, retrained once, "
-                    "changed the held-out prediction, and the RMS there before and after.", ""]
+                    "left given the other). `region`: where the model with all named effects (the misfit's forms "
+                    "as a linear term fitted out of fold, the missing ones in the nets, retrained once) changed the "
+                    "held-out prediction, and the RMS there before and after.", ""]
 
 
 def _test_lines(res: Discovery, top: int = 8) -> list[str]:
