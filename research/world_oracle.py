@@ -10,7 +10,7 @@ units, at 5 %); a misfit (a function of db1's inputs: the rotor-speed resonance,
 band) by whether the residual covaries with its form at all. A single test told the answer:
 its detection is the ceiling a search over candidates can reach.
 
-    python research/world_oracle.py research/configs/worlds.toml --fresh --out runs/world-benchmark/fresh-9100 [--docs]
+    python research/world_oracle.py research/configs/worlds.toml --fresh --out runs/world-benchmark/fresh-9200 [--docs]
 
 reads the runner's rows, truth files and windows, adds OUT/oracle.csv (resumes: a world
 there is not tested again) and prints (with --docs writes research/discovery-benchmark.md)

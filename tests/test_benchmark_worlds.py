@@ -95,7 +95,7 @@ def test_the_truth_file_holds_the_ground_truth_the_draws_and_the_judged_truth(bw
 
 
 @pytest.mark.parametrize("old, new, needle", [
-    ("fresh = { first = 9100", "fresh = { first = 105", "overlap"),
+    ("fresh = { first = 9200", "fresh = { first = 105", "overlap"),
     ('name = "sideslip"', 'name = "yaw-rate"', "each name once"),
     ('truth = "tau_s"', 'truth = "tau"', "truth 'tau' is not a drawn parameter"),
     ("law = 0.3 ", "lawn = 0.3 ", "lawn"),
