@@ -381,3 +381,44 @@ def test_a_counter_without_a_whole_window_is_named_not_dropped_silently():
     with pytest.warns(UserWarning, match=r"1 counter\(s\) get no whole window .*: B"):
         summary = peak_summary(pd.DataFrame(rows))
     assert list(summary.counter) == ["A"]
+
+
+def test_one_records_defect_leaves_every_other_records_replay_bitwise_unchanged():
+    # A logger glitch in one record's azimuth (a sample out of step: the plan that record's own
+    # samples need grows) or in its vibration changes that record's replay only: the records
+    # are replayed in groups of the plan each one needs (`Settings.groups`).
+    import dataclasses
+
+    from pvvjax.nets.networks import mlp_init
+    from pvvjax.replay.tables import replay_all, settings_at
+
+    n, j = 4, 2
+    batch = to_batch(lagged_campaign(0.5, n=n, seconds=20.0, seed=1), STATE_CHANNELS)
+    net = mlp_init(jax.random.key(0), 8, (4,), in_mask=np.r_[np.ones(6), np.zeros(2)])
+    model = dict(params=jax.tree.map(lambda a: jnp.broadcast_to(a, (n, *jnp.shape(a))), net),
+                 idx=jnp.asarray(np.broadcast_to(R.input_index("db1"), (n, 8))))
+
+    def run(b):
+        s = settings_at(b, (0.5, 8.0, 0.0), hop_revs=1.0)
+        return s, replay_all(model, R.prepare(b), jnp.asarray([0.5, 8.0, 0.0]), settings=s)
+
+    settings, base = run(batch)
+    assert settings.groups == ()  # one plan serves these records
+    others = np.arange(n) != j
+    rev = np.array(batch.rev)
+    step = rev[j, 401] - rev[j, 400]
+    cases = {}
+    for name, shift in (("azimuth step short", -0.45), ("azimuth step long", 0.45), ("azimuth glitch", -0.9)):
+        a = rev.copy()
+        a[j, 401:] += shift * step
+        cases[name] = dataclasses.replace(batch, rev=a)
+    accel = np.array(batch.accel)
+    accel[j, 400] += 5.0
+    cases["vibration spike"] = dataclasses.replace(batch, accel=accel)
+    for name, b in cases.items():
+        s, out = run(b)
+        if name.startswith("azimuth"):
+            assert len(s.groups) == 2 and any(rows == (j,) for _, rows in s.groups), (name, s.groups)
+        for before, after in zip(base, out):
+            np.testing.assert_array_equal(np.asarray(before)[others], np.asarray(after)[others], err_msg=name)
+        assert any(not np.array_equal(np.asarray(x)[j], np.asarray(y)[j], equal_nan=True) for x, y in zip(base, out))

@@ -99,9 +99,11 @@ def pullup_replays(campaign, info, batch, recs, models: dict, tau_all: dict, fig
         (peak summary per offset and database, figure paths).
     """
     from .. import plots
+    from ..data.batch import batch_rows
     from ..replay.tables import peak_summary, replay_windows, settings_at, take_counters
 
     i = [list(info.index).index(PULLUP)]
+    batch = batch_rows(batch, i)  # its plan from its own samples
     one, rec1, models1 = info.loc[[PULLUP]], take_counters(recs, i), take_counters(models, i)
     half = 4.0 / (float(campaign.records[PULLUP].rotor_rpm.mean()) / 60.0)  # half of an 8-rev segment, s
     variants = {"zero offset": {db: 0.0 for db in models}, f"half segment ({half:.2f} s)": {db: half for db in models},

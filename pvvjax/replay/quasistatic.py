@@ -38,9 +38,11 @@ from ..analysis.harmonics import (
     WindowPlan,
     harmonic_from_means,
     means_from_sums,
+    plan_groups,
     plan_windows,
     record_bounds,
     record_columns,
+    record_plans,
     stack_columns,
     window_sums,
     with_prefix,
@@ -122,6 +124,11 @@ class Settings:
             paper). > 0 decouples them: L is then the length of the input averaging only,
             centred on each reference window.
         aircraft: rotor constants for the derived features.
+        groups: where the records need plans of other sizes, ((plan, rows), ...): each
+            record's own plan (`analysis.record_plans`), the records that share one grouped.
+            `replay_all` replays each group with its plan, so that no record's sampling (a
+            logger glitch in one) changes another record's numbers; empty when one plan
+            serves every record. Never part of a compiled program's key.
     """
 
     plan: WindowPlan = struct.field(pytree_node=False)
@@ -131,15 +138,20 @@ class Settings:
     stick_lag: bool = struct.field(pytree_node=False, default=False)
     reference_revs: float = 0.0
     aircraft: Aircraft = struct.field(pytree_node=False, default=UH60A)
+    groups: tuple = struct.field(pytree_node=False, default=())
 
 
 def make_settings(batch: RecordBatch, *, max_window_revs: float = 12.0, min_window_revs: float = 4.0,
                   hop_revs: float = 0.0, reference_revs: float = 0.0, **kw) -> Settings:
     """Settings whose plan covers windows of `min_window_revs`..`max_window_revs` on `batch`
-    (and the reference windows, if any)."""
+    (and the reference windows, if any), with the records grouped by the plans their own
+    samples need (`Settings.groups`) where those differ."""
     hop = hop_revs if hop_revs > 0 else (reference_revs if reference_revs > 0 else min_window_revs)
-    plan = plan_windows(batch, max(max_window_revs, reference_revs), hop, edge="linear")
-    return Settings(plan=plan, hop_revs=float(hop_revs), reference_revs=float(reference_revs), **kw)
+    longest = max(max_window_revs, reference_revs)
+    plans = plan_groups(record_plans(batch, longest, hop, edge="linear"))
+    plan = next(iter(plans)) if len(plans) == 1 else plan_windows(batch, longest, hop, edge="linear")
+    groups = tuple((p, tuple(int(i) for i in rows)) for p, rows in plans.items()) if len(plans) > 1 else ()
+    return Settings(plan=plan, hop_revs=float(hop_revs), reference_revs=float(reference_revs), groups=groups, **kw)
 
 
 def _prepare_one(az, cos_psi, sin_psi, rev, width, time, x, mask, harmonic, block):

@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 
 from ..config import CalibrationConfig
+from ..data.batch import batch_rows
 from ..io import markdown_table
 from .tables import (
     calibration_settings,
@@ -175,7 +176,7 @@ def stick_lag(info, batch, recs, models: dict, cc: CalibrationConfig, common: pd
     st_cfg = dataclasses.replace(cc, free=("offset_s", "stick_offset_s"), groups="all")
     cal = calibration_table(info, batch, recs, stick_dbs, st_cfg, (0.0, 8.0, 0.0), log=log).set_index("database")
     i = [list(info.index).index(counter)]
-    one, rec1 = info.loc[[counter]], take_counters(recs, i)
+    one, rec1, batch1 = info.loc[[counter]], take_counters(recs, i), batch_rows(batch, i)
     rows, pu, windows = [], [], {}
     for db in stick_dbs:
         s = cal.loc[db]
@@ -184,7 +185,7 @@ def stick_lag(info, batch, recs, models: dict, cc: CalibrationConfig, common: pd
                          stick_offset_s=s.stick_offset_s, cost_with_stick_lag=s.cost))
         for name, th in (("offset only", (b.offset_s, 8.0, 0.0)),
                          ("offset + stick lag", (s.offset_s, 8.0, s.stick_offset_s))):
-            w = replay_windows(one, rec1, {db: take_counters(models[db], i)}, th, settings_at(batch, th))
+            w = replay_windows(one, rec1, {db: take_counters(models[db], i)}, th, settings_at(batch1, th))
             sm = peak_summary(w)
             sm.insert(0, "model", name)
             pu.append(sm)

@@ -99,12 +99,25 @@ def _replay_all(m, r, th, settings):
 
 
 def replay_all(m, r, th, *, settings):
-    """Every counter's replay (leading axis N) at its θ (N, 3). The counters are padded to
-    a `bucket_size` count for the computation, so that campaigns of similar size share the
-    compiled replay."""
+    """Every counter's replay (leading axis N) at its θ (N, 3). The counters of each of the
+    settings' `groups` are replayed with their group's plan (all at once where one plan
+    serves every record), and padded to a `bucket_size` count for the computation, so that
+    campaigns of similar size share the compiled replay."""
     n = r.time.shape[0]
     th = jnp.broadcast_to(jnp.asarray(th, r.time.dtype), (n, 3))
-    return unpad_rows(_replay_all(*pad_rows((m, r, th), bucket_size(n)), settings), n)
+    one = settings.replace(groups=())
+    if not settings.groups:
+        return unpad_rows(_replay_all(*pad_rows((m, r, th), bucket_size(n)), one), n)
+    order = np.concatenate([rows for _, rows in settings.groups])
+    if len(order) != n:
+        raise ValueError(f"replay_all: the settings' plans were made for a batch of {len(order)} records "
+                         f"(`make_settings`), not these {n}: make them from the batch replayed")
+    parts = []
+    for plan, rows in settings.groups:
+        sub = take_rows((m, r, th), np.asarray(rows))
+        parts.append(unpad_rows(_replay_all(*pad_rows(sub, bucket_size(len(rows))), one.replace(plan=plan)), len(rows)))
+    back = np.argsort(order)
+    return jax.tree.map(lambda *a: jnp.concatenate(a)[back], *parts)
 
 
 def _bucketed(models, recs, members=None, mask=None):
@@ -222,14 +235,15 @@ def settings_at(batch, theta, hop_revs: float = 0.0) -> Settings:
 
 def calibration_settings(batch, cfg: CalibrationConfig, stick_lag: bool) -> Settings:
     """Replay settings that cover every θ inside the config's bounds (the window plan of the
-    longest window, the largest offsets), so one compiled cost serves the whole search."""
+    longest window, the largest offsets), so one compiled cost serves the whole search: one
+    plan for every record (no `groups`), as the cost sums them all."""
     lo, hi = cfg.offset_bounds
     if stick_lag:  # the sticks' total offset must stay inside the record too
         lo, hi = lo + min(cfg.stick_offset_bounds[0], 0.0), hi + max(cfg.stick_offset_bounds[1], 0.0)
     return make_settings(batch, max_window_revs=float(cfg.window_bounds[1]),
                          min_window_revs=float(cfg.window_bounds[0]), hop_revs=cfg.hop_revs,
                          reference_revs=cfg.reference_revs, offset_bounds=(float(lo), float(hi)),
-                         stick_lag=stick_lag)
+                         stick_lag=stick_lag).replace(groups=())
 
 
 def calibration_table(info: pd.DataFrame, batch, recs: ReplayRecord, models: dict, cfg: CalibrationConfig,
