@@ -304,7 +304,23 @@ def test_a_knee_is_refined_from_a_grid_neighbour_and_weights_of_one_change_nothi
     # A knee the fit pushes beyond the bulk of the channel is not a knee: the grid's is kept.
     flat = 0.01 * rng.standard_normal(600) + 0.001 * x
     edge = Candidate("threshold", ("collective_pct",), {"knee": 97.0, "above": True, "softness": 1.0})
-    assert _fits._refine(edge, flat, cands, np.ones(600)).parameters["knee"] <= np.quantile(x, 0.98)
+    with pytest.warns(UserWarning, match="beyond the 2-98 % range of collective_pct"):  # and said so
+        assert _fits._refine(edge, flat, cands, np.ones(600)).parameters["knee"] == 97.0
+
+
+def test_a_band_stopped_at_its_search_bound_is_warned_about():
+    # The residual's band sits two widths above the test's grid point: the fit moves the centre
+    # by one width at most, and says it stopped there.
+    from pvvjax.discovery.effects import band
+
+    rng = np.random.default_rng(1)
+    x = rng.uniform(240.0, 280.0, 800)
+    pred = np.full(800, 0.1)
+    resid = 0.5 * pred * band((x - 267.0) / 1.0, "gaussian", np) + 0.002 * rng.standard_normal(800)
+    grid = Candidate("resonance", ("rotor_rpm",), {"center": 265.0, "width": 1.0})
+    with pytest.warns(UserWarning, match="stopped at its search bound"):
+        fitted = _fits._refine(grid, resid, pd.DataFrame({"x:rotor_rpm": x}), pred)
+    assert fitted.parameters["center"] == pytest.approx(266.0, abs=0.05)  # 265 + one width
 
 
 def test_bootstrap_weights_deal_whole_conditions_with_replacement():

@@ -119,7 +119,8 @@ def _refine(c: Candidate, residual, cands: pd.DataFrame, prediction, base=None, 
         error or leaves the data: a knee beyond the 2-98 % range of its channel is a line
         through a few windows; a band stays within one width of where the test found it and
         its width within a factor 2 (further, it is another candidate, which the test did
-        not name).
+        not name). A knee kept at its grid point, or a band stopped at a bound, is warned
+        about (`UserWarning`), except in a bootstrap draw (`weights` given).
     """
     if c.operator not in ("threshold", "resonance"):
         return c
@@ -141,8 +142,20 @@ def _refine(c: Candidate, residual, cands: pd.DataFrame, prediction, base=None, 
     if not (np.all(np.isfinite(th)) and better):
         return c
     lo, hi = np.quantile(np.asarray(x), [0.02, 0.98])
+    say = weights is None  # a bootstrap draw is not warned about
     if c.operator == "threshold":
         # A knee beyond the bulk of the data is a line through a few windows, not a knee.
-        return replace(c, parameters={**p, "knee": float(th[0])}) if lo <= th[0] <= hi else c
+        if lo <= th[0] <= hi:
+            return replace(c, parameters={**p, "knee": float(th[0])})
+        if say:
+            warnings.warn(f"discovery: {c.name}: the fit moves the knee to {th[0]:.4g}, beyond the 2-98 % range of "
+                          f"{c.channels[0]} ({lo:.4g} to {hi:.4g}), a line through a few windows; it is reported at "
+                          f"{p['knee']:.4g}, where the test named it", UserWarning, stacklevel=2)
+        return c
     center, width = (float(v) for v in _band(sol.value, p["center"], p["width"]))
+    if say and (np.any(np.abs(np.tanh(th)) > 0.99) or not lo <= center <= hi):
+        warnings.warn(f"discovery: {c.name}: the band's fit stopped at its search bound (centre {center:.4g} within "
+                      f"one width of {p['center']:.4g}, width {width:.3g} within a factor 2 of {p['width']:.3g}, "
+                      f"inside the 2-98 % range of {c.channels[0]}): the data hold a band beyond it, which the test "
+                      "did not name; it is reported at the bound", UserWarning, stacklevel=2)
     return replace(c, parameters={**p, "center": float(np.clip(center, lo, hi)), "width": width})
