@@ -18,8 +18,8 @@ import importlib
 _EXPORTS = {
     "analysis": ["AXES", "DB_INPUTS", "OUTPUT", "Windows", "analyze", "analyze_axes", "axis_peak_tables",
                  "build_databases", "condition_peaks", "harmonic_windows", "peak_table", "plan_windows"],
-    "config": ["AnalysisConfig", "CalibrationConfig", "CampaignConfig", "ColumnMap", "ConfigError", "DiscoveryConfig",
-               "ExperimentConfig", "ReplayConfig", "SweepConfig", "TrainConfig", "load_config"],
+    "config": ["AnalysisConfig", "ArgumentError", "CalibrationConfig", "CampaignConfig", "ColumnMap", "ConfigError",
+               "DiscoveryConfig", "ExperimentConfig", "ReplayConfig", "SweepConfig", "TrainConfig", "load_config"],
     "data": ["MANEUVERS", "REQUIRED_CHANNELS", "UH60A", "Aircraft", "Campaign", "CampaignError", "Problem",
              "RecordBatch", "advance_ratio", "blade_loading", "campaign_from_frames", "derive_features",
              "load_campaign", "maneuver_load_factor", "thrust_coefficient", "to_batch", "validate_campaign",

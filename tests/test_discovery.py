@@ -9,6 +9,7 @@ import pandas as pd
 import pytest
 from conftest import discovery_config
 
+from pvvjax import ArgumentError
 from pvvjax.analysis.databases import DB_INPUTS
 from pvvjax.discovery import (
     Candidate,
@@ -174,9 +175,9 @@ def test_discover_takes_a_campaign_folder_and_a_bare_discovery_config(tmp_path, 
     campaign, cfg = seen[0]
     assert len(campaign) == 2 and campaign.source == str(folder)
     assert cfg == ExperimentConfig(discovery=discovery_config(folds=3))
-    with pytest.raises(TypeError, match="cfg must be an ExperimentConfig or a DiscoveryConfig, got dict"):
+    with pytest.raises(ArgumentError, match=r"discover: cfg = \{'folds': 3\}: must be an ExperimentConfig or a Disc"):
         D.discover(folder, {"folds": 3})
-    with pytest.raises(TypeError, match="campaign must be a Campaign or a campaign folder, got list"):
+    with pytest.raises(ArgumentError, match="discover: campaign = .*: must be a Campaign or a campaign folder"):
         D.discover([folder])
 
 

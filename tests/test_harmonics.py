@@ -234,7 +234,7 @@ def test_one_records_defect_leaves_every_other_records_windows_bitwise_unchanged
     (dict(hop_revs=0.0), "hop_revs = 0.0"),
     (dict(harmonic=4.5), "harmonic = 4.5: must be a whole number"),
     (dict(harmonic=0), "harmonic = 0"),
-    (dict(taper_revs=5.0), "taper_revs = 5.0: its two edges must fit"),
+    (dict(taper_revs=5.0), "taper_revs = 5.0: must be small enough that its two edges fit"),
     (dict(window_revs="8"), "window_revs = '8'"),
 ])
 def test_analyze_refuses_impossible_arguments_by_name_and_takes_numpy_scalars(kw, needle):

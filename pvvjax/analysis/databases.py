@@ -19,6 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 import pandas as pd
 
+from .._arguments import instance
 from ..config import AnalysisConfig
 from ..data.batch import bucket_size, to_batch
 from ..data.campaign import Campaign
@@ -152,6 +153,11 @@ def require_axis(campaign: Campaign, axis: str, key: str = "analysis.axis") -> N
                          f"record: {', '.join(campaign_axes(campaign))}")
 
 
+def _check_inputs(caller: str, campaign, analysis) -> None:
+    instance(caller, "campaign", campaign, Campaign, "a Campaign (load_campaign or campaign_from_frames)")
+    instance(caller, "analysis", analysis, AnalysisConfig, "an AnalysisConfig")
+
+
 def peak_table(campaign: Campaign, analysis: AnalysisConfig = AnalysisConfig()) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Analyse every counter's `analysis.axis` and take each condition's peak window.
 
@@ -159,6 +165,7 @@ def peak_table(campaign: Campaign, analysis: AnalysisConfig = AnalysisConfig()) 
         (peaks, windows): one row per condition with every state channel and derived
         feature at the peak window; and the long table of all valid windows.
     """
+    _check_inputs("peak_table", campaign, analysis)
     require_axis(campaign, analysis.axis)
     _, counters = _counters(campaign)
     win = analyze_by_length(campaign, counters, analysis.window_revs, analysis.hop,
@@ -307,6 +314,7 @@ def axis_peak_tables(campaign: Campaign, analysis: AnalysisConfig = AnalysisConf
 
 def build_databases(campaign: Campaign, analysis: AnalysisConfig = AnalysisConfig()) -> dict[str, pd.DataFrame]:
     """db1, db2, db3 (data-contract §2) and the full peak table under key "peaks"."""
+    _check_inputs("build_databases", campaign, analysis)
     peaks, _ = peak_table(campaign, analysis)
     out = {name: peaks[list(META_COLUMNS) + list(inputs) + [OUTPUT]].copy() for name, inputs in DB_INPUTS.items()}
     out["peaks"] = peaks

@@ -2,9 +2,11 @@
 
 An unknown or mistyped key, a value of the wrong type, or a value out of range is a
 `ConfigError` that names the file and the key. Relative paths in a config are relative to
-the working directory the command runs in.
+the working directory the command runs in. The Python functions refuse an argument they
+cannot use with one `ArgumentError` that names the function and the argument.
 """
 
+from .._arguments import ArgumentError
 from .._strict import ConfigError, from_dict, to_dict
 from ..data.units import ColumnMap
 from ._axes import AxesConfig
@@ -25,6 +27,7 @@ from ._sections import (
 
 __all__ = [
     "AnalysisConfig",
+    "ArgumentError",
     "AxesConfig",
     "CalibrationConfig",
     "CampaignConfig",

@@ -19,6 +19,7 @@ from typing import Sequence
 import jax
 import numpy as np
 
+from .._arguments import instance, names, number, refuse
 from .campaign import Campaign
 
 __all__ = ["BLOCK", "RecordBatch", "batch_rows", "bucket_size", "by_group", "pad_rows", "sample_widths", "take_rows",
@@ -144,15 +145,22 @@ def to_batch(campaign: Campaign, channels: Sequence[str], counters: Sequence[str
     Returns:
         The batch (NumPy arrays; JAX converts them on first use).
     """
+    instance("to_batch", "campaign", campaign, Campaign, "a Campaign (load_campaign or campaign_from_frames)")
+    channels = names("to_batch", "channels", channels)
+    number("to_batch", "min_length", min_length, at_least=0, whole=True)
     if counters is None:
         counters = [c for cs in campaign.conditions().values() for c in cs]
-    counters = list(counters)
-    axes = (axis,) if isinstance(axis, str) else tuple(axis)
+    counters = names("to_batch", "counters", counters)
+    unknown = [c for c in counters if c not in campaign.records]
+    if unknown:
+        raise refuse("to_batch", "counters", unknown, f"counters of campaign {campaign.source or '<memory>'}")
+    axes = (axis,) if isinstance(axis, str) else tuple(names("to_batch", "axis", axis))
     recs = [campaign.records[c] for c in counters]
     for c, r in zip(counters, recs):
         missing = [ch for ch in (*channels, *axes) if ch not in r.columns]
         if missing:
-            raise KeyError(f"counter {c!r} has no channel(s) {missing}")
+            raise refuse("to_batch", "channels" if set(missing) & set(channels) else "axis", missing,
+                         f"channels of every record: counter {c!r} has none of them")
     T = max(max(len(r) for r in recs), min_length)
     T = bucket_size(-(-T // BLOCK)) * BLOCK  # whole blocks for the harmonic analysis, few distinct lengths
     B, C = len(recs), len(channels)

@@ -20,6 +20,7 @@ from typing import Mapping
 import numpy as np
 import pandas as pd
 
+from .._arguments import path as path_argument
 from .._strict import ConfigError, from_dict
 from .checks import (
     RANGES,
@@ -428,6 +429,7 @@ def load_campaign(folder, mapping: Mapping[str, ColumnMap] | None = None, window
     Raises:
         CampaignError: listing every error. Warnings are issued as `CampaignWarning`s.
     """
+    path_argument("load_campaign", "folder", folder)
     campaign = _checked(*_read(folder, mapping, window_revs, harmonic, progress), str(folder))
     return dataclasses.replace(campaign, folder_fingerprint=campaign_fingerprint(folder))  # not for validation
 

@@ -10,6 +10,7 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
+from .._arguments import instance
 from .._timing import Stopwatch
 from ..analysis.databases import DB_INPUTS, STATE_CHANNELS, build_databases
 from ..config import DiscoveryConfig, ExperimentConfig
@@ -126,14 +127,12 @@ def _workflow_inputs(caller: str, campaign, cfg, name: str = "") -> tuple[Campai
     as the CLI loads it; the folder names it), an ExperimentConfig or a bare DiscoveryConfig."""
     if isinstance(cfg, DiscoveryConfig):
         cfg = ExperimentConfig(discovery=cfg)
-    elif not isinstance(cfg, ExperimentConfig):
-        raise TypeError(f"{caller}: cfg must be an ExperimentConfig or a DiscoveryConfig, got {type(cfg).__name__}")
+    instance(caller, "cfg", cfg, ExperimentConfig, "an ExperimentConfig or a DiscoveryConfig")
     if isinstance(campaign, (str, os.PathLike)):
         name = name or str(campaign)
         campaign = load_campaign(campaign, cfg.campaign.columns, cfg.analysis.window_revs,
                                  harmonic=cfg.analysis.harmonic)
-    elif not isinstance(campaign, Campaign):
-        raise TypeError(f"{caller}: campaign must be a Campaign or a campaign folder, got {type(campaign).__name__}")
+    instance(caller, "campaign", campaign, Campaign, "a Campaign or a campaign folder")
     return campaign, cfg, name
 
 

@@ -27,6 +27,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._arguments import number, refuse
 from ..data.batch import bucket_size, pad_rows
 from ._sums import affine
 
@@ -99,12 +100,23 @@ def mlp_init(key, n_in: int, hidden: Sequence[int], *, max_hidden: Sequence[int]
         Parameter dict: layers (tuple of {w, b}), masks (tuple of (width,) hidden-unit
         masks), in_mask, and the scaling entries.
     """
-    max_hidden = tuple(max_hidden or hidden)
+    number("mlp_init", "n_in", n_in, at_least=1, whole=True)
+    number("mlp_init", "n_out", n_out, at_least=1, whole=True)
+    hidden = tuple(number("mlp_init", "hidden", h, at_least=1, whole=True) for h in _widths("hidden", hidden))
+    max_hidden = tuple(number("mlp_init", "max_hidden", h, at_least=1, whole=True)
+                       for h in _widths("max_hidden", max_hidden or hidden))
     # The constants on the host (NumPy: an XLA program per shape eagerly).
     in_mask = np.ones(n_in, np.float32) if in_mask is None else np.asarray(in_mask, np.float32)
     layers = _glorot_layers(key, n_in, tuple(hidden), max_hidden, in_mask, n_out)
     masks = tuple((np.arange(m) < h).astype(np.float32) for h, m in zip(hidden, max_hidden))
     return dict(layers=layers, masks=masks, in_mask=in_mask, **(scale or _identity_scaling(n_in, n_out)))
+
+
+def _widths(name: str, v) -> tuple:
+    """Hidden-layer widths as a tuple, or an `ArgumentError` naming `name`."""
+    if isinstance(v, (str, bytes)) or not hasattr(v, "__iter__"):
+        raise refuse("mlp_init", name, v, "a sequence of layer widths, e.g. (10, 5)")
+    return tuple(v)
 
 
 def _glorot_layers(key, n_in: int, hidden, max_hidden=(), in_mask=None, n_out: int = 1) -> tuple:

@@ -23,6 +23,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
+from .._arguments import ArgumentError, number
 from ._sums import pairwise_sum
 from .networks import mlp_apply
 
@@ -55,10 +56,12 @@ class Fit(NamedTuple):
 def condition_folds(conditions, k: int, seed: int, name: str = "k") -> np.ndarray:
     """Fold index (0..k-1) of each row, assigned per condition in a seeded random order
     (`name`: the setting k came from, for the error)."""
+    number("condition_folds", name, k, whole=True)
+    number("condition_folds", "seed", seed, at_least=0, whole=True)
     conditions = np.asarray(conditions)
     uniq = np.unique(conditions)
     if k < 3 or k > len(uniq):
-        raise ValueError(f"{name} = {k}: a k-fold split by condition needs 3 <= k <= the number of conditions "
+        raise ArgumentError(f"{name} = {k}: a k-fold split by condition needs 3 <= k <= the number of conditions "
                          f"({len(uniq)})")
     order = np.random.default_rng(seed).permutation(len(uniq))
     fold_of = {c: i % k for i, c in zip(range(len(uniq)), uniq[order])}

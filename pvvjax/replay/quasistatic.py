@@ -30,6 +30,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
+from .._arguments import instance, number
 from .._lookup import Lookup, make_lookup, search
 from ..analysis.databases import DB_INPUTS, STATE_CHANNELS
 from ..analysis.harmonics import (
@@ -146,6 +147,11 @@ def make_settings(batch: RecordBatch, *, max_window_revs: float = 12.0, min_wind
     """Settings whose plan covers windows of `min_window_revs`..`max_window_revs` on `batch`
     (and the reference windows, if any), with the records grouped by the plans their own
     samples need (`Settings.groups`) where those differ."""
+    instance("make_settings", "batch", batch, RecordBatch, "a RecordBatch (to_batch)")
+    number("make_settings", "max_window_revs", max_window_revs, above=0)
+    number("make_settings", "min_window_revs", min_window_revs, above=0, at_most=max_window_revs)
+    number("make_settings", "hop_revs", hop_revs, at_least=0)
+    number("make_settings", "reference_revs", reference_revs, at_least=0)
     hop = hop_revs if hop_revs > 0 else (reference_revs if reference_revs > 0 else min_window_revs)
     longest = max(max_window_revs, reference_revs)
     plans = plan_groups(record_plans(batch, longest, hop, edge="linear"))
