@@ -116,6 +116,31 @@ def test_window_sequences_against_a_brute_force_analysis_of_each_window():
         window_sequences(camp, ["airspeed_kt"], hop_revs=2.0)
 
 
+def test_one_long_record_moves_no_other_records_sequence():
+    # One record twelve times as long as the others: the analysis batches the records by length
+    # (one long record costs its own memory, not every record padded to it), and every other
+    # record's windows keep their numbers.
+    from conftest import tiny_records
+
+    from pvvjax.analysis import length_groups
+    from pvvjax.data.campaign import campaign_from_frames
+    from pvvjax.dynamics import window_sequences
+
+    counters, records = tiny_records(n_counters=6, seconds=4.0)
+    before = window_sequences(campaign_from_frames(counters, records), ["airspeed_kt"])
+    grown = {**records, "C2": tiny_records(n_counters=6, seconds=48.0)[1]["C2"]}
+    assert len(set(length_groups([len(grown[c]) for c in counters.counter]))) == 2  # batched apart
+    after = window_sequences(campaign_from_frames(counters, grown), ["airspeed_kt"])
+    j = after.counters.index("C2")
+    assert before.counters == after.counters and after.mask[j].sum() > 10 * before.mask[j].sum()
+    for i in set(range(6)) - {j}:
+        n = int(before.mask[i].sum())
+        assert int(after.mask[i].sum()) == n
+        np.testing.assert_allclose(after.amplitude[i, :n], before.amplitude[i, :n], rtol=1e-6, atol=1e-9)
+        np.testing.assert_allclose(after.inputs[i, :n], before.inputs[i, :n], rtol=1e-6)
+        np.testing.assert_array_equal(after.t_start[i, :n], before.t_start[i, :n])
+
+
 def test_chained_segments_form_one_flight():
     from conftest import tiny_records
 

@@ -10,8 +10,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..analysis.databases import STATE_CHANNELS
-from ..analysis.harmonics import analyze
+from ..analysis.databases import STATE_CHANNELS, analyze_by_length
 from ..data.batch import to_batch
 from ..data.campaign import Campaign
 from ..data.features import derive_features
@@ -83,8 +82,9 @@ def window_sequences(campaign: Campaign, inputs: Sequence[str], *, window_revs: 
         raise ValueError(f"hop_revs {hop_revs:g}: must lie in (0, 1] revolution (a sequence needs the windows of "
                          "every revolution)")
     counters = list(counters) if counters is not None else [c for cs in campaign.conditions().values() for c in cs]
-    batch = to_batch(campaign, STATE_CHANNELS, counters, axis=axis)
-    win = analyze(batch, window_revs, hop_revs, harmonic=harmonic or campaign.aircraft.blades)
+    # Batched by length: one long record among short ones costs its own memory, not theirs.
+    win = analyze_by_length(campaign, counters, window_revs, hop_revs, harmonic=harmonic or campaign.aircraft.blades,
+                            axis=axis)
     mask = np.asarray(win.valid)
     if not mask.any(axis=1).all():
         short = [c for c, ok in zip(counters, mask.any(axis=1)) if not ok]
@@ -97,12 +97,13 @@ def window_sequences(campaign: Campaign, inputs: Sequence[str], *, window_revs: 
         raise ValueError(f"inputs {unknown}: neither state channels nor derived features ({sorted(features)})")
     x = np.stack([features[n] for n in inputs], axis=-1)
     time = np.asarray(win.time, np.float64)
-    t_start, t_end = _edges(batch, time.shape[1], window_revs, hop_revs)
+    tracks = [_track(campaign, c, axis) for c in counters]
+    t_start, t_end = _edges(tracks, time.shape[1], window_revs, hop_revs)
     info = campaign.counters.loc[counters]
     rows = _rows(counters, list(info.condition), chain)
     cols = [x, np.asarray(win.amplitude, np.float64), t_start, t_end]
     record = np.asarray(counters, dtype=object)[:, None].repeat(mask.shape[1], 1)
-    time, x, amp, t_start, t_end, record, mask = _join(rows, time, batch, mask, [*cols, record])
+    time, x, amp, t_start, t_end, record, mask = _join(rows, time, tracks, mask, [*cols, record])
     names = tuple(inputs)
     if rates:
         x = np.concatenate([x, _rates(x, time, mask)], axis=-1)
@@ -124,11 +125,17 @@ def _rows(counters, conditions, chain: bool) -> list[list[int]]:
     return list(groups.values())
 
 
-def _join(rows, time, batch, mask, arrays):
+def _track(campaign: Campaign, counter: str, axis: str) -> tuple[np.ndarray, np.ndarray]:
+    """(time s, revolutions) of a record's samples, as the analysis counts them."""
+    b = to_batch(campaign, [], [counter], axis=axis)
+    m = np.asarray(b.mask[0])
+    return np.asarray(b.time[0], np.float64)[m], np.asarray(b.rev[0], np.float64)[m]
+
+
+def _join(rows, time, tracks, mask, arrays):
     """Each row's real windows, its records' one after another (a later record's times
-    shifted to start one sample step after the earlier's last sample), padded to the longest
-    row by repeating its last window."""
-    t_rec, m_rec = np.asarray(batch.time, np.float64), np.asarray(batch.mask)
+    shifted to start one sample step after the earlier's last sample, from `tracks`),
+    padded to the longest row by repeating its last window."""
     n = mask.sum(axis=1)
     width = max(int(sum(n[i] for i in r)) for r in rows)
     out_t, out = np.empty((len(rows), width)), [np.empty((len(rows), width) + a.shape[2:], a.dtype) for a in arrays]
@@ -140,7 +147,7 @@ def _join(rows, time, batch, mask, arrays):
             parts_t.append(time[i, real] + shift)
             for p, a in zip(parts, arrays):
                 p.append(a[i, real])
-            tv = t_rec[i, m_rec[i]]
+            tv = tracks[i][0]
             shift += tv[-1] + (tv[-1] - tv[-2] if len(tv) > 1 else 0.0)
         k = int(sum(len(p) for p in parts_t))
         hold = np.minimum(np.arange(width), k - 1)
@@ -160,13 +167,12 @@ def _rates(x: np.ndarray, time: np.ndarray, mask: np.ndarray) -> np.ndarray:
     return np.where(mask[..., None], out, 0.0)
 
 
-def _edges(batch, n_windows: int, window_revs: float, hop_revs: float) -> tuple[np.ndarray, np.ndarray]:
-    """Start and end times of each window: its revolutions mapped to time along the record."""
-    rev, t, m = np.asarray(batch.rev, np.float64), np.asarray(batch.time, np.float64), np.asarray(batch.mask)
+def _edges(tracks, n_windows: int, window_revs: float, hop_revs: float) -> tuple[np.ndarray, np.ndarray]:
+    """Start and end times of each window: its revolutions mapped to time along the record
+    (`tracks`: each record's sample times and revolutions)."""
     starts = hop_revs * np.arange(n_windows)
-    t0, t1 = np.empty((len(rev), n_windows)), np.empty((len(rev), n_windows))
-    for r in range(len(rev)):
-        rv, tv = rev[r, m[r]], t[r, m[r]]
+    t0, t1 = np.empty((len(tracks), n_windows)), np.empty((len(tracks), n_windows))
+    for r, (tv, rv) in enumerate(tracks):
         t0[r] = np.interp(rv[0] + starts, rv, tv)
         t1[r] = np.interp(rv[0] + starts + window_revs, rv, tv)
     return t0, t1
