@@ -112,3 +112,12 @@ def test_the_error_is_a_type_error_and_a_value_error_and_public():
     # still catches it.
     assert issubclass(ArgumentError, TypeError) and issubclass(ArgumentError, ValueError)
     assert P.ArgumentError is P.config.ArgumentError
+
+
+def test_a_batch_beyond_the_machines_memory_is_refused_with_its_estimate_before_any_work(campaign):
+    from pvvjax.data.batch import machine_memory
+
+    assert machine_memory() > 2**28
+    with pytest.raises(MemoryError, match=r"3 record\(s\) padded to \d+ samples need [\d.e+]+ GiB as one batch, more "
+                                          r"than 25% of this machine's"):
+        P.to_batch(campaign, ["airspeed_kt"], min_length=10**13)

@@ -14,6 +14,7 @@ analysis, replay and calibration program instead of compiling their own.
 from __future__ import annotations
 
 import dataclasses
+import os
 from typing import Sequence
 
 import jax
@@ -22,8 +23,8 @@ import numpy as np
 from .._arguments import instance, names, number, refuse
 from .campaign import Campaign
 
-__all__ = ["BLOCK", "RecordBatch", "batch_rows", "bucket_size", "by_group", "pad_rows", "sample_widths", "take_rows",
-           "to_batch", "unpad_rows"]
+__all__ = ["BLOCK", "MEMORY_SHARE", "RecordBatch", "batch_rows", "bucket_size", "by_group", "machine_memory",
+           "pad_rows", "sample_widths", "take_rows", "to_batch", "unpad_rows"]
 
 BLOCK = 64  # batches are padded to a multiple of this many samples
 
@@ -142,6 +143,11 @@ def to_batch(campaign: Campaign, channels: Sequence[str], counters: Sequence[str
 
     The length is padded to whole `BLOCK`s, in `bucket_size` steps of blocks.
 
+    Raises:
+        ArgumentError: an argument it cannot use, by name.
+        MemoryError: a batch larger than `MEMORY_SHARE` of the machine's memory, with the
+            estimate, before any of it is allocated.
+
     Returns:
         The batch (NumPy arrays; JAX converts them on first use).
     """
@@ -164,6 +170,7 @@ def to_batch(campaign: Campaign, channels: Sequence[str], counters: Sequence[str
     T = max(max(len(r) for r in recs), min_length)
     T = bucket_size(-(-T // BLOCK)) * BLOCK  # whole blocks for the harmonic analysis, few distinct lengths
     B, C = len(recs), len(channels)
+    _check_memory(campaign, B, T, C + len(axes), np.dtype(dtype).itemsize)
     out = {k: np.zeros((B, T), dtype) for k in ("time", "rev", "cos_psi", "sin_psi", "width")}
     out["accel"] = np.zeros((B, T, len(axes)), dtype)
     x = np.zeros((B, T, C), dtype)
@@ -187,6 +194,30 @@ def to_batch(campaign: Campaign, channels: Sequence[str], counters: Sequence[str
     accel = np.ascontiguousarray(out["accel"][..., 0]) if isinstance(axis, str) else out["accel"]
     return RecordBatch(out["time"], out["rev"], out["cos_psi"], out["sin_psi"], out["width"], accel, x, mask,
                        tuple(counters), tuple(channels), axis)
+
+
+# A batch may take at most this share of the machine's memory: the analysis and the replay
+# hold several arrays of its size while they run.
+MEMORY_SHARE = 0.25
+
+
+def machine_memory() -> int | None:
+    """The machine's physical memory, bytes (None where the system does not say)."""
+    try:
+        return int(os.sysconf("SC_PHYS_PAGES")) * int(os.sysconf("SC_PAGE_SIZE"))
+    except (AttributeError, ValueError, OSError):
+        return None
+
+
+def _check_memory(campaign, B: int, T: int, columns: int, itemsize: int) -> None:
+    """Refuse, with the estimate, a batch larger than `MEMORY_SHARE` of the machine's memory,
+    before any of it is allocated."""
+    need, have = B * T * (5 + columns) * itemsize + B * T, machine_memory()
+    if have and need > MEMORY_SHARE * have:
+        raise MemoryError(f"campaign {campaign.source or '<memory>'}: {B} record(s) padded to {T} samples need "
+                          f"{need / 2**30:.3g} GiB as one batch, more than {MEMORY_SHARE:.0%} of this machine's "
+                          f"{have / 2**30:.3g} GiB; analyse fewer or shorter records at once (a long record cut "
+                          "into counters), or use a machine with more memory")
 
 
 def by_group(batch: RecordBatch, groups: dict, run):
