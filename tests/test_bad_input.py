@@ -596,6 +596,18 @@ def test_a_column_missing_everywhere_is_one_line(tmp_path, capsys):
     assert code == 1 and len(lines) == 1 and "4 time series" in lines[0], text
 
 
+def test_one_rule_broken_in_every_file_is_one_line_with_the_likely_unit(tmp_path, capsys):
+    # Every file's rotor speed in % of nominal: each file's value differs, the cause is one.
+    c, r = tiny_records(n_counters=4)
+    folder = write_tiny(tmp_path / "c", c, {k: v.assign(rotor_rpm=100.0 + 0.1 * i) for i, (k, v) in
+                                            enumerate(r.items())})
+    code, text = _run(["validate", "--campaign", str(folder)], capsys)
+    lines = [ln for ln in text.splitlines() if "rotor_rpm" in ln]
+    assert code == 1 and len(lines) == 1, text
+    assert "4 time series" in lines[0] and "in % of the nominal rotor speed?" in lines[0], text
+    assert "the same in each of the 4" in lines[0], text
+
+
 @pytest.mark.parametrize("kind", list(MAPPING))
 def test_bad_column_mapping_is_refused_naming_it(kind, tmp_path, capsys):
     toml, file, column, detail = MAPPING[kind]

@@ -245,21 +245,29 @@ def _read_table(path: Path, file: str, problems: list, **kwargs) -> pd.DataFrame
     return None
 
 
+_NUMBER = re.compile(r"[-+]?\d+(?:\.\d*)?(?:e[-+]?\d+)?")
+
+
 def _collapsed(problems: list[Problem], at_least: int = 3) -> list[Problem]:
-    """The same whole-file problem in many time series (a column missing everywhere) as one
-    line that counts the files, in the place of its first occurrence."""
-    key = lambda p: (p.column, p.message, p.warning)  # noqa: E731
+    """One rule broken in many time series (a column missing everywhere, every file's rotor
+    speed in another unit) as one line that counts the files, in the place of its first
+    occurrence: the same column, kind and message but for its numbers (each file's value and
+    row), so the cause they share is read once. The line keeps the first file's numbers."""
+    key = lambda p: (p.column, _NUMBER.sub("#", p.message), p.warning)  # noqa: E731
     files: dict = {}
     for p in problems:
-        if p.row is None and p.file.startswith("timeseries/"):
-            files.setdefault(key(p), []).append(p.file)
+        if p.file.startswith("timeseries/"):
+            files.setdefault(key(p), []).append(p)
     out, done = [], set()
     for p in problems:
         k = key(p)
-        many = p.row is None and p.file.startswith("timeseries/") and len(files.get(k, ())) >= at_least
-        if not many:
+        same = files.get(k, ()) if p.file.startswith("timeseries/") else ()
+        if len(same) < at_least:
             out.append(p)
         elif k not in done:
             done.add(k)
-            out.append(Problem(f"{len(files[k])} time series ({p.file}, …)", p.column, None, p.message, p.warning))
+            rows = {q.row for q in same}
+            out.append(Problem(f"{len(same)} time series ({p.file}, …)", p.column, p.row if len(rows) == 1 else None,
+                               f"{p.message} — the same in each of the {len(same)}: look for the one cause they share "
+                               "(the column's unit or mapping, campaign.toml), not a fault of each file", p.warning))
     return out
