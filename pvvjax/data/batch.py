@@ -23,8 +23,8 @@ import numpy as np
 from .._arguments import instance, names, number, refuse
 from .campaign import Campaign
 
-__all__ = ["BLOCK", "MEMORY_SHARE", "RecordBatch", "batch_rows", "bucket_size", "by_group", "machine_memory",
-           "pad_rows", "sample_widths", "take_rows", "to_batch", "unpad_rows"]
+__all__ = ["BLOCK", "MEMORY_SHARE", "RecordBatch", "batch_rows", "bucket_size", "by_group", "in_batch_order",
+           "machine_memory", "pad_rows", "sample_widths", "take_rows", "to_batch", "unpad_rows"]
 
 BLOCK = 64  # batches are padded to a multiple of this many samples
 
@@ -224,9 +224,13 @@ def by_group(batch: RecordBatch, groups: dict, run):
     """`run(sub_batch, key)` on the records of each group (key -> row indices, e.g. the
     window plans of `analysis.plan_groups`), the results (PyTrees with records along the
     leading axis) put back in the batch's order, on the host (no program per group size)."""
-    order = np.concatenate(list(groups.values()))
-    parts = [run(batch_rows(batch, rows), key) for key, rows in groups.items()]
-    back = np.argsort(order)
+    return in_batch_order([run(batch_rows(batch, rows), key) for key, rows in groups.items()], groups)
+
+
+def in_batch_order(parts: list, groups: dict):
+    """Results of each group (PyTrees with the group's records along the leading axis, in the
+    order of `groups`: key -> row indices) as one PyTree in the batch's order, on the host."""
+    back = np.argsort(np.concatenate([np.asarray(rows) for rows in groups.values()]))
     return jax.tree.map(lambda *a: jax.device_put(np.concatenate([np.asarray(x) for x in a])[back]), *parts)
 
 

@@ -17,7 +17,7 @@ import pandas as pd
 
 from ..analysis.databases import STATE_CHANNELS
 from ..config import AnalysisConfig, CalibrationConfig, ReplayConfig
-from ..data.batch import bucket_size, pad_rows, take_rows, to_batch, unpad_rows
+from ..data.batch import bucket_size, in_batch_order, pad_rows, take_rows, to_batch, unpad_rows
 from ..data.campaign import Campaign
 from ..nets.sweep import heldout_models
 from .calibration import PARAMS, Bounds, calibrate, cost_grid, counter_costs, group_members
@@ -108,16 +108,14 @@ def replay_all(m, r, th, *, settings):
     one = settings.replace(groups=())
     if not settings.groups:
         return unpad_rows(_replay_all(*pad_rows((m, r, th), bucket_size(n)), one), n)
-    order = np.concatenate([rows for _, rows in settings.groups])
-    if len(order) != n:
-        raise ValueError(f"replay_all: the settings' plans were made for a batch of {len(order)} records "
+    groups = dict(settings.groups)
+    total = sum(len(rows) for rows in groups.values())
+    if total != n:
+        raise ValueError(f"replay_all: the settings' plans were made for a batch of {total} records "
                          f"(`make_settings`), not these {n}: make them from the batch replayed")
-    parts = []
-    for plan, rows in settings.groups:
-        sub = take_rows((m, r, th), np.asarray(rows))
-        parts.append(unpad_rows(_replay_all(*pad_rows(sub, bucket_size(len(rows))), one.replace(plan=plan)), len(rows)))
-    back = np.argsort(order)
-    return jax.tree.map(lambda *a: jnp.concatenate(a)[back], *parts)
+    parts = [unpad_rows(_replay_all(*pad_rows(take_rows((m, r, th), np.asarray(rows)), bucket_size(len(rows))),
+                                    one.replace(plan=plan)), len(rows)) for plan, rows in groups.items()]
+    return in_batch_order(parts, groups)
 
 
 def _bucketed(models, recs, members=None, mask=None):
