@@ -134,3 +134,51 @@ def test_one_long_record_costs_its_own_memory_and_moves_no_other_peak(small_camp
     after, _ = peak_table(campaign)
     others = (before.condition != campaign.counters.loc[k, "condition"]).to_numpy()
     np.testing.assert_array_equal(before[others].peak_pvv_g.to_numpy(), after[others].peak_pvv_g.to_numpy())
+
+
+# Every channel the analysis reads from a time series: the acceleration axes, the azimuth and time, and the
+# state channels the databases take at the peak window.
+READ_CHANNELS = ("time_s", "azimuth_deg", "az_g", "ax_g", "ay_g", "airspeed_kt", "rotor_rpm", "pitch_rate_dps",
+                 "roll_angle_deg", "climb_rate_fpm", "collective_pct", "lateral_pct", "longitudinal_pct")
+
+
+def test_one_sample_glitch_in_one_record_moves_no_other_conditions_row_for_any_channel(small_campaign_dir):
+    # A logger glitch in one sample of one record, in each channel the analysis reads, inside that condition's
+    # peak window: the databases' and every axis table's rows of every other condition are bitwise unchanged
+    # (each record's window plan and the harmonics resolved come from each record's own typical sampling).
+    from pvvjax.analysis import axis_peak_tables
+    from pvvjax.data.campaign import load_campaign
+
+    campaign = load_campaign(small_campaign_dir).subset(
+        ["T1-level-135", "11022", "T1-climb-62", "T1-descent-160", "T1-turn45-145"])
+
+    def tables(c):
+        out = build_databases(c)
+        out.update({f"{a} {k}/rev": t for (a, k), t in axis_peak_tables(c).items()})
+        return out
+
+    base = tables(campaign)
+    k = "11022"
+    rec = campaign.records[k]
+    i = int(np.searchsorted(rec.time_s.to_numpy(), base["peaks"].set_index("counter").peak_time_s[k]))
+    moved = []
+    for channel in READ_CHANNELS:
+        col = rec[channel].to_numpy().copy()
+        if channel == "time_s":
+            col[i] += 0.3 * (col[i + 1] - col[i])
+        elif channel == "azimuth_deg":
+            col[i] = 0.0  # the logger glitch of the trial that found it
+        else:
+            col[i] = 1.5 * col[i] + 1.0
+        glitched = campaign.subset(campaign.names)
+        glitched.records[k] = rec.assign(**{channel: col})
+        out = tables(glitched)
+        assert set(out) == set(base), channel
+        for name, before in base.items():
+            after = out[name]
+            pd.testing.assert_frame_equal(before[before.condition != k].reset_index(drop=True),
+                                          after[after.condition != k].reset_index(drop=True),
+                                          check_exact=True, obj=f"{name} with {channel} glitched")
+        if not all(out[name][out[name].condition == k].equals(t[t.condition == k]) for name, t in base.items()):
+            moved.append(channel)
+    assert moved == list(READ_CHANNELS)  # each glitch reached its own record: the test can fail

@@ -108,13 +108,27 @@ def axis_windows(accel, cos_psi, sin_psi, rev, width, time, x, mask, window_revs
 
 
 def resolved_harmonics(batch: RecordBatch, harmonics, window_revs: float) -> tuple[int, ...]:
-    """The harmonics a campaign's windows resolve: the sampling gives more than 2k samples per
-    revolution at its sparsest (below, harmonic k aliases onto a lower one), and the window
-    spans at least one revolution (shorter, neighbouring harmonics do not separate)."""
+    """The harmonics a campaign's windows resolve: every record's typical sampling gives more
+    than 2k samples per revolution (below, harmonic k aliases onto a lower one), and the
+    window spans at least one revolution (shorter, neighbouring harmonics do not separate).
+
+    A record's sampling is its median azimuth step, so that one glitched sample (an azimuth
+    that stands still or jumps) does not drop a harmonic from every record's tables; the
+    sparsest record decides.
+
+    Args:
+        batch: the campaign's records (`to_batch`).
+        harmonics: candidate orders k (per rev).
+        window_revs: the analysis window (revolutions).
+
+    Returns:
+        the resolved orders of `harmonics`, in their order.
+    """
     rev, mask = np.asarray(batch.rev, np.float64), np.asarray(batch.mask)
-    d = np.diff(rev, axis=-1)[mask[:, 1:] & mask[:, :-1]]
-    per_rev = 1.0 / float(d.max())
-    return tuple(k for k in harmonics if per_rev > 2 * k and window_revs >= 1.0)
+    both = mask[:, 1:] & mask[:, :-1]
+    steps = [np.median(d[m]) for d, m in zip(np.diff(rev, axis=-1), both) if m.any()]
+    per_rev = 1.0 / float(max(steps))  # exactly 2k is not resolved: a margin above the rounding of `rev`
+    return tuple(k for k in harmonics if per_rev > 2 * k * (1.0 + 1e-4) and window_revs >= 1.0)
 
 
 def analyze_axes(batch: RecordBatch, harmonics, window_revs: float = 8.0, hop_revs: float | None = None, *,
