@@ -157,6 +157,9 @@ CAMPAIGN = {
     "blades = 3 on a four-bladed rotor's data (a warning)": (_three_blades, 0, "C1.csv", "az_g",
                                                              "vibrates at 4/rev, far more than at the analysed 3/rev"),
     "a vibration channel without vibration": (_records(_set("az_g", 1.0)), 1, "C1.csv", "az_g", "no vibration"),
+    "a vertical axis of noise with no 4/rev in it (a warning)": (
+        _records(lambda d: d.assign(az_g=1.0 + 0.05 * np.random.default_rng(1).standard_normal(len(d)))), 0,
+        "C1.csv", "az_g", "carries no 4/rev above its noise"),
     "time stamps of the day (a warning)": (_records(lambda d: d.assign(time_s=d.time_s + 52312.5)), 0, "C1.csv",
                                            "time_s", "rebased to start at 0 s"),
     "one condition, two maneuver kinds": (_counters(lambda c: c.assign(condition="K1", segment=[1, 2],

@@ -55,6 +55,11 @@ AZIMUTH_STEP_SPAN = (0.5, 1.5)
 # Another order this many times stronger than the analysed harmonic means the analysis would
 # measure noise: a blade-passage vibration stands far above its neighbouring orders.
 HARMONIC_DOMINANCE = 4.0
+# The analysed harmonic within this factor of the median amplitude of the half orders between
+# harmonics (broadband noise only) over a whole record carries no vibration: for noise alone, the
+# harmonic passes 3x that median in about 2 records in 1000 (Rayleigh amplitudes), and a blade-
+# passage vibration stands orders of magnitude above it.
+NOISE_MARGIN = 3.0
 HORIZONTAL_AXES = {"ax_g": ("longitudinal", "positive forward"), "ay_g": ("lateral", "positive right")}
 # Time stamps are analysed in single precision: a record whose times float32 would round by
 # more than this share of its sample step is rebased to start at 0 s (refused where even that
@@ -246,29 +251,40 @@ def _blade_loading_rule(df, aircraft: Aircraft, file, problems):
 
 
 def _harmonic_rule(az, azimuth, harmonic: int, file, problems):
-    """The analysed harmonic must carry the record's vibration: where another order from
-    2/rev up (1/rev is track and balance) is `HARMONIC_DOMINANCE`
+    """The analysed harmonic must carry the record's vibration, and stand above its noise.
+
+    Where another order from 2/rev up (1/rev is track and balance) is `HARMONIC_DOMINANCE`
     times stronger over the whole record, the analysis would measure noise (a wrong `blades`
-    in campaign.toml, or `analysis.harmonic`). A warning without numbers, so that a cause
-    shared by every record is reported once (`_collapsed`)."""
+    in campaign.toml, or `analysis.harmonic`). Where the analysed order is no more than
+    `NOISE_MARGIN` times the median amplitude of the half orders between the harmonics
+    (2.5/rev, 3.5/rev, …, where only broadband noise lives), the record carries no N/rev at
+    all: its peaks would be noise. Both are warnings without numbers, so that a cause shared by
+    every record is reported once (`_collapsed`)."""
     psi = np.unwrap(np.deg2rad(azimuth))
     per_rev = len(psi) / max((psi[-1] - psi[0]) / (2 * np.pi), 1e-9)
-    orders = [k for k in range(2, 2 * harmonic + 3) if k < per_rev / 2]
-    if harmonic not in orders:
+    top = 2 * harmonic + 2
+    if not harmonic < per_rev / 2:
         return
     x = az - az.mean()
-    turn, z = np.exp(-1j * psi), np.exp(-1j * psi)
+    half, z = np.exp(-0.5j * psi), np.exp(-1.5j * psi)
     amp = {}
-    for k in range(2, orders[-1] + 1):  # e^(−ikψ) by repeated products: one complex exponential per record
-        z = z * turn
-        if k in orders:
-            amp[k] = 2.0 * abs(np.mean(x * z))
-    strongest = max(amp, key=amp.get)
-    if strongest != harmonic and amp[strongest] > HARMONIC_DOMINANCE * amp[harmonic]:
+    for m in range(4, 2 * top + 2):  # e^(−i m ψ / 2) by repeated products: one complex exponential per record
+        z = z * half
+        if m / 2 < per_rev / 2:
+            amp[m / 2] = 2.0 * abs(np.mean(x * z))
+    whole = {int(k): a for k, a in amp.items() if k == int(k)}
+    between = [a for k, a in amp.items() if k != int(k)]
+    strongest = max(whole, key=whole.get)
+    if strongest != harmonic and whole[strongest] > HARMONIC_DOMINANCE * whole[harmonic]:
         problems.append(Problem(file, "az_g", None,
                                 f"vibrates at {strongest}/rev, far more than at the analysed {harmonic}/rev (the blade "
                                 f"passage of campaign.toml's blades, or analysis.harmonic): is blades right? The "
                                 f"analysis would measure noise", warning=True))
+    elif between and whole[harmonic] <= NOISE_MARGIN * float(np.median(between)):
+        problems.append(Problem(file, "az_g", None,
+                                f"carries no {harmonic}/rev above its noise (the analysed harmonic is within "
+                                f"{NOISE_MARGIN:g}x of the noise between the harmonics): its peaks would be noise, "
+                                f"and a model or a discovery from them means nothing", warning=True))
 
 
 def _azimuth_rule(t, azimuth, rpm, file, problems):
