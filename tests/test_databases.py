@@ -109,10 +109,12 @@ def test_cli_config_error_is_a_message_not_a_traceback(tmp_path, capsys):
     assert "bad.toml: analysis.window_revz: unknown key" in err and "Traceback" not in err
 
 
-def test_one_long_record_costs_its_own_memory_and_moves_no_other_peak(small_campaign_dir):
+def test_one_long_record_costs_its_own_memory_and_moves_no_other_peak(small_campaign_dir, monkeypatch):
     # A recording twelve times as long as the others: batched alone (memory in proportion to the samples,
-    # not the longest record times every record), and every other condition's peak is bitwise unchanged.
-    from pvvjax.analysis import PADDING_LIMIT, length_groups, peak_table
+    # not the longest record times every record) by the databases and by every axis table build-db writes,
+    # and every other condition's peak is bitwise unchanged.
+    import pvvjax.analysis.databases as databases
+    from pvvjax.analysis import PADDING_LIMIT, axes_database, axis_peak_tables, length_groups, peak_table
     from pvvjax.data.campaign import load_campaign
 
     lengths = np.array([6000] * 70 + [72000])
@@ -130,10 +132,27 @@ def test_one_long_record_costs_its_own_memory_and_moves_no_other_peak(small_camp
     long = pd.concat([r] * 12, ignore_index=True)
     long["time_s"] = np.arange(len(long)) * float(r.time_s.iloc[1] - r.time_s.iloc[0])
     long["azimuth_deg"] = np.rad2deg(np.concatenate([turns + i * span for i in range(12)])) % 360.0
+    tables = axis_peak_tables(campaign)
     campaign.records[k] = long
-    after, _ = peak_table(campaign)
+    shapes = []
+    to_batch = databases.to_batch
+    monkeypatch.setattr(databases, "to_batch", lambda *a, **kw: shapes.append(to_batch(*a, **kw).time.shape)
+                        or to_batch(*a, **kw))
+    samples = sum(len(r) for r in campaign.records.values())
+
+    def padded(run):  # the samples of every batch `run` builds, padding included
+        shapes.clear()
+        out = run()
+        assert sum(b * t for b, t in shapes) <= 2 * samples, shapes
+        return out
+
+    after, _ = padded(lambda: peak_table(campaign))
     others = (before.condition != campaign.counters.loc[k, "condition"]).to_numpy()
     np.testing.assert_array_equal(before[others].peak_pvv_g.to_numpy(), after[others].peak_pvv_g.to_numpy())
+    for key, table in padded(lambda: axis_peak_tables(campaign)).items():
+        keep = table.condition != campaign.counters.loc[k, "condition"]
+        np.testing.assert_array_equal(tables[key][keep].peak_pvv_g, table[keep].peak_pvv_g, err_msg=str(key))
+    padded(lambda: axes_database(campaign))
 
 
 # Every channel the analysis reads from a time series: the acceleration axes, the azimuth and time, and the

@@ -21,11 +21,11 @@ import pandas as pd
 
 from .._arguments import instance
 from ..config import AnalysisConfig
-from ..data.batch import bucket_size, to_batch
+from ..data.batch import RecordBatch, bucket_size, to_batch
 from ..data.campaign import Campaign
 from ..data.features import derive_features
 from ..io import listed
-from .axes import AXES, analyze_axes, resolved_harmonics
+from .axes import AXES, AxisWindows, analyze_axes, resolved_harmonics
 from .harmonics import Windows, analyze
 
 __all__ = [
@@ -189,38 +189,54 @@ def length_groups(lengths) -> np.ndarray:
     return np.ceil(np.log2(np.maximum(lengths, 1))).astype(int)
 
 
+def _length_batches(campaign: Campaign, counters, axis="az_g") -> list[tuple[np.ndarray, RecordBatch]]:
+    """The counters' records (their `STATE_CHANNELS` and acceleration `axis`, one name or a
+    tuple) as batches by length (`length_groups`): one batch where their lengths are alike,
+    else one per group, so one long record among short ones costs its own memory.
+
+    Returns:
+        (rows, batch) per group: the positions in `counters` of its records, and their batch.
+    """
+    buckets = length_groups([len(campaign.records[c]) for c in counters])
+    return [(rows, to_batch(campaign, STATE_CHANNELS, [counters[i] for i in rows], axis=axis))
+            for rows in (np.flatnonzero(buckets == b) for b in np.unique(buckets))]
+
+
+def _in_counter_order(parts):
+    """Windows (`Windows` or `AxisWindows`) of batches by length, `[(rows, windows), ...]` from
+    `_length_batches`, as one in the order of the counters: each part widened to the most
+    windows of any (the windows past a record's end invalid)."""
+    if len(parts) == 1:
+        return parts[0][1]
+    n_windows = max(int(w.valid.shape[1]) for _, w in parts)
+
+    def widen(w):
+        out = {}
+        for name, a in zip(w._fields, w):
+            a = np.asarray(a)
+            ax = a.ndim - 1 if isinstance(w, AxisWindows) and name in ("amplitude", "phase") else 1
+            pad = [(0, 0)] * a.ndim
+            pad[ax] = (0, n_windows - a.shape[ax])
+            out[name] = np.pad(a, pad)
+        return type(w)(**out)
+
+    back = np.argsort(np.concatenate([rows for rows, _ in parts]))
+    return jax.tree.map(lambda *a: jax.device_put(np.concatenate(a)[back]), *[widen(w) for _, w in parts])
+
+
 def analyze_by_length(campaign: Campaign, counters, window_revs: float, hop_revs: float | None = None, *,
                       harmonic: int, taper_revs: float = 0.0, axis: str = "az_g") -> Windows:
     """`analyze` of the counters' records (their `STATE_CHANNELS`), batched by length where
-    their lengths differ widely (padding every record to the longest would multiply their
-    memory by more than `PADDING_LIMIT`): the records within a factor 2 of each other's length
-    are padded to their own longest, so one long record among short ones costs its own memory
-    and not the rest's. Windows
-    come back in the order of `counters`, the short records' past their last as invalid.
+    their lengths differ widely (`_length_batches`). Windows come back in the order of
+    `counters`, the short records' past their last as invalid.
 
     Args: as `analyze`; `counters` the records, `axis` the acceleration analysed.
 
     Returns:
         `Windows` with shapes (B, W) and (B, W, C), W the most windows of any record.
     """
-    buckets = length_groups([len(campaign.records[c]) for c in counters])
-    parts, order = [], []
-    for b in np.unique(buckets):
-        rows = np.flatnonzero(buckets == b)
-        batch = to_batch(campaign, STATE_CHANNELS, [counters[i] for i in rows], axis=axis)
-        parts.append(analyze(batch, window_revs, hop_revs, harmonic=harmonic, taper_revs=taper_revs))
-        order.append(rows)
-    if len(parts) == 1:
-        return parts[0]
-    n_windows = max(int(p.amplitude.shape[1]) for p in parts)
-
-    def widen(a):  # (rows, W, ...) -> (rows, n_windows, ...), the windows past a record's end invalid
-        a = np.asarray(a)
-        pad = [(0, 0), (0, n_windows - a.shape[1])] + [(0, 0)] * (a.ndim - 2)
-        return np.pad(a, pad)
-
-    back = np.argsort(np.concatenate(order))
-    return jax.tree.map(lambda *a: jax.device_put(np.concatenate([widen(x) for x in a])[back]), *parts)
+    return _in_counter_order([(rows, analyze(batch, window_revs, hop_revs, harmonic=harmonic, taper_revs=taper_revs))
+                             for rows, batch in _length_batches(campaign, counters, axis)])
 
 
 def peaks_from_windows(campaign: Campaign, win: Windows, counters, analysis: AnalysisConfig) -> pd.DataFrame:
@@ -277,9 +293,10 @@ def axes_database(campaign: Campaign, analysis: AnalysisConfig = AnalysisConfig(
     """
     axes = campaign_axes(campaign)
     _, counters = _counters(campaign)
-    batch = to_batch(campaign, STATE_CHANNELS, counters, axis=axes)
     k = analysis.harmonic or campaign.aircraft.blades
-    win = analyze_axes(batch, (k,), analysis.window_revs, analysis.hop, taper_revs=analysis.taper_revs)
+    win = _in_counter_order([(rows, analyze_axes(batch, (k,), analysis.window_revs, analysis.hop,
+                                                taper_revs=analysis.taper_revs))
+                            for rows, batch in _length_batches(campaign, counters, axes)])
     amp = np.asarray(win.amplitude)[:, :, 0, :]  # (B, A, W)
     parts = []
     for a, axis in enumerate(axes):
@@ -304,10 +321,11 @@ def axis_peak_tables(campaign: Campaign, analysis: AnalysisConfig = AnalysisConf
     n = campaign.aircraft.blades
     _, counters = _counters(campaign)
     axes = campaign_axes(campaign)
-    batch = to_batch(campaign, STATE_CHANNELS, counters, axis=axes)
+    batches = _length_batches(campaign, counters, axes)
     wanted = sorted(set(harmonics or (1, n, 2 * n)))
-    ks = resolved_harmonics(batch, wanted, analysis.window_revs)
-    win = analyze_axes(batch, ks, analysis.window_revs, analysis.hop, taper_revs=analysis.taper_revs)
+    ks = [k for k in wanted if all(k in resolved_harmonics(b, wanted, analysis.window_revs) for _, b in batches)]
+    win = _in_counter_order([(rows, analyze_axes(batch, ks, analysis.window_revs, analysis.hop,
+                                                taper_revs=analysis.taper_revs)) for rows, batch in batches])
     return {(axis, k): peaks_from_windows(campaign, win.select(a, h), counters, analysis)
             for a, axis in enumerate(axes) for h, k in enumerate(ks)}
 
