@@ -8,6 +8,7 @@ import math
 
 import jax
 import numpy as np
+import pandas as pd
 import pytest
 from conftest import tiny_records
 from hypothesis import given, settings
@@ -121,3 +122,22 @@ def test_a_batch_beyond_the_machines_memory_is_refused_with_its_estimate_before_
     with pytest.raises(MemoryError, match=r"3 record\(s\) padded to \d+ samples need [\d.e+]+ GiB as one batch, more "
                                           r"than 25% of this machine's"):
         P.to_batch(campaign, ["airspeed_kt"], min_length=10**13)
+
+
+def test_one_long_record_padding_the_rest_is_warned_about_by_name(monkeypatch):
+    # Where a batch pads every record to one long record's length (the replay and discovery batch the whole
+    # campaign at once), the long record is named with the memory it costs the rest.
+    import warnings
+
+    import pvvjax.data.batch as batch
+    from pvvjax.data.campaign import CampaignWarning, campaign_from_frames
+
+    c, r = tiny_records(n_counters=6, seconds=4.0)
+    r["C3"] = pd.concat([r["C3"]] * 10, ignore_index=True).assign(time_s=lambda d: np.arange(len(d)) * 0.0036)
+    monkeypatch.setattr(batch, "_PADDING_WARN_BYTES", 0)
+    with pytest.warns(CampaignWarning, match=r"counter 'C3' \(\d+ samples\) pads the 5 other record\(s\) to its "
+                                             r"length: [\d.e+-]+ GiB, [\d.]+x what their samples need"):
+        P.to_batch(campaign_from_frames(c, r), ["airspeed_kt"])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        P.to_batch(campaign_from_frames(*tiny_records(n_counters=6, seconds=4.0)), ["airspeed_kt"])

@@ -15,13 +15,14 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import warnings
 from typing import Sequence
 
 import jax
 import numpy as np
 
 from .._arguments import instance, names, number, refuse
-from .campaign import Campaign
+from .campaign import Campaign, CampaignWarning
 
 __all__ = ["BLOCK", "MEMORY_SHARE", "RecordBatch", "batch_rows", "bucket_size", "by_group", "in_batch_order",
            "machine_memory", "pad_rows", "sample_widths", "take_rows", "to_batch", "unpad_rows"]
@@ -170,7 +171,7 @@ def to_batch(campaign: Campaign, channels: Sequence[str], counters: Sequence[str
     T = max(max(len(r) for r in recs), min_length)
     T = bucket_size(-(-T // BLOCK)) * BLOCK  # whole blocks for the harmonic analysis, few distinct lengths
     B, C = len(recs), len(channels)
-    _check_memory(campaign, B, T, C + len(axes), np.dtype(dtype).itemsize)
+    _check_memory(campaign, B, T, C + len(axes), np.dtype(dtype).itemsize, counters, [len(r) for r in recs])
     out = {k: np.zeros((B, T), dtype) for k in ("time", "rev", "cos_psi", "sin_psi", "width")}
     out["accel"] = np.zeros((B, T, len(axes)), dtype)
     x = np.zeros((B, T, C), dtype)
@@ -209,15 +210,30 @@ def machine_memory() -> int | None:
         return None
 
 
-def _check_memory(campaign, B: int, T: int, columns: int, itemsize: int) -> None:
+# Padding every record to the longest is warned about where it multiplies the batch's memory
+# by more than this and the batch passes `_PADDING_WARN_BYTES`.
+_PADDING_WARN_FACTOR = 4.0
+_PADDING_WARN_BYTES = 2**30
+
+
+def _check_memory(campaign, B: int, T: int, columns: int, itemsize: int, counters, lengths) -> None:
     """Refuse, with the estimate, a batch larger than `MEMORY_SHARE` of the machine's memory,
-    before any of it is allocated."""
+    before any of it is allocated; warn, naming the longest record, where padding to it
+    multiplies the memory of the rest."""
     need, have = B * T * (5 + columns) * itemsize + B * T, machine_memory()
+    source = campaign.source or "<memory>"
     if have and need > MEMORY_SHARE * have:
-        raise MemoryError(f"campaign {campaign.source or '<memory>'}: {B} record(s) padded to {T} samples need "
+        raise MemoryError(f"campaign {source}: {B} record(s) padded to {T} samples need "
                           f"{need / 2**30:.3g} GiB as one batch, more than {MEMORY_SHARE:.0%} of this machine's "
                           f"{have / 2**30:.3g} GiB; analyse fewer or shorter records at once (a long record cut "
                           "into counters), or use a machine with more memory")
+    factor = B * T / max(sum(lengths), 1)
+    if factor > _PADDING_WARN_FACTOR and need > _PADDING_WARN_BYTES:
+        longest = counters[int(np.argmax(lengths))]
+        warnings.warn(f"campaign {source}: counter {longest!r} ({max(lengths)} samples) pads the {B - 1} other "
+                      f"record(s) to its length: {need / 2**30:.3g} GiB, {factor:.3g}x what their samples need; "
+                      "cut the long record into counters of one condition's segments, or run it apart",
+                      CampaignWarning, stacklevel=3)
 
 
 def by_group(batch: RecordBatch, groups: dict, run):
