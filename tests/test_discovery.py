@@ -465,3 +465,29 @@ def test_a_misfit_joins_the_model_as_an_out_of_fold_linear_term_without_retraini
     fold0 = ctx.counter_fold[win.table.i.to_numpy()] == 0
     win.table.loc[fold0, "measured_g"] += 1.0
     np.testing.assert_array_equal(_tested.linear_shift(ctx, win, y, final.linear)[fold0], shift[fold0])
+
+
+def test_an_optional_channel_missing_in_one_record_is_left_out_of_the_candidates_by_name():
+    # One flight whose logger did not record nz_g, and one whose columns come in another order: discovery
+    # used to refuse the campaign ("channels differ"); the channel is now warned about by name and left out of
+    # the candidates, and every record keeps its place.
+    from conftest import tiny_records
+
+    from pvvjax.config import ExperimentConfig
+    from pvvjax.data.campaign import CampaignWarning, campaign_from_frames
+    from pvvjax.discovery import channels_lacking, window_table
+
+    counters, records = tiny_records(n_counters=4)
+    for k in records:
+        records[k]["nz_g"] = 1.0
+    records["C2"] = records["C2"].drop(columns=["nz_g"])
+    records["C3"] = records["C3"][records["C3"].columns[::-1]]
+    camp = campaign_from_frames(counters, records)
+    assert channels_lacking(camp, camp.names) == {"nz_g": ["C2"]}
+    iv = pd.DataFrame(dict(counter=["C1", "C2", "C3", "C4"], t0=1.0, t1=3.0))
+    table = window_table(camp, iv)
+    assert "x:nz_g" not in table and "x:airspeed_kt" in table and table.notna().all().all()
+    np.testing.assert_allclose(table["x:airspeed_kt"], [100.0, 101.0, 102.0, 103.0], rtol=1e-12)
+    cfg = ExperimentConfig(discovery=discovery_config(folds=3))
+    with pytest.warns(CampaignWarning, match=r"nz_g is missing in 1 counter\(s\) \(C2\): not candidates"):
+        _workflow._context(camp, cfg, lambda m: None)

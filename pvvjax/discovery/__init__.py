@@ -57,7 +57,7 @@ from ._model import Model, fit_ensemble, floor_features, gain_apply, metrics
 from ._results import Effect, Round
 from ._tested import bootstrap_weights
 from ._workflow import Discovery, discover, summary
-from .candidates import Candidate, describe, from_key, library, window_table, window_tables
+from .candidates import Candidate, channels_lacking, describe, from_key, library, window_table, window_tables
 from .report import write_discovery
 from .residuals import localize, residual_windows
 
@@ -75,6 +75,7 @@ __all__ = [
     "cross_fit",
     "default_learner",
     "bootstrap_weights",
+    "channels_lacking",
     "describe",
     "discover",
     "explain",

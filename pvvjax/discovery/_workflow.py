@@ -15,7 +15,7 @@ from .._timing import Stopwatch
 from ..analysis.databases import DB_INPUTS, STATE_CHANNELS, build_databases
 from ..config import DiscoveryConfig, ExperimentConfig
 from ..data.batch import to_batch
-from ..data.campaign import Campaign, load_campaign
+from ..data.campaign import Campaign, CampaignWarning, load_campaign
 from ..nets import train as _train
 from ..replay.quasistatic import make_settings, prepare
 from ._citest import UnitTest
@@ -26,7 +26,7 @@ from ._results import Effect, Round
 from ._simulation import placeholder_params, simulated_after, simulation_windows
 from ._tested import effect_region, fitted, held_out, tested, with_effects
 from ._train import _train_model
-from .candidates import Candidate, sample_series, window_table
+from .candidates import Candidate, channels_lacking, sample_series, window_table
 from .residuals import localize
 
 
@@ -92,6 +92,12 @@ def _context(campaign: Campaign, cfg: ExperimentConfig, log) -> _Ctx:
         if unknown:
             raise ValueError(f"discovery.exclude_channels: {unknown} are not candidate channels of campaign "
                              f"{source} (channels and derived features: {sorted(known)})")
+    lacking = channels_lacking(campaign, list(info.index))
+    if lacking:
+        warnings.warn(f"discovery: campaign {source}: " + "; ".join(
+            f"{k} is missing in {len(v)} counter(s) ({', '.join(v[:3])}{', …' if len(v) > 3 else ''})"
+            for k, v in lacking.items()) + ": not candidates (a candidate needs a value in every record); the "
+            "records themselves are kept", CampaignWarning, stacklevel=3)
     batch = to_batch(campaign, STATE_CHANNELS, list(info.index), axis=cfg.analysis.axis)
     recs = prepare(batch, harmonic=cfg.analysis.harmonic or campaign.aircraft.blades)
     L = cfg.analysis.window_revs

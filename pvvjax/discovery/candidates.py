@@ -35,6 +35,7 @@ from .effects import band
 __all__ = [
     "Candidate",
     "EXCLUDED_CHANNELS",
+    "channels_lacking",
     "describe",
     "from_key",
     "interval_means",
@@ -265,6 +266,21 @@ def window_table(campaign: Campaign, intervals: pd.DataFrame, exclude=(), channe
     return window_tables(campaign, [intervals], exclude, channels)[0]
 
 
+def channels_lacking(campaign: Campaign, counters) -> dict[str, list[str]]:
+    """The numeric channels some of `counters`' records carry and others lack (an optional
+    channel a logger did not record in every flight), each with the counters that lack it:
+    they are not candidates, since a candidate's value is needed in every window.
+
+    Returns:
+        channel -> counters without it; empty where every record carries the same channels.
+    """
+    have = {c: {k for k in campaign.records[c].columns if pd.api.types.is_numeric_dtype(campaign.records[c][k])}
+            for c in counters}
+    every = set().union(*have.values()) if have else set()
+    return {k: [c for c in counters if k not in have[c]] for k in sorted(every)
+            if any(k not in h for h in have.values())}
+
+
 def window_tables(campaign: Campaign, intervals: list[pd.DataFrame], exclude=(), channels=None) -> list[pd.DataFrame]:
     """`window_table` of several interval sets of the same windows (the same index and
     counters, other times: the windows at other offsets) in one pass over each record's
@@ -274,15 +290,15 @@ def window_tables(campaign: Campaign, intervals: list[pd.DataFrame], exclude=(),
         if not (iv.index.equals(first.index) and (iv.counter.to_numpy() == first.counter.to_numpy()).all()):
             raise ValueError("window_tables: interval sets must share their index and counters")
     parts, names, signed, order = [[] for _ in intervals], None, {}, []
-    for counter, rows in first.groupby("counter", sort=False).indices.items():
+    groups = first.groupby("counter", sort=False).indices
+    lacking = channels_lacking(campaign, list(groups))
+    for counter, rows in groups.items():
         rec = campaign.records[counter]
         ser = sample_series(rec, campaign.aircraft, exclude)
-        if channels is not None:
-            ser = {k: v for k, v in ser.items() if k in channels}
+        ser = {k: v for k, v in ser.items() if k not in lacking and (channels is None or k in channels)}
         if names is None:
             names = list(ser)
-        elif list(ser) != names:
-            raise ValueError(f"counter {counter}: channels {list(ser)} differ from the other counters' {names}")
+        ser = {k: ser[k] for k in names}  # each record's columns in the first's order
         t = rec["time_s"].to_numpy(np.float64)
         span = 60.0 / float(np.mean(rec["rotor_rpm"])) if "rotor_rpm" in rec else 0.25  # one revolution, s
         # A few windows in a long record (the training windows: one per record) take only the
