@@ -117,6 +117,11 @@ def _azimuth(fn):
     return edit
 
 
+def _units_row(text):
+    header, rest = text.split("\n", 1)
+    return header + "\n" + ",".join(["unit"] * (header.count(",") + 1)) + "\n" + rest
+
+
 def _three_blades(folder):
     """The tiny campaign (a 4/rev vibration) with blades = 3 in its campaign.toml."""
     from pvvjax.data.constants import UH60A
@@ -241,6 +246,11 @@ CAMPAIGN = {
                      "column 5", "no name"),
     "UTF-16 file": (_file("counters.csv", lambda p: p.write_bytes(p.read_text().encode("utf-16"))), 1,
                     "counters.csv", "", "UTF-16"),
+    "comment lines above the header": (_file("timeseries/C1.csv", _text(lambda t: "# logger v2\n" + t)), 1, "C1.csv",
+                                       "", "comment lines above the header"),
+    "a units row under the header": (_file("timeseries/C1.csv", _text(_units_row)), 1, "C1.csv", "", "a units row"),
+    "an upper-case extension": (_file("timeseries/C1.csv", lambda p: p.rename(p.with_suffix(".CSV"))), 1, "C1.CSV",
+                                "", "name the file C1.csv"),
     "a link to a missing file": (_file("timeseries/C1.csv", _symlink_to_nothing), 1, "C1.csv", "", "missing file"),
     "a folder in the place of a file": (_file("timeseries/C1.csv", _directory), 1, "C1.csv", "", "cannot read"),
     "truncated Parquet file": (_truncated_parquet, 1, "C1.parquet", "", "Parquet"),

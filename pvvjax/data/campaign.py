@@ -276,6 +276,9 @@ def _timeseries_files(folder: Path, problems: list) -> dict[str, Path]:
     files: dict[str, Path] = {}
     for p in sorted(ts.iterdir()):
         if p.suffix not in (".csv", ".parquet"):
+            if p.suffix.lower() in (".csv", ".parquet"):
+                problems.append(Problem(f"timeseries/{p.name}", None, None, f"extension {p.suffix!r} is not read: "
+                                        f"name the file {p.stem}{p.suffix.lower()} (lower case)"))
             continue
         if p.stem in files:
             problems.append(Problem(f"timeseries/{p.name}", None, None,

@@ -80,7 +80,20 @@ def _number_hint(text) -> str:
 
 
 def _check_values(df: pd.DataFrame, columns, file: str, problems: list) -> None:
-    """Non-numeric / NaN / infinite values and physical ranges, first bad row each."""
+    """Non-numeric / NaN / infinite values and physical ranges, first bad row each. Text in
+    row 1 of three or more columns is one problem: a units row under the header."""
+    first = len(problems)
+    _column_values(df, columns, file, problems)
+    units = [p for p in problems[first:] if p.row == 1 and p.message.startswith("non-numeric value")]
+    if len(units) >= 3:
+        cols = [p.column for p in units]
+        problems[first:] = [p for p in problems[first:] if p not in units]
+        problems.insert(first, Problem(file, None, 1, f"text in {len(cols)} columns ({', '.join(cols[:3])}, …; "
+                                                      f"{units[0].message}): a units row under the header? Remove "
+                                                      "it (units go in the column names)"))
+
+
+def _column_values(df: pd.DataFrame, columns, file: str, problems: list) -> None:
     for col in columns:
         if col not in df.columns:
             continue
@@ -202,6 +215,8 @@ def _header_problem(path: Path) -> str | None:
     text = head.decode("utf-8-sig", errors="replace")
     if not text.strip():
         return "file is empty"
+    if text.lstrip().startswith("#"):
+        return "line 1 starts with '#': comment lines above the header are not read; remove them (the header first)"
     names = next(csv.reader(io.StringIO(text.splitlines()[0])))
     if len(names) == 1:
         for sep, what in ((";", "semicolons"), ("\t", "tabs"), ("|", "vertical bars")):
