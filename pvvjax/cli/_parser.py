@@ -220,10 +220,11 @@ def _replay_commands(sub):
     s.set_defaults(fn=C.cmd_calibrate)
 
     s = sub.add_parser("discover", help="find, name, add and confirm effects the static map misses",
-                       description="Replay every counter through held-out nets, locate the residual, rank "
-                                   "candidate effects (cross-validated, permutation-tested), add each to the "
-                                   "model, retrain and keep it only if the held-out error drops. Writes "
-                                   "OUT/discovery.json (data contract section 3) and OUT/report.md.")
+                       description="Replay every counter through held-out nets, locate the residual, test the "
+                                   "candidate effects at one stated level (cross-fitted, conditions as the "
+                                   "units), fit the named ones, add them to the model and report whether the "
+                                   "held-out gap closes. Writes OUT/discovery.json (data contract section 3) and "
+                                   "OUT/report.md.")
     s.add_argument("--campaign", default=None, help=_CAMPAIGN)
     s.add_argument("--out", required=True, help="output folder")
     s.add_argument("--config", default=None, help="experiment config ([discovery], [train], [analysis] sections; "
