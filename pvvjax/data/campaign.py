@@ -251,7 +251,12 @@ def _check_counters(df: pd.DataFrame, mapping, problems: list) -> pd.DataFrame |
     if "maneuver" in df.columns and not dup.any():
         problems.extend(condition_consistency(df))
     constants = [c for c in df.columns if c not in COUNTER_COLUMNS]
+    first = len(problems)
     _check_values(df, [c for c in constants if c in RANGES or c in REQUIRED_CHANNELS], "counters.csv", problems)
+    for i in range(first, len(problems)):  # a value's row, and whose it is
+        p = problems[i]
+        if p.row is not None and 1 <= p.row <= len(df):
+            problems[i] = dataclasses.replace(p, message=f"counter {df['counter'].iloc[p.row - 1]!r}: {p.message}")
     return df
 
 

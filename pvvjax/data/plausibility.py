@@ -34,6 +34,8 @@ LIMITS: dict[str, tuple[tuple, tuple, str]] = {
     "advance ratio": ((None, 0.6), (None, None), "airspeed / rotor tip speed, each sample"),
     "climb_rate_fpm": ((-10000.0, 10000.0), (None, None), "each sample, ft/min"),
     "pitch_rate_dps": ((-200.0, 200.0), (None, None), "each sample, deg/s"),
+    "density_ratio": ((None, None), (None, 1.15), "ρ/ρ₀, first sample: above 1.15 is air colder than -15 °C at "
+                                                  "sea level (1.225 is the sea-level density in kg/m³)"),
     "blade loading": ((0.01, 0.3), (0.04, 0.16), "C_T/σ = W / (ρ₀ σ_ρ A (ΩR)² solidity), first sample"),
     "azimuth advance / rotor speed": ((0.8, 1.25), (0.95, 1.05),
                                       "median over samples of azimuth_deg's advance (wrapped to ±180°) over "
@@ -240,6 +242,11 @@ def _blade_loading_rule(df, aircraft: Aircraft, file, problems):
     rho = aircraft.rho0_slug_ft3 * sigma
     ct_sigma = w / (rho * aircraft.disk_area_ft2 * (aircraft.nominal_omega_rad_s * aircraft.rotor_radius_ft) ** 2
                     ) / aircraft.solidity
+    _, (_, dense), _ = LIMITS["density_ratio"]
+    if sigma > dense:
+        problems.append(Problem(file, "density_ratio", None, f"ρ/ρ₀ {sigma:g} above {dense:g} (air colder than -15 "
+                                "°C at sea level): a density in kg/m³ (1.225 at sea level) rather than the ratio?",
+                                warning=True))
     err, warn, _ = LIMITS["blade loading"]
     for bounds, warning in ((err, False), (warn, True)):
         if _outside(ct_sigma, bounds):
