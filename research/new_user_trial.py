@@ -27,8 +27,10 @@ import argparse
 import dataclasses
 import datetime
 import hashlib
+import json
 import os
 import platform
+import re
 import shutil
 import subprocess
 import sys
@@ -389,15 +391,15 @@ def kinds() -> list[Kind]:
     add("blades = 'four'", aircraft('blades = "four"'), "refuse", ("campaign.toml", "blades"))
     add("blades = 4.5", aircraft("blades = 4.5"), "refuse", ("campaign.toml", "blades"))
     add("rotor_radius_ft = -26.8", aircraft("rotor_radius_ft = -26.8"), "refuse", ("campaign.toml", "rotor_radius_ft"))
-    add("nominal_rpm = 500 (another aircraft's)", aircraft("nominal_rpm = 500.0"), "flag", ("rotor_rpm",))
+    add("nominal_rpm = 500 (another aircraft's)", aircraft("nominal_rpm = 500.0"), "flag", ("rotor_rpm", "nominal_rpm"))
     add("unknown aircraft key 'blade_count'", aircraft("blade_count = 4"), "refuse", ("campaign.toml", "blade_count"))
     add("unknown table [rotor]", text_edit("campaign.toml", lambda s: s + "\n[rotor]\nblades = 4\n"), "refuse",
         ("campaign.toml", "rotor"))
     add("campaign.toml not TOML", text_edit("campaign.toml", lambda s: s + "\nblades: 4\n"), "refuse",
         ("campaign.toml",))
     add("campaign.toml missing (UH-60A defaults)", lambda camp: (camp / "campaign.toml").unlink(), "accept")
-    add("campaign.toml is a folder", lambda camp: ((camp / "campaign.toml").unlink(),
-                                                   (camp / "campaign.toml").mkdir()), "refuse", ("campaign.toml",))
+    add("campaign.toml is a folder", lambda camp: ((camp / "campaign.toml").unlink(), (camp / "campaign.toml").mkdir()),
+        "refuse", ("campaign.toml", "a folder"))
 
     # the command line, the config and the folders
     cfg = ("build-db", "--campaign", "CAMP", "--out", "OUT", "--config", "ROOT/config.toml")
@@ -449,7 +451,8 @@ def kinds() -> list[Kind]:
     add("config: axis = 'az'", nothing, "refuse", ("axis",), commands=(cfg,), setup=config('[analysis]\naxis = "az"\n'))
     add("config: not TOML", nothing, "refuse", ("config.toml",), commands=(cfg,),
         setup=config("[analysis]\nwindow_revs: 8\n"))
-    add("config: a column mapped to an unknown channel", nothing, "refuse", ("columns",), commands=(cfg,),
+    add("config: a column mapped to an unknown channel", nothing, "refuse", ("columns", "'vertical_g' is not a"),
+        commands=(cfg,),
         setup=config('[campaign.columns.az_g]\nto = "vertical_g"\nunit = "g"\n'))
     add("config: a mapping with an unknown unit", nothing, "refuse", ("furlongs",), commands=(cfg,),
         setup=config('[campaign.columns.airspeed_kt]\nto = "airspeed_kt"\nunit = "furlongs"\n'))
@@ -634,8 +637,19 @@ def main(argv=None) -> int:
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--only", nargs="*", default=None, help="kinds whose name contains any of these")
     ap.add_argument("--docs", type=Path, default=None, help="write the report (Markdown) here")
+    ap.add_argument("--report-only", action="store_true", help="write --docs from the last run's results")
     args = ap.parse_args(argv)
+    if args.report_only:
+        table = pd.read_json(args.work / "results.json", orient="records")
+        args.docs.write_text(report(table, json.loads((args.work / "meta.json").read_text()), args.work))
+        print(f"wrote {args.docs}")
+        return 0
     args.work.mkdir(parents=True, exist_ok=True)
+    git = lambda *a: subprocess.run(["git", *a], capture_output=True, text=True).stdout.strip()  # noqa: E731
+    meta = dict(commit=git("rev-parse", "--short", "HEAD"), changed=bool(git("status", "--porcelain", "pvvjax")),
+                date=datetime.date.today().isoformat(),
+                machine=f"{platform.machine()} {os.cpu_count()} cores, Python {platform.python_version()}")
+    (args.work / "meta.json").write_text(json.dumps(meta))
     base = base_campaign(args.work, args.campaign)
     ref_out = args.work / "_reference"
     if not (ref_out / "peaks.csv").exists():
@@ -656,14 +670,14 @@ def main(argv=None) -> int:
     counts = table.verdict.value_counts()
     print(counts.to_string(), f"\nfiles touched: {sum(bool(t) for t in table.touched)}")
     if args.docs:
-        args.docs.write_text(report(table))
+        args.docs.write_text(report(table, meta, args.work))
         print(f"wrote {args.docs}")
     return 0
 
 
-def report(table: pd.DataFrame) -> str:
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
-    dirty = subprocess.run(["git", "status", "--porcelain", "pvvjax"], capture_output=True, text=True).stdout.strip()
+def report(table: pd.DataFrame, meta: dict, work: Path) -> str:
+    """The Markdown report of a run: the verdicts' counts, then every kind with what it said
+    (each kind's folder under `work` left out of the paths)."""
     counts = table.verdict.value_counts()
     order = ["correct", "clear", "unclear", "silent", "traceback"]
     lines = [
@@ -675,9 +689,8 @@ def report(table: pd.DataFrame) -> str:
         "(a new process each). Generated by `python research/new_user_trial.py --docs docs/new-user-trial.md`; "
         "the verdicts are judged by the script, from what the kind says a clear message must name.",
         "",
-        f"Commit `{commit}`{' (with changes to pvvjax/ not yet committed)' if dirty else ''}, "
-        f"{datetime.date.today().isoformat()}, {platform.machine()} {os.cpu_count()} cores, "
-        f"Python {platform.python_version()}.",
+        f"Commit `{meta['commit']}`{' (with changes to pvvjax/ not yet committed)' if meta['changed'] else ''}, "
+        f"{meta['date']}, {meta['machine']}.",
         "",
         "| verdict | count | meaning |",
         "|---|---|---|",
@@ -692,7 +705,7 @@ def report(table: pd.DataFrame) -> str:
     lines += ["", f"Files touched outside the folder the command owns: {touched}.", "",
               "| kind | expected | verdict | what it said (first lines) |", "|---|---|---|---|"]
     for _, r in table.iterrows():
-        msg = str(r.message).replace("|", "\\|").replace("\n", " ")
+        msg = re.sub(re.escape(str(work)) + r"/[^/ ]+/", "", str(r.message)).replace("|", "\\|").replace("\n", " ")
         lines.append(f"| {r.kind} | {r.expect} | {r.verdict} | {msg[:300]} |")
     return "\n".join(lines) + "\n"
 

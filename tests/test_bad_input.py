@@ -122,6 +122,21 @@ def _units_row(text):
     return header + "\n" + ",".join(["unit"] * (header.count(",") + 1)) + "\n" + rest
 
 
+def _toml_folder(folder):
+    write_tiny(folder)
+    (folder / "campaign.toml").unlink(missing_ok=True)
+    (folder / "campaign.toml").mkdir()
+    return folder
+
+
+def _nominal_500(folder):
+    """The tiny campaign (258 rpm) with another rotor's nominal speed in its campaign.toml."""
+    from pvvjax.data.constants import UH60A
+
+    c, r = tiny_records()
+    return write_campaign(folder, c, r, fmt="csv", aircraft=UH60A._replace(nominal_rpm=500.0))
+
+
 def _three_blades(folder):
     """The tiny campaign (a 4/rev vibration) with blades = 3 in its campaign.toml."""
     from pvvjax.data.constants import UH60A
@@ -260,6 +275,9 @@ CAMPAIGN = {
                                "TOML"),
     "campaign.toml unknown key": (_file("campaign.toml", lambda p: p.write_text("[rotor]\nblades = 4\n")), 1,
                                   "campaign.toml", "rotor", "unknown key"),
+    "campaign.toml is a folder": (_toml_folder, 1, "campaign.toml", "", "a folder, not the campaign's TOML file"),
+    "another rotor's nominal_rpm in campaign.toml (a warning)": (_nominal_500, 0, "C1.csv", "rotor_rpm",
+                                                                 "nominal_rpm (500) another rotor's"),
     "campaign.toml bad aircraft value": (_file("campaign.toml", lambda p: p.write_text("[aircraft]\nblades = 0\n")),
                                          1, "campaign.toml", "blades", "> 0"),
 }
@@ -269,6 +287,9 @@ MAPPING = {
                                        "'IAS'", "columns there"),
     "mapping with a unit of the wrong dimension": ('[campaign.columns.az_g]\nto = "az_g"\nunit = "kt"\n', "az_g",
                                                    "unit", ""),
+    "mapping onto a name that is not a channel, with a unit": (
+        '[campaign.columns.az_g]\nto = "vertical_g"\nunit = "g"\n', "campaign.columns.az_g", "'vertical_g'",
+        "is not a data-contract channel"),
     "mapping onto a column the file has": ('[campaign.columns.airspeed_kt]\nto = "rotor_rpm"\n', "C1.csv",
                                            "airspeed_kt", "also has"),
 }

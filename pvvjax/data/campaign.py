@@ -161,6 +161,10 @@ def _read_campaign_toml(folder: Path, problems: list) -> tuple[Aircraft, dict]:
     path = folder / "campaign.toml"
     if not path.exists():
         return Aircraft(), {}
+    if path.is_dir():
+        problems.append(Problem("campaign.toml", None, None, "a folder, not the campaign's TOML file of aircraft "
+                                                             "constants and provenance"))
+        return Aircraft(), {}
     try:
         with open(path, "rb") as f:
             data = tomllib.load(f)

@@ -84,17 +84,17 @@ def _span(bounds) -> str:
     return f"[{'' if lo is None else f'{lo:g}'}, {'' if hi is None else f'{hi:g}'}]"
 
 
-def unit_hint(seen: float, typical: float, units: dict[str, float], what: str = "") -> str:
+def unit_hint(seen: float, typical: float, units: dict[str, float], what: str = "", otherwise: str = "") -> str:
     """The likely unit of a value outside its plausible range, ranked by the value itself:
     the units (name -> factor to the canonical unit) whose conversion brings `seen` within a
     factor 1.5 of `typical`, nearest first ("in % of the nominal rotor speed?"); all of them
-    as a question where none does."""
+    as a question where none does, followed by `otherwise` (another likely cause)."""
     fits = sorted((abs(np.log(seen * f / typical)), name) for name, f in units.items()
                   if seen > 0 and abs(np.log(seen * f / typical)) < np.log(1.5))
     prefix = f"{what} in " if what else "in "
     if fits:
         return prefix + " or ".join(name for _, name in fits) + "? (the values seen fit it)"
-    return prefix + " or ".join(units) + "?"
+    return prefix + " or ".join(units) + "?" + (f" {otherwise}" if otherwise else "")
 
 
 def _sample_rule(key, vals, file, column, problems, hint=""):
@@ -156,7 +156,8 @@ def plausibility(df: pd.DataFrame, file: str, aircraft: Aircraft, harmonic: int,
     nominal = aircraft.nominal_rpm
     _sample_rule("rotor_rpm / nominal", rpm / nominal, file, "rotor_rpm", problems,
                  f" (nominal {nominal:g} rpm); " + unit_hint(float(np.median(rpm)), nominal, {
-                     "% of the nominal rotor speed": nominal / 100.0, "rad/s": 30.0 / np.pi, "rev/s or Hz": 60.0}))
+                     "% of the nominal rotor speed": nominal / 100.0, "rad/s": 30.0 / np.pi, "rev/s or Hz": 60.0},
+                     otherwise=f"Or is campaign.toml's nominal_rpm ({nominal:g}) another rotor's?"))
     if all(p.warning for p in problems[n:]) and "azimuth_deg" in df:  # against a rotor speed in rpm
         _azimuth_rule(t, _numeric(df["azimuth_deg"]), rpm, file, problems)
     if all(p.warning for p in problems):  # the azimuth given, or the one its rotor speed integrates to
@@ -178,7 +179,8 @@ def plausibility(df: pd.DataFrame, file: str, aircraft: Aircraft, harmonic: int,
         problems.append(Problem(file, s, None, "within 0–1 throughout the record while the other sticks are not: a "
                                 "fraction, not %? (map it with unit = \"fraction\")", warning=True))
 
-    _blade_loading_rule(df, aircraft, file, problems)
+    if not any(p.column == "rotor_rpm" for p in problems[n:]):  # at nominal speed: that speed must be the rotor's
+        _blade_loading_rule(df, aircraft, file, problems)
     return problems
 
 

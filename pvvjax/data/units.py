@@ -7,6 +7,7 @@ different dimensions (a speed given as an angle) is refused.
 
 from __future__ import annotations
 
+import difflib
 import math
 from dataclasses import dataclass
 
@@ -64,7 +65,10 @@ def conversion_factor(unit: str, canonical: str) -> float:
         raise ValueError(f"unknown unit {unit!r}; known: {', '.join(KNOWN_UNITS)}")
     target = CANONICAL_UNITS.get(canonical)
     if target is None:
-        raise ValueError(f"channel {canonical!r} has no canonical unit; give a scale instead of a unit")
+        near = difflib.get_close_matches(canonical, list(CANONICAL_UNITS), n=1)
+        raise ValueError(f"{canonical!r} is not a data-contract channel, so it has no unit to convert to"
+                         + (f" (did you mean {near[0]!r}?)" if near else "")
+                         + "; map to a channel of the data contract, or give a scale instead of a unit")
     dim, factor = _UNITS[unit]
     tdim, tfactor = _UNITS[target]
     if dim != tdim:
