@@ -286,14 +286,17 @@ class Lowerings:
     """Counts the programs JAX lowers for compilation, by function name, while active
     (`with Lowerings() as n: ...; n["_segment"]`). A lowering happens for every program
     compiled, whether or not the persistent cache then holds its binary, so the count is a
-    cache-independent measure of how many programs a piece of code needs."""
+    cache-independent measure of how many programs a piece of code needs. `fresh=True` clears
+    JAX's in-memory caches on entering, so that a count of programs compiled once does not
+    depend on the tests that ran before in the same worker."""
 
     EVENT = "/jax/core/compile/jaxpr_to_mlir_module_duration"
 
-    def __init__(self):
+    def __init__(self, fresh: bool = False):
         from collections import Counter
 
         self.counts = Counter()
+        self.fresh = fresh
 
     def _listener(self, event, duration, **kw):
         if event == self.EVENT:
@@ -303,6 +306,8 @@ class Lowerings:
     def __enter__(self):
         import jax
 
+        if self.fresh:  # programs traced by earlier tests in this worker would not be lowered again
+            jax.clear_caches()
         jax.monitoring.register_event_duration_secs_listener(self._listener)
         return self.counts
 

@@ -186,7 +186,7 @@ def test_take_rows_indexes_every_leaf_as_numpy_does_in_one_program():
 
     tree = dict(a=np.arange(12.0).reshape(4, 3), b=(np.arange(4), np.ones((4, 2, 2))))
     idx = np.array([3, 0, 0])
-    with Lowerings() as lowered:
+    with Lowerings(fresh=True) as lowered:
         got = take_rows(tree, idx)
     for u, v in zip(jax.tree.leaves(got), jax.tree.leaves(tree)):
         np.testing.assert_array_equal(u, v[idx])

@@ -304,7 +304,7 @@ def test_campaigns_of_different_sizes_in_one_bucket_share_the_compiled_analysis_
 
     net = mlp_init(jax.random.key(0), 8, (4,), in_mask=np.r_[np.ones(6), np.zeros(2)])
     runs = []
-    with Lowerings() as lowered:
+    with Lowerings(fresh=True) as lowered:
         for n, seconds in ((3, 20.0), (4, 19.0)):
             batch = to_batch(lagged_campaign(0.5, n=n, seconds=seconds, seed=n), STATE_CHANNELS)
             win = analyze(batch, 8.0)
