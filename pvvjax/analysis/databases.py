@@ -21,7 +21,7 @@ import pandas as pd
 
 from .._arguments import instance
 from ..config import AnalysisConfig
-from ..data.batch import RecordBatch, bucket_size, to_batch
+from ..data.batch import RecordBatch, bucket_size, in_batch_order, to_batch
 from ..data.campaign import Campaign
 from ..data.features import derive_features
 from ..io import listed
@@ -220,8 +220,7 @@ def _in_counter_order(parts):
             out[name] = np.pad(a, pad)
         return type(w)(**out)
 
-    back = np.argsort(np.concatenate([rows for rows, _ in parts]))
-    return jax.tree.map(lambda *a: jax.device_put(np.concatenate(a)[back]), *[widen(w) for _, w in parts])
+    return in_batch_order([widen(w) for _, w in parts], {i: rows for i, (rows, _) in enumerate(parts)})
 
 
 def analyze_by_length(campaign: Campaign, counters, window_revs: float, hop_revs: float | None = None, *,
@@ -323,7 +322,8 @@ def axis_peak_tables(campaign: Campaign, analysis: AnalysisConfig = AnalysisConf
     axes = campaign_axes(campaign)
     batches = _length_batches(campaign, counters, axes)
     wanted = sorted(set(harmonics or (1, n, 2 * n)))
-    ks = [k for k in wanted if all(k in resolved_harmonics(b, wanted, analysis.window_revs) for _, b in batches)]
+    every = set.intersection(*(set(resolved_harmonics(b, wanted, analysis.window_revs)) for _, b in batches))
+    ks = [k for k in wanted if k in every]
     win = _in_counter_order([(rows, analyze_axes(batch, ks, analysis.window_revs, analysis.hop,
                                                 taper_revs=analysis.taper_revs)) for rows, batch in batches])
     return {(axis, k): peaks_from_windows(campaign, win.select(a, h), counters, analysis)

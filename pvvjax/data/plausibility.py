@@ -179,6 +179,9 @@ def plausibility(df: pd.DataFrame, file: str, aircraft: Aircraft, harmonic: int,
         problems.append(Problem(file, s, None, "within 0–1 throughout the record while the other sticks are not: a "
                                 "fraction, not %? (map it with unit = \"fraction\")", warning=True))
 
+    _sample_rule("density_ratio", _numeric(df["density_ratio"])[:1], file, "density_ratio", problems,
+                 " (air colder than -15 °C at sea level): a density in kg/m³ (1.225 at sea level) rather than the "
+                 "ratio?")
     if not any(p.column == "rotor_rpm" for p in problems[n:]):  # at nominal speed: that speed must be the rotor's
         _blade_loading_rule(df, aircraft, file, problems)
     return problems
@@ -244,11 +247,6 @@ def _blade_loading_rule(df, aircraft: Aircraft, file, problems):
     rho = aircraft.rho0_slug_ft3 * sigma
     ct_sigma = w / (rho * aircraft.disk_area_ft2 * (aircraft.nominal_omega_rad_s * aircraft.rotor_radius_ft) ** 2
                     ) / aircraft.solidity
-    _, (_, dense), _ = LIMITS["density_ratio"]
-    if sigma > dense:
-        problems.append(Problem(file, "density_ratio", None, f"ρ/ρ₀ {sigma:g} above {dense:g} (air colder than -15 "
-                                "°C at sea level): a density in kg/m³ (1.225 at sea level) rather than the ratio?",
-                                warning=True))
     err, warn, _ = LIMITS["blade loading"]
     for bounds, warning in ((err, False), (warn, True)):
         if _outside(ct_sigma, bounds):
@@ -272,7 +270,7 @@ def _harmonic_rule(az, azimuth, harmonic: int, file, problems):
     psi = np.unwrap(np.deg2rad(azimuth))
     per_rev = len(psi) / max((psi[-1] - psi[0]) / (2 * np.pi), 1e-9)
     top = 2 * harmonic + 2
-    if not harmonic < per_rev / 2:
+    if harmonic >= per_rev / 2:
         return
     x = az - az.mean()
     half, z = np.exp(-0.5j * psi), np.exp(-1.5j * psi)
