@@ -37,10 +37,10 @@ import pandas as pd  # noqa: E402
 from pvvjax.analysis import DB_INPUTS  # noqa: E402
 from pvvjax.discovery import (  # noqa: E402
     capacity_test,
-    cross_fit,
     from_key,
-    neighbour_left,
+    partial_out,
     regression_tests,
+    static_inputs,
     unit_folds,
 )
 from pvvjax.io import markdown_table  # noqa: E402
@@ -109,12 +109,16 @@ def oracle(world: dict, truth: dict, win: pd.DataFrame, offset_s: float, seed: i
     """The oracle's test of each discrepancy of a world, and the baseline's capacity test
     (is its out-of-fold residual predictable from db1's inputs at all): rows of name, kind,
     statistic, p_value, theta, detected (at `LEVEL`). The test is `pvvjax.discovery.explain`'s
-    told the answer: the residual partialled out of the inputs by trees, the features by
-    nearest neighbours, the partially linear regression's t over conditions; a misfit (a
-    function of the inputs) by its form alone."""
+    told the answer, with its learners: the residual and each feature partialled out of the
+    inputs and their composites (`static_inputs`) by the best out of fold of the mean, the
+    additive spline and the trees (`partial_out`), the partially linear regression's t over
+    conditions; a misfit (a function of the inputs) by its form alone. Discovery's missing
+    kind also holds the inputs' history fixed, which the oracle does not: it stays the
+    ceiling."""
     win = win[win.weight >= 0.999].reset_index(drop=True)  # the fully weighted windows, as the metrics
     y = (win.measured_g - win.predicted_before_g).to_numpy()
-    Z = win[list(DB_INPUTS["db1"])].to_numpy(float)
+    inputs = list(DB_INPUTS["db1"])
+    Z = static_inputs(win[inputs].rename(columns=lambda k: f"x:{k}"), inputs)
     groups = win.condition.astype(str).to_numpy()
     fold = unit_folds(groups, 5, seed)
     feats = features(world, truth, win, offset_s)
@@ -123,7 +127,8 @@ def oracle(world: dict, truth: dict, win: pd.DataFrame, offset_s: float, seed: i
     missing = [e for e in entries if e["kind"] != "misfit"]
     if missing:
         X = np.column_stack([feats[e["name"]] for e in missing])
-        theta, t, p = regression_tests(cross_fit(y, Z, fold), neighbour_left(X, Z, fold), groups)
+        ry = partial_out(y, Z, fold, trees=True).left[:, 0]
+        theta, t, p = regression_tests(ry, partial_out(X, Z, fold, trees=True).left, groups)
         rows += [_row(world, e, t[j], p[j], theta[j]) for j, e in enumerate(missing)]
     misfits = [e for e in entries if e["kind"] == "misfit"]
     if misfits:

@@ -6,18 +6,21 @@ add it to the model and show the gap shrink (data-contract §3).
    condition out; the input-to-vibration offset is fitted on the held-out windows.
 2. **Localize.** Window residuals (measured − predicted, median over seeds) by maneuver
    kind, flight regime and position inside the maneuvers (`residuals.localize`).
-3. **Explain, by one calibrated test** (`misfits`, then `explain`). Where the held-out
-   residual is predictable from the model's inputs at all (`capacity_test`), the misfit is
-   named first by the static forms of those inputs that carry it (knees, bands, products;
-   forward selection, Holm in each round), and its out-of-fold fit is taken off the
-   residual. Then every candidate (`candidates`: channels, magnitudes, rates, spreads,
-   knees, bands, products; and the responses, lags of the corrected prediction) is tested
-   for what it explains of what is left beyond any function of the model's inputs: both
-   partialled out of the inputs by flexible learners fitted out of fold, a t over
-   conditions (the independent units), Holm's step-down over the candidates at
-   `discovery.level` family-wise. The best that passes is named, the rest tested again
-   given it, until nothing passes; candidates the data cannot tell from it are named with
-   it (`tied`). A candidate built only from the model's inputs is never named as missing.
+3. **Explain, by one calibrated test, three kinds in turn** (`misfits`, then `explain`).
+   Where the held-out residual is predictable from the model's inputs and their physical
+   composites at all (`capacity_test`), the **misfit** is named first by the static forms of
+   the inputs that carry it (knees, bands, products; forward selection, Holm in each round),
+   and its out-of-fold fit is taken off the residual. Then the forms of the inputs'
+   **history** (rates, spreads inside the window, lags of the corrected prediction: a
+   response, or the window-averaging, that the baseline lacks) are tested beyond the
+   inputs' window values, and last every other candidate (`candidates`: channels,
+   magnitudes, rates, spreads, knees, bands, products) is tested as **missing** beyond both.
+   Each test partials the residual and the candidate out of what is held fixed by the best,
+   out of fold, of the mean, an additive spline and trees (`partial_out`, whose skill is
+   reported), a t over conditions (the independent units), Holm's first step over the
+   round's candidates at `discovery.level`. The best that passes is named, the rest tested
+   again given it, until nothing passes; candidates the data cannot tell from it are named
+   with it (`tied`).
 4. **Fit and add.** A named knee, band or lag gets its parameters by least squares
    (optimistix Levenberg–Marquardt, from where the test named them), and their intervals over a bootstrap
    of conditions. The named effects join the model at once: the misfit's forms as a linear
@@ -35,8 +38,9 @@ concentrates) and `report` (discovery.json, report.md, figures). Its private mod
 concept each: `_model` (the nets, the replay windows, the predictions and metrics),
 `_train` (a model's nets trained on the peaks), `_fits` (least-squares fits of a lag, a knee
 or band, the offset), `_citest` (cross-fitted conditional-independence tests with
-conditions as the units: `gcm_test`, `capacity_test`, `holm`), `_explain` (`misfits`, `explain`: the
-candidates named by that test at one level, stepwise), `_tested` (the discovery's test, fits
+conditions as the units: `gcm_test`, `capacity_test`, `holm`), `_nuisance` (the test's
+nuisance regressions: the inputs' composites and history, `partial_out`), `_explain`
+(`misfits`, `explain`: the candidates named by that test at one level, stepwise), `_tested` (the discovery's test, fits
 and the model with the named effects), `_results` (the typed outcome: an `Effect`, a
 `Round`) and `_workflow` (`discover`, `summary`).
 """
@@ -52,8 +56,19 @@ from ._citest import (
     regression_tests,
     unit_folds,
 )
-from ._explain import Explanation, Named, carried_by, explain, misfits, neighbour_left, out_of_fold_linear
+from ._explain import (
+    Explanation,
+    Named,
+    carried_by,
+    explain,
+    misfits,
+    of_history,
+    out_of_fold_linear,
+    shadow,
+    static_inputs,
+)
 from ._model import Model, fit_ensemble, floor_features, gain_apply, metrics
+from ._nuisance import Partialled, composites, input_history, partial_out
 from ._results import Effect, Round
 from ._tested import bootstrap_weights
 from ._workflow import Discovery, discover, summary
@@ -90,8 +105,14 @@ __all__ = [
     "library",
     "localize",
     "metrics",
-    "neighbour_left",
+    "of_history",
     "out_of_fold_linear",
+    "partial_out",
+    "Partialled",
+    "composites",
+    "input_history",
+    "shadow",
+    "static_inputs",
     "regression_tests",
     "residual_windows",
     "summary",

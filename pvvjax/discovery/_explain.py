@@ -1,23 +1,31 @@
 """Which candidates explain a model's residual beyond any function of its inputs, by one
-cross-fitted test at one stated level.
+cross-fitted test at one stated level, for each of three kinds in turn.
 
-Two questions are kept apart, in this order. A **misfit** is structure that a function of
-the model's inputs Z explains: whether the residual holds any is the capacity test's question,
-and where it does, the misfit is named by the simplest static forms of the inputs that carry
-it (knees, bands, products built only from the inputs; forward selection, Holm at the level
-in each round: `misfits`). Their out-of-fold fit is taken off the residual first: a misfit
-left in it would let any channel that follows the inputs stand in for it. A **missing** input
-or response is then what a candidate explains of what is left beyond any function of Z
-(`gcm_test`'s partially linear regression, conditions as the units); the family of tests is
-held at the level by Holm's step-down; the one with the smallest p-value among those that
-pass is named, joins Z, and the rest are tested again given it, until nothing passes.
-Candidates that passed beside it and that the data cannot tell from it (each has nothing
-left given the other) are named with it as a tied set. A static form of the inputs is never
-tested as missing.
+1. A **misfit of the inputs** is structure that a function of the inputs' window values Z
+   explains (Z holds the inputs and their physical composites: the blade loading at the
+   load factors they hold, the advance ratio). Whether the residual holds any is the capacity
+   test's question; where it does, the misfit is named by the simplest static forms of the
+   inputs that carry it (knees, bands, products; forward selection, Holm at the level in
+   each round: `misfits`), and their out-of-fold fit is taken off the residual first.
+2. A **misfit of the inputs' history** is what the history of the inputs explains beyond Z:
+   their rates, their spreads inside the window, lags of the model's prediction. It is a
+   response, or the window-averaging of a state that moves, that the baseline lacks, not a
+   missing channel, and it is named by its form (a lag's τ, a rate, a spread).
+3. A **missing** channel, or its history, is what a candidate explains of what is left
+   beyond both: Z and the whole history of the inputs.
 
-The residual is partialled out of Z by the learner given (trees); the candidates, hundreds
-of columns, by the mean of each window's nearest neighbours in Z, fitted once per fold for
-all of them.
+Within a kind, every candidate is tested by `gcm_test`'s partially linear regression
+(conditions as the units) against the residual, both partialled out of what is held fixed;
+the one with the smallest p-value is named where it passes Holm's first step at the level
+over the round's family, joins what is held fixed, and the rest are tested again given it,
+until nothing passes. Candidates that passed beside it and that the data cannot tell from
+it (each has nothing left given the other) are named with it as a tied set.
+
+The nuisance regressions (`_nuisance.partial_out`) keep, per target, the best out of fold
+of the mean, an additive spline of what is held fixed and (for the residual and for the
+candidates that may be named) gradient-boosted trees: every candidate is screened with the
+spline, and only one the trees confirmed is named. Each round's learners and their
+out-of-fold skill are reported (`Explanation.nuisance`).
 """
 
 from __future__ import annotations
@@ -28,23 +36,21 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from ._citest import (
-    UnitTest,
-    capacity_test,
-    cross_fit,
-    default_learner,
-    holm,
-    regression_tests,
-    unit_folds,
-    unit_members,
-)
+from ._citest import UnitTest, capacity_test, default_learner, holm, regression_tests, unit_folds, unit_members
 from ._model import computable
+from ._nuisance import HISTORY, Partialled, composites, input_history, partial_out
 from .candidates import Candidate, library, values
 
-__all__ = ["Explanation", "Named", "carried_by", "explain", "misfits", "neighbour_left", "out_of_fold_linear"]
+__all__ = ["Explanation", "Named", "carried_by", "explain", "misfits", "of_history", "out_of_fold_linear", "shadow",
+           "static_inputs"]
 
 # The columns of `Explanation.tests` (one row per candidate and round).
-TEST_COLUMNS = ("round", "key", "name", "kind", "statistic", "p_value", "adjusted_p", "theta", "left")
+TEST_COLUMNS = ("round", "key", "name", "kind", "statistic", "p_value", "adjusted_p", "theta", "left", "learner",
+                "skill")
+
+# The columns of `Explanation.nuisance` (one row per round of the history and missing kinds).
+NUISANCE_COLUMNS = ("round", "kind", "residual_learner", "residual_skill", "candidates_median_skill",
+                    "candidates_min_skill")
 
 # Operators whose window value is a function of the channels' window means: built from the
 # model's inputs only, such a candidate is a function of Z. A rate, a window's spread or a lag
@@ -62,8 +68,9 @@ class Named(NamedTuple):
             candidates tested in that round. theta: the residual's coefficient on it (g per
             unit of the candidate, both partialled out of the inputs; a misfit: of the
             residual on its form).
-        kind: "missing" (beyond any function of the inputs) or "misfit" (a function of the
-            inputs that the model did not learn).
+        kind: "misfit" (a function of the inputs' window values that the model did not
+            learn), "history" (a form of the inputs' history: a rate, a spread, a lag of the
+            prediction) or "missing" (beyond both).
         tied: the keys of the candidates the data cannot tell from it (each has nothing left
             at the level given the other), which the name stands for as well.
         explained: the share of the (partialled) residual's variance it explains in its round.
@@ -84,15 +91,26 @@ class Explanation(NamedTuple):
     """What `explain` found.
 
     Attributes:
-        named: the candidates named, in order (the misfit's forms, then the missing ones).
+        named: the candidates named, in order (the misfit's forms, the history's, then the
+            missing ones).
         tests: every test of every round: round, key, name, kind ("misfit": a form tested
-            given the forms named before it; "missing": a candidate beyond the inputs),
-            statistic, p_value, adjusted_p, theta, left (the share of the candidate's variance
-            left after the inputs; 1 for a misfit's form).
+            given the forms named before it; "history": a form of the inputs' history beyond
+            their window values; "missing": a candidate beyond both), statistic, p_value,
+            adjusted_p (Holm over the round; a named candidate's is its p times the round's
+            family), theta, left (the share of the candidate's variance left after what is
+            held fixed; 1 for a misfit's form), learner and skill (which learner partialled
+            it, and its out-of-fold skill, 1 − SSE/SST).
         carried: the keys of the static candidates built only from the model's inputs (not
             tested as missing).
         capacity: is the residual predictable from the inputs at all (`capacity_test`).
         level: the family-wise level of each round.
+        nuisance: per round of the history and missing kinds, the residual's learner and its
+            out-of-fold skill, and the candidates' median and smallest skill
+            (`NUISANCE_COLUMNS`).
+        with_misfit: the keys of the candidates the inputs nearly determine that passed the
+            screen but explain nothing once their shadow (the candidate as the inputs predict
+            it) is held fixed: the data cannot tell them from a misfit of the inputs, so they
+            are not named as missing (tied with the misfit).
     """
 
     named: tuple[Named, ...]
@@ -100,6 +118,24 @@ class Explanation(NamedTuple):
     carried: tuple[str, ...]
     capacity: UnitTest
     level: float
+    nuisance: pd.DataFrame | None = None
+    with_misfit: tuple[str, ...] = ()
+
+
+def static_inputs(table: pd.DataFrame, inputs) -> np.ndarray:
+    """(n, p) what the test holds fixed as the model's inputs: their window values and their
+    physical composites (`composites`: the blade loading at the load factors they hold, the
+    advance ratio or airspeed), which the nuisance regressions would otherwise learn only in
+    part."""
+    comp, _ = composites(table, inputs)
+    return np.column_stack([table[[f"x:{k}" for k in inputs]].to_numpy(float), comp])
+
+
+def of_history(c: Candidate, inputs) -> bool:
+    """Whether a candidate is a form of the inputs' history: a rate, a rate's magnitude, a
+    spread inside the window of channels the inputs compute, or a lag of the model's
+    prediction (a response, or the window-averaging, that the baseline lacks)."""
+    return c.operator in HISTORY and set(c.channels) <= computable(inputs)
 
 
 def carried_by(c: Candidate, inputs) -> bool:
@@ -107,22 +143,6 @@ def carried_by(c: Candidate, inputs) -> bool:
     of channels or features computable from the inputs alone (`computable`: the advance
     ratio from airspeed and rotor speed, airspeed from the advance ratio and rotor speed)."""
     return c.operator in STATIC and set(c.channels) <= computable(inputs)
-
-
-def neighbour_left(X, Z, fold, neighbours: int = 30) -> np.ndarray:
-    """(n, m) X minus its out-of-fold mean over each row's `neighbours` nearest rows in Z
-    (standardised; the neighbours drawn from the other folds): every column partialled out of
-    Z at once, the candidates' nuisance regression."""
-    from sklearn.neighbors import KNeighborsRegressor
-
-    scale = Z.std(axis=0)
-    Zs = Z / np.where(scale > 0, scale, 1.0)
-    out = np.empty_like(X)
-    for k in np.unique(fold):
-        test = fold == k
-        model = KNeighborsRegressor(n_neighbors=min(neighbours, int((~test).sum()))).fit(Zs[~test], X[~test])
-        out[test] = X[test] - model.predict(Zs[test])
-    return out
 
 
 def _given(ry, a, b, groups) -> float:
@@ -222,8 +242,7 @@ def misfits(residual, table: pd.DataFrame, inputs, groups, *, candidates: list[C
     y = np.asarray(residual, float)
     groups = np.asarray(groups)
     _check(y, table, inputs, groups, level)
-    Z = table[[f"x:{k}" for k in inputs]].to_numpy(float)
-    capacity = capacity_test(y, Z, groups, folds, seed, learner)
+    capacity = capacity_test(y, static_inputs(table, inputs), groups, folds, seed, learner)
     pool = candidates if candidates is not None else library(table, model_inputs=tuple(inputs))
     (forms, F), _ = _forms_of(pool, inputs, table, prediction)
     named, rows, chosen = [], [], []
@@ -260,44 +279,121 @@ def out_of_fold_linear(A, target, fit, fold) -> np.ndarray:
     return out
 
 
-def _missing_rounds(y, Z, pool, X, groups, fold, rounds, level, neighbours, learner) -> tuple[list, list]:
-    """`explain`'s rounds of missing candidates: (named, test rows). Each round partials the
-    residual (trees) and the candidates X (neighbours) out of Z, names the best that passes
-    Holm at `level` with its tied set, and adds it to Z (a lag with every lag of the grid)."""
-    named, rows = [], []
+# Candidates re-partialled by trees in a round, at most: the smallest screened p-values first,
+# until the smallest is one the trees gave (only a confirmed candidate is named), and only
+# those whose screened p-value times the round's family is below 1.
+CONFIRM = 4
+
+
+def _sources(c: Candidate) -> list[str]:
+    """The window-table columns a candidate is computed from (none for a lag)."""
+    ch = c.channels
+    if c.operator == "input":
+        return [("abs:" if c.parameters.get("transform") == "abs" else "x:") + ch[0]]
+    if c.operator in ("rate", "abs_rate"):
+        return [f"{c.operator}:{ch[0]}"]
+    if c.operator == "window":
+        return [f"spread:{ch[0]}"]
+    return [f"x:{k}" for k in ch]
+
+
+def shadow(c: Candidate, table: pd.DataFrame, Z, fold, prediction=None) -> np.ndarray | None:
+    """(n,) a candidate's shadow in what is held fixed: the candidate computed from its
+    channels' columns as Z predicts them out of fold (`partial_out`), through its own operator
+    (a knee of the shaft power the inputs predict). It is a function of Z alone, with the
+    candidate's own shape: held fixed beside Z, it lets the residual's regression take the part
+    of a misfit that the candidate would carry only because its channel follows the inputs.
+    None for a candidate without channels (a lag of the prediction)."""
+    cols = _sources(c)
+    if not c.channels or not all(k in table for k in cols):
+        return None
+    raw = table[cols].to_numpy(float)
+    hat = pd.DataFrame(raw - partial_out(raw, Z, fold).left, columns=cols)
+    return tested_column(c, hat, prediction)
+
+
+def _round(y, Z, X, groups, fold, learner, pool=None, table=None, prediction=None):
+    """One round's tests: the residual partialled out of Z by the best learner (trees
+    among them), the candidates X screened by the mean or the additive spline, and the
+    smallest p-values confirmed (`CONFIRM` at most): the candidate and the residual both
+    partialled, trees tried too, out of Z and the candidate's `shadow` (where `pool` and
+    `table` give it). Returns ry, RX, (theta, t, p), the candidates' `Partialled`, the
+    residual's, the confirmed mask, the screen's columns and its p-values."""
+    res = partial_out(y, Z, fold, trees=True, learner=learner)
+    ry = res.left[:, 0]
+    screen = partial_out(X, Z, fold)
+    RX, skill, chosen = screen.left.copy(), screen.skill.copy(), screen.learner.copy()
+    theta, t, p = regression_tests(ry, RX, groups)
+    screened_p = p.copy()
+    confirmed = np.zeros(len(p), bool)
+    for _ in range(min(CONFIRM, len(p))):
+        best = int(np.argmin(np.where(confirmed, np.inf, p)))
+        if (confirmed.any() and p[best] >= p[confirmed].min()) or p[best] * len(p) >= 1.0:
+            break  # a candidate the screen puts beyond any level is not worth the trees
+        s = None if pool is None or table is None else shadow(pool[best], table, Z, fold, prediction)
+        Zj = Z if s is None else np.column_stack([Z, s])
+        ryj = ry if s is None else partial_out(y, Zj, fold, trees=True, learner=learner).left[:, 0]
+        one = partial_out(X[:, best], Zj, fold, trees=True, learner=learner)
+        RX[:, best], skill[best], chosen[best] = one.left[:, 0], one.skill[0], one.learner[0]
+        th, tt, pp = regression_tests(ryj, RX[:, [best]], groups)
+        theta[best], t[best], p[best] = th[0], tt[0], pp[0]
+        confirmed[best] = True
+    return ry, RX, (theta, t, p), Partialled(RX, skill, chosen), res, confirmed, screen.left, screened_p
+
+
+def _kind_rounds(y, Z, pool, X, groups, fold, rounds, level, kind, learner, table=None,
+                 prediction=None) -> tuple[list, list, list, np.ndarray, list]:
+    """`explain`'s rounds of one kind ("history" or "missing"): (named, test rows, nuisance
+    rows, Z with the named columns). Each round partials the residual and the candidates X
+    out of Z (`_round`), names the confirmed candidate with the smallest p where it passes
+    Holm's first step at `level` over the round's family (p · m), with its tied set, and adds
+    it to Z (a lag with every lag of the grid). Also returns the keys of the candidates that
+    passed the screen but not once their shadow was held fixed (tied with the misfit)."""
+    named, rows, nuisance, with_misfit = [], [], [], []
     for rnd in rounds:
         if not pool:
             break
-        ry = cross_fit(y, Z, fold, learner)
-        RX = neighbour_left(X, Z, fold, neighbours)
+        ry, RX, (theta, t, p), part, res, confirmed, screened, screened_p = _round(y, Z, X, groups, fold, learner,
+                                                                                 pool, table, prediction)
+        m = len(p)
+        with_misfit += [pool[j].key for j in np.flatnonzero(confirmed & (screened_p * m < level) & (p * m >= level))]
         left = RX.var(axis=0) / np.maximum(X.var(axis=0), 1e-300)
-        theta, t, p = regression_tests(ry, RX, groups)
         adj = holm(p)
-        rows += [dict(round=rnd, key=c.key, name=c.name, kind="missing", statistic=t[j], p_value=p[j],
-                      adjusted_p=adj[j], theta=theta[j], left=left[j]) for j, c in enumerate(pool)]
-        best = int(np.argmin(p))
-        if adj[best] >= level:
+        rows += [dict(round=rnd, key=c.key, name=c.name, kind=kind, statistic=t[j], p_value=p[j],
+                      adjusted_p=adj[j], theta=theta[j], left=left[j], learner=part.learner[j], skill=part.skill[j])
+                 for j, c in enumerate(pool)]
+        nuisance.append(dict(round=rnd, kind=kind, residual_learner=res.learner[0], residual_skill=res.skill[0],
+                             candidates_median_skill=float(np.median(part.skill)),
+                             candidates_min_skill=float(np.min(part.skill))))
+        if not confirmed.any():
             break
-        tied = _ties(ry, RX, best, np.flatnonzero(adj < level), groups, level)
-        named.append(Named(pool[best], rnd, float(t[best]), float(p[best]), float(adj[best]), float(theta[best]),
-                           "missing", tuple(pool[j].key for j in tied), _share(ry, RX[:, best])))
+        best = int(np.argmin(np.where(confirmed, p, np.inf)))
+        decision = min(1.0, p[best] * len(p))
+        if decision >= level:
+            break
+        # Ties are told apart on one learner's columns (the screen's): two learners' fits of
+        # one candidate differ by more than a stand-in differs from it.
+        tied = _ties(ry, screened, best, np.flatnonzero(adj < level), groups, level)
+        named.append(Named(pool[best], rnd, float(t[best]), float(p[best]), float(decision), float(theta[best]),
+                           kind, tuple(pool[j].key for j in tied), _share(ry, RX[:, best])))
         joins = {best} | ({j for j, c in enumerate(pool) if c.operator == "lag"} if pool[best].operator == "lag"
                           else set())
         Z = np.column_stack([Z, X[:, sorted(joins)]])  # the rest are tested given it
         gone = joins | set(tied)
         pool, X = [c for j, c in enumerate(pool) if j not in gone], np.delete(X, sorted(gone), axis=1)
-    return named, rows
+    return named, rows, nuisance, Z, with_misfit
 
 
 def explain(residual, table: pd.DataFrame, inputs, groups, *, candidates: list[Candidate] | None = None,
             responses: tuple[list[Candidate], np.ndarray] | None = None, prediction=None, level: float = 0.05,
-            folds: int = 5, seed: int = 0, max_named: int = 3, neighbours: int = 30,
+            folds: int = 5, seed: int = 0, max_named: int = 3,
             learner: Callable = default_learner, given: Explanation | None = None) -> Explanation:
     """Name the misfit of the model's inputs where the residual holds one (`misfits`), then
-    the candidates that explain what is left beyond any function of those inputs.
+    the forms of the inputs' history that explain what is left beyond their window values,
+    then the candidates that explain what is left beyond both (the module docstring).
 
     The misfit comes first: its forms' out-of-fold fit (by the units' folds) is taken off the
-    residual (and added to `prediction`) before any candidate is tested as missing. A named
+    residual (and added to `prediction`) before anything else is tested. A named
     lag joins the inputs with every lag of the grid (`responses` of operator "lag"), so the
     rest is tested given any first-order lag, not only the grid point that was named: a lag
     between grid points, or the lag of a part of the response the model misses, would leave
@@ -317,15 +413,16 @@ def explain(residual, table: pd.DataFrame, inputs, groups, *, candidates: list[C
             it. None: the band alone.
         level: the family-wise error of each round (Holm).
         folds, seed: the cross-fitting's folds over units.
-        max_named: stop after naming this many of each kind (misfit forms, missing effects).
-        neighbours: the nearest neighbours that partial the candidates out of the inputs.
-        learner: the nuisance regression of the residual (`default_learner`).
+        max_named: stop after naming this many of each kind (misfit forms, history forms,
+            missing effects).
+        learner: the flexible learner among the nuisance regressions (`default_learner`).
         given: the `misfits` of this residual, already taken off it (`residual` and
             `prediction` corrected by the caller, e.g. on windows beyond these): only the
-            missing candidates are tested.
+            history and missing candidates are tested.
 
     Returns:
-        `Explanation`: the misfit's forms, then the missing candidates, rounds numbered on.
+        `Explanation`: the misfit's forms, the history's, then the missing candidates,
+        rounds numbered on.
     """
     y = np.asarray(residual, float)
     groups = np.asarray(groups)
@@ -341,14 +438,27 @@ def explain(residual, table: pd.DataFrame, inputs, groups, *, candidates: list[C
                                        np.ones(len(y), bool), fold)
             y = y - shift
             prediction = None if prediction is None else prediction + shift
-    Z = table[[f"x:{k}" for k in inputs]].to_numpy(float)
+    Z = static_inputs(table, inputs)
     _, (pool, X) = _forms_of(pool, inputs, table, prediction)
     if responses is not None and len(responses[0]):
         more, R = _usable(list(responses[0]), np.asarray(responses[1], float).reshape(len(y), -1))
         pool, X = pool + more, np.column_stack([X, R])
+    past = np.array([of_history(c, inputs) for c in pool], bool)
+    hist, H = [c for c, k in zip(pool, past) if k], X[:, past]
+    rest, XR = [c for c, k in zip(pool, ~past) if k], X[:, ~past]
     first = max([n.round for n in given.named], default=0) + 1
-    named, rows = _missing_rounds(y, Z, pool, X, groups, fold, range(first, first + max_named), level, neighbours,
-                                  learner)
-    frames = [f for f in (given.tests, pd.DataFrame(rows, columns=list(TEST_COLUMNS))) if len(f)]
+    named_h, rows_h, nuis_h, Zh, tied_h = _kind_rounds(y, Z, hist, H, groups, fold, range(first, first + max_named),
+                                                       level, "history", learner, table, prediction)
+    first = max([r["round"] for r in rows_h], default=first - 1) + 1
+    # What is missing is tested beyond both: the inputs, their composites, the history forms
+    # named and the inputs' history in the window (the lags of the prediction, a dozen columns
+    # of one series, join only where named: as a block they cost the residual's learner more
+    # than they hold).
+    beyond = np.column_stack([Zh, input_history(table, inputs)[0]])
+    named_m, rows_m, nuis_m, _, tied_m = _kind_rounds(y, beyond, rest, XR, groups, fold,
+                                                     range(first, first + max_named), level, "missing", learner,
+                                                     table, prediction)
+    frames = [f for f in (given.tests, pd.DataFrame(rows_h + rows_m, columns=list(TEST_COLUMNS))) if len(f)]
     tests = pd.concat(frames, ignore_index=True) if frames else given.tests
-    return Explanation(given.named + tuple(named), tests, given.carried, given.capacity, level)
+    return Explanation(given.named + tuple(named_h) + tuple(named_m), tests, given.carried, given.capacity, level,
+                       pd.DataFrame(nuis_h + nuis_m, columns=list(NUISANCE_COLUMNS)), tuple(tied_h + tied_m))

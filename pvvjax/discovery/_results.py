@@ -19,7 +19,7 @@ class Effect:
 
     Attributes:
         rank: 1 for the first named. round: the test's round that named it (the misfit's
-            forms are named first, then the missing effects).
+            forms are named first, then the history's, then the missing effects).
         name: in words. operator: the candidate's operator (`effects.OPERATORS`, or "lag").
         channels: the campaign channels it is built from (a lag: the model's inputs).
         parameters: its fitted parameters (knee, centre and width, τ, ...).
@@ -29,8 +29,9 @@ class Effect:
             held-out RMS there before and after (`where`, `before_rms_g`, `after_rms_g`).
         key: the candidate's key. candidate: the candidate as added.
         found_in: the windows it was tested on ("all").
-        kind: "missing" (beyond any function of the model's inputs) or "misfit" (a function
-            of them that the model did not learn).
+        kind: "misfit" (a function of the model's inputs that it did not learn), "history"
+            (a form of the inputs' history: a rate, a spread inside the window, a lag of the
+            prediction) or "missing" (a channel, or its history, beyond both).
         statistic: its test's t on conditions.
         intervals: per fitted parameter, its (low, high) over a bootstrap of conditions.
         tied: the keys of the candidates the data cannot tell from it.

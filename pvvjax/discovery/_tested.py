@@ -114,8 +114,8 @@ def tested(ctx: _Ctx, win: _Windows, pred, inputs, log=print, exclude=()) -> tup
     window table) at `discovery.level`.
 
     The misfit comes first (`misfits`); its forms' out-of-fold fit joins the prediction on
-    every window, and the missing candidates, lags of that corrected prediction among them,
-    are tested against what is left (`explain`).
+    every window; the forms of the inputs' history, lags of that corrected prediction among
+    them, then the missing candidates are tested against what is left (`explain`).
 
     Args:
         exclude: channels never offered as candidates here (a simulation's own column).
@@ -135,6 +135,10 @@ def tested(ctx: _Ctx, win: _Windows, pred, inputs, log=print, exclude=()) -> tup
     log(f"capacity of the baseline: t = {ex.capacity.statistic:.2f}, p = {ex.capacity.p_value:.3g}; "
         f"{len(ex.tests)} tests at {d.level:g} family-wise, named: "
         + (", ".join(f"{n.candidate.name} ({n.kind}, p = {n.adjusted_p:.2g})" for n in ex.named) or "none"))
+    if ex.nuisance is not None and len(ex.nuisance):
+        log("nuisance regressions' out-of-fold skill (1 - SSE/SST): residual " + ", ".join(
+            f"{r.kind} round {r.round} {r.residual_learner} {r.residual_skill:.2f}" for r in ex.nuisance.itertuples())
+            + f"; candidates' median {ex.nuisance.candidates_median_skill.median():.2f}")
     return ex, yc
 
 

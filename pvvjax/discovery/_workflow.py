@@ -56,6 +56,10 @@ class Discovery:
         carried: the keys of the candidates built only from the model's inputs: never
             named as missing (the misfit's forms).
         level: the family-wise level of each round.
+        nuisance: the test's nuisance regressions per round (`Explanation.nuisance`): the
+            residual's learner and out-of-fold skill, the candidates' median and smallest.
+        with_misfit: keys of candidates the data cannot tell from a misfit of the inputs
+            (`Explanation.with_misfit`): reported, never named as missing.
     """
 
     campaign: str
@@ -73,6 +77,8 @@ class Discovery:
     carried: tuple[str, ...] = ()
     level: float = 0.05
     rounds: tuple[Round, ...] = ()
+    nuisance: pd.DataFrame | None = None
+    with_misfit: tuple[str, ...] = ()
 
 
 def _context(campaign: Campaign, cfg: ExperimentConfig, log) -> _Ctx:
@@ -277,12 +283,19 @@ def _outcome(ctx: _Ctx, name: str, run: _Run, seconds: dict, localized: dict, lo
     d = ctx.cfg.discovery
     return Discovery(name, f"simulation:{d.simulation}" if d.simulation else d.database, run.base, run.final,
                      run.before, after, tuple(effects), tries, localized, table, seconds,
-                     None if ex is None else ex.capacity, () if ex is None else ex.carried, d.level, typed)
+                     None if ex is None else ex.capacity, () if ex is None else ex.carried, d.level, typed,
+                     None if ex is None else ex.nuisance, () if ex is None else ex.with_misfit)
 
 
 def _worse(effects, before: dict, after: dict) -> bool:
     """Whether the model with named effects predicts worse held out than the baseline."""
     return bool(effects) and after["rms_g"] > before["rms_g"]
+
+
+def _plain(v):
+    """A table's value for JSON: a NumPy scalar as Python's, a float to 4 decimals."""
+    v = v.item() if isinstance(v, np.generic) else v
+    return round(v, 4) if isinstance(v, float) else v
 
 
 def summary(res: Discovery) -> dict:
@@ -300,5 +313,7 @@ def summary(res: Discovery) -> dict:
         "capacity": None if cap is None else {
             "statistic": round(float(cap.statistic), 4), "p_value": round(float(cap.p_value), 6),
             "misfit": [e.name for e in res.effects if e.kind == "misfit"],
-            "carried": len(res.carried)},
+            "carried": len(res.carried), "tied_with_misfit": list(res.with_misfit)},
+        "nuisance": [] if res.nuisance is None else [
+            {k: _plain(v) for k, v in r.items()} for r in res.nuisance.to_dict("records")],
     }

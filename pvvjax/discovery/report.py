@@ -118,9 +118,15 @@ def _effect_lines(res: Discovery, js: dict) -> list[str]:
     if cap is not None:
         lines += [f"Capacity of the baseline (is its held-out residual predictable from its own inputs at all): "
                   f"t = {cap['statistic']:.2f}, p = {cap['p_value']:.3g}. Where it is, the misfit is named first "
-                  f"by the forms of the inputs that carry it, and taken off the residual; every later round tests "
-                  f"each candidate for what it explains beyond any function of the model's inputs. Holm at "
-                  f"{res.level:g} family-wise over the candidates of each round, conditions as the units.", ""]
+                  f"by the forms of the inputs that carry it, and taken off the residual. Then the forms of the "
+                  f"inputs' history (rates, spreads inside the window, lags of the prediction) are tested beyond "
+                  f"the inputs' window values and their composites, and last every other candidate beyond both. "
+                  f"Holm's first step at {res.level:g} family-wise over the candidates of each round, conditions "
+                  f"as the units.", ""] + _nuisance_lines(js)
+        if cap["tied_with_misfit"]:
+            lines += ["Passed the screen but explain nothing beyond their shadow (the candidate as the inputs "
+                      "predict it), so the data cannot tell them from a misfit of the inputs (tied with the misfit, "
+                      "not named as missing): " + ", ".join(f"`{k}`" for k in cap["tied_with_misfit"]) + ".", ""]
     if not js["effects"]:
         return lines + [f"Nothing passed the test at {res.level:g}: the residual holds nothing that the "
                         "candidates explain beyond the model's inputs.", ""]
@@ -135,12 +141,17 @@ def _effect_lines(res: Discovery, js: dict) -> list[str]:
                   f"{res.before['rms_g']:.4f} -> {res.after['rms_g']:.4f} g): what the test named is listed, but "
                   "adding it as fitted did not help; do not take the augmented model as better.", ""]
     return lines + [_md(eff), "",
-                    "`kind`: missing (beyond any function of the model's inputs) or misfit (a function of them "
-                    "that the model did not learn). `intervals`: each fitted parameter's 5-95 % range over a "
+                    "`kind`: misfit (a function of the model's inputs that it did not learn), history (a form of "
+                    "the inputs' history: a response or the window-averaging the model lacks) or missing (a "
+                    "channel, or its history, beyond both). `intervals`: each fitted parameter's 5-95 % range over a "
                     "bootstrap of conditions. `tied`: candidates the data cannot tell from it (each has nothing "
                     "left given the other). `region`: where the model with all named effects (the misfit's forms "
                     "as a linear term fitted out of fold, the missing ones in the nets, retrained once) changed the "
                     "held-out prediction, and the RMS there before and after.", ""]
+
+
+# The columns of a round's tests in the report.
+_TEST_SHOWN = ("name", "kind", "statistic", "p_value", "adjusted_p", "theta", "left", "learner", "skill")
 
 
 def _test_lines(res: Discovery, top: int = 8) -> list[str]:
@@ -152,8 +163,17 @@ def _test_lines(res: Discovery, top: int = 8) -> list[str]:
     for r in res.rounds:
         t = r.tries.sort_values("p_value").head(top)
         lines += [f"Round {r.number}" + (f": named {r.named.name}" if r.named is not None else ": nothing passed"),
-                  "", _md(t[["name", "kind", "statistic", "p_value", "adjusted_p", "theta", "left"]]), ""]
+                  "", _md(t[[c for c in _TEST_SHOWN if c in t]]), ""]
     return lines
+
+
+def _nuisance_lines(js: dict) -> list[str]:
+    """The nuisance regressions' out-of-fold skill per round (1 − SSE/SST: 0 is the mean's)."""
+    rows = js.get("nuisance") or []
+    if not rows:
+        return []
+    return ["The nuisance regressions, per round (out-of-fold skill 1 − SSE/SST; each target keeps the best of the "
+            "mean, an additive spline and trees, so none is below 0):", "", _md(pd.DataFrame(rows)), ""]
 
 
 def report_section(res: Discovery, scenario: str, hidden: list[str], folder: str = "discovery/") -> list[str]:
