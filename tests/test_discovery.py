@@ -231,9 +231,9 @@ def test_cli_discovers_on_a_micro_world_and_writes_its_summary_and_report(tmp_pa
     assert main(["discover", "--campaign", str(folder), "--out", str(tmp_path / "out"),
                  "--config", str(tmp_path / "cfg.toml")]) == 0
     js = json.loads((tmp_path / "out" / "discovery.json").read_text())
-    assert set(js) == {"campaign", "baseline", "effects", "augmented", "gap_shrink", "level", "capacity"}
+    assert set(js) == {"campaign", "baseline", "effects", "augmented", "gap_shrink", "level", "capacity", "nuisance"}
     kinds = [e["kind"] for e in js["effects"]]
-    assert kinds.count("missing") <= 1 and kinds.count("misfit") <= 1  # max_effects of each kind
+    assert all(kinds.count(k) <= 1 for k in ("missing", "history", "misfit"))  # max_effects of each kind
     assert set(js["baseline"]["metrics"]) == {"rms_g", "peak_error_g", "phase_error_s"}
     report = (tmp_path / "out" / "report.md").read_text()
     assert "figures/residual_map.png" in report and (tmp_path / "out" / "figures" / "residual_map.png").exists()
@@ -257,10 +257,16 @@ def test_cli_on_a_true_null_writes_its_summary_and_every_name_carries_its_test(t
     assert main(["discover", "--campaign", str(folder), "--out", str(tmp_path / "out"),
                  "--config", str(tmp_path / "cfg.toml")]) == 0
     js = json.loads((tmp_path / "out" / "discovery.json").read_text())
-    assert set(js) == {"campaign", "baseline", "effects", "augmented", "gap_shrink", "level", "capacity"}
-    assert js["level"] == 0.05 and set(js["capacity"]) == {"statistic", "p_value", "misfit", "carried"}
+    assert set(js) == {"campaign", "baseline", "effects", "augmented", "gap_shrink", "level", "capacity", "nuisance"}
+    assert js["level"] == 0.05
+    assert set(js["capacity"]) == {"statistic", "p_value", "misfit", "carried", "tied_with_misfit"}
     for e in js["effects"]:
-        assert e["adjusted_p"] < js["level"] and e["kind"] in ("missing", "misfit") and "intervals" in e
+        assert e["adjusted_p"] < js["level"] and e["kind"] in ("missing", "history", "misfit") and "intervals" in e
+    # Every round of the history and missing kinds reports its learners' out-of-fold skill,
+    # none below the mean's.
+    assert js["nuisance"] and all(r["residual_skill"] >= 0 and r["candidates_min_skill"] >= 0
+                                  for r in js["nuisance"])
+    assert {r["kind"] for r in js["nuisance"]} <= {"history", "missing"}
     assert set(js["baseline"]["metrics"]) == {"rms_g", "peak_error_g", "phase_error_s"}
     report = (tmp_path / "out" / "report.md").read_text()
     assert "figures/residual_map.png" in report and (tmp_path / "out" / "figures" / "residual_map.png").exists()
@@ -363,25 +369,29 @@ def slow_lag_discovery():
                     ExperimentConfig(discovery=discovery_config(seeds=3, offset_step_s=0.25)), log=lambda m: None)
 
 
-def _first_missing(res):
-    return next((e for e in res.effects if e.kind == "missing"), None)
+def _first_response(res):
+    return next((e for e in res.effects if e.kind == "history"), None)
 
 
 @pytest.mark.check
-def test_a_slow_lag_is_named_first_as_a_missing_response_with_its_interval(slow_lag_discovery):
-    first = _first_missing(slow_lag_discovery)
+def test_a_slow_lag_is_named_first_as_a_history_misfit_with_its_interval(slow_lag_discovery):
+    # A lag of the prediction is a response the baseline lacks, a form of its inputs' history,
+    # never a missing input; nothing is named missing on this world.
+    first = _first_response(slow_lag_discovery)
     assert first is not None, [e.name for e in slow_lag_discovery.effects]
-    assert (first.operator, first.kind) == ("lag", "missing"), [e.name for e in slow_lag_discovery.effects]
-    lo, hi = first.intervals["tau_s"]
-    assert lo <= first.parameters["tau_s"] <= hi
+    assert first.operator == "lag", [e.name for e in slow_lag_discovery.effects]
+    assert [e for e in slow_lag_discovery.effects if e.kind == "missing"] == []
+    lo, hi = first.intervals["tau_s"]  # the same fit over a bootstrap of conditions holds it
+    tau = first.parameters["tau_s"]
+    assert lo * (1 - 1e-6) <= tau <= hi * (1 + 1e-6)
 
 
 @pytest.mark.check
-@pytest.mark.xfail(strict=True, reason="#87: the lag candidates' test prefers the longest lags, which also smooth the "
-                                       "nets' own prediction noise; the 4 s lag is named at the grid's 16 s and fitted "
-                                       "near 26 s")
+@pytest.mark.xfail(strict=True, reason="#96 item 4: a named lag's τ is fitted within a factor 2 of the grid point the "
+                                       "test named; the 4 s lag is named as history at the grid's 1 s and its fit stops "
+                                       "at the cell's bound, 2 s")
 def test_a_slow_lags_time_constant_is_within_20_percent(slow_lag_discovery):
-    assert _first_missing(slow_lag_discovery).parameters["tau_s"] == pytest.approx(4.0, rel=0.2)
+    assert _first_response(slow_lag_discovery).parameters["tau_s"] == pytest.approx(4.0, rel=0.2)
 
 
 @pytest.mark.check

@@ -70,21 +70,23 @@ def _interval(draws) -> tuple[float, float]:
 
 
 def _fit(n: Named, ctx: _Ctx, win: _Windows, rows, yhat, resid, table: pd.DataFrame, base, groups) -> Fitted:
-    """A named candidate's parameters on all conditions, then on each bootstrap draw from
-    that fit: a lag's τ (of the prediction `yhat`, all windows), a knee, a band's centre and
+    """A named candidate's parameters on all conditions, then on each bootstrap draw of
+    conditions (the same fit, from where the test named it): a lag's τ (of the prediction `yhat`, all windows), a knee, a band's centre and
     width (of the residual `resid` on `rows`, beside the covariates `base`)."""
     c, seed = n.candidate, ctx.cfg.seed
     meas = win.table.measured_g.to_numpy()
     weights = bootstrap_weights(groups, BOOTSTRAP, seed)
+    # Each bootstrap draw repeats the whole fit, from the same start and within the same
+    # bounds (the estimator's own search space), so the interval is the spread of the estimate.
     if c.operator == "lag":
         tau = fit_lag(yhat, meas, win, rows, c.parameters["tau_s"])
-        draws = [fit_lag(yhat, meas, win, rows, tau, weights=w) for w in weights]
+        draws = [fit_lag(yhat, meas, win, rows, c.parameters["tau_s"], weights=w) for w in weights]
         return Fitted(n, replace(c, parameters={"tau_s": tau}), {"tau_s": _interval(draws)})
     if c.operator not in ("threshold", "resonance"):
         return Fitted(n, c, {})
     fitted = _refine(c, resid[rows], table, yhat[rows], base=base)
     names = ("knee",) if c.operator == "threshold" else ("center", "width")
-    draws = [_refine(fitted, resid[rows], table, yhat[rows], base=base, weights=w).parameters for w in weights]
+    draws = [_refine(c, resid[rows], table, yhat[rows], base=base, weights=w).parameters for w in weights]
     return Fitted(n, fitted, {k: _interval([d[k] for d in draws]) for k in names})
 
 
