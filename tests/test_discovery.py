@@ -388,8 +388,8 @@ def test_a_slow_lag_is_named_first_as_a_history_misfit_with_its_interval(slow_la
 
 @pytest.mark.check
 @pytest.mark.xfail(strict=True, reason="#96 item 4: a named lag's τ is fitted within a factor 2 of the grid point the "
-                                       "test named; the 4 s lag is named as history at the grid's 1 s and its fit stops "
-                                       "at the cell's bound, 2 s")
+                                       "test named; the 4 s lag is named as history at the grid's 1 s and its fit "
+                                       "stops at the cell's bound, 2 s")
 def test_a_slow_lags_time_constant_is_within_20_percent(slow_lag_discovery):
     assert _first_response(slow_lag_discovery).parameters["tau_s"] == pytest.approx(4.0, rel=0.2)
 

@@ -71,8 +71,9 @@ def _interval(draws) -> tuple[float, float]:
 
 def _fit(n: Named, ctx: _Ctx, win: _Windows, rows, yhat, resid, table: pd.DataFrame, base, groups) -> Fitted:
     """A named candidate's parameters on all conditions, then on each bootstrap draw of
-    conditions (the same fit, from where the test named it): a lag's τ (of the prediction `yhat`, all windows), a knee, a band's centre and
-    width (of the residual `resid` on `rows`, beside the covariates `base`)."""
+    conditions (the same fit, from where the test named it): a lag's τ (of the prediction
+    `yhat`, all windows), a knee, a band's centre and width (of the residual `resid` on
+    `rows`, beside the covariates `base`)."""
     c, seed = n.candidate, ctx.cfg.seed
     meas = win.table.measured_g.to_numpy()
     weights = bootstrap_weights(groups, BOOTSTRAP, seed)
