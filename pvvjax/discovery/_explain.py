@@ -39,7 +39,7 @@ from scipy import stats
 from ._citest import UnitTest, capacity_test, default_learner, holm, regression_tests, unit_folds, unit_members
 from ._model import computable
 from ._nuisance import HISTORY, Partialled, composites, input_history, partial_out
-from .candidates import Candidate, library, values
+from .candidates import Candidate, columns_of, library, values
 
 __all__ = ["Explanation", "Named", "carried_by", "explain", "misfits", "of_history", "out_of_fold_linear", "shadow",
            "static_inputs"]
@@ -285,18 +285,6 @@ def out_of_fold_linear(A, target, fit, fold) -> np.ndarray:
 CONFIRM = 4
 
 
-def _sources(c: Candidate) -> list[str]:
-    """The window-table columns a candidate is computed from (none for a lag)."""
-    ch = c.channels
-    if c.operator == "input":
-        return [("abs:" if c.parameters.get("transform") == "abs" else "x:") + ch[0]]
-    if c.operator in ("rate", "abs_rate"):
-        return [f"{c.operator}:{ch[0]}"]
-    if c.operator == "window":
-        return [f"spread:{ch[0]}"]
-    return [f"x:{k}" for k in ch]
-
-
 def shadow(c: Candidate, table: pd.DataFrame, Z, fold, prediction=None) -> np.ndarray | None:
     """(n,) a candidate's shadow in what is held fixed: the candidate computed from its
     channels' columns as Z predicts them out of fold (`partial_out`), through its own operator
@@ -304,7 +292,7 @@ def shadow(c: Candidate, table: pd.DataFrame, Z, fold, prediction=None) -> np.nd
     candidate's own shape: held fixed beside Z, it lets the residual's regression take the part
     of a misfit that the candidate would carry only because its channel follows the inputs.
     None for a candidate without channels (a lag of the prediction)."""
-    cols = _sources(c)
+    cols = columns_of(c)
     if not c.channels or not all(k in table for k in cols):
         return None
     raw = table[cols].to_numpy(float)
@@ -368,7 +356,7 @@ def _kind_rounds(y, Z, pool, X, groups, fold, rounds, level, kind, learner, tabl
         if not confirmed.any():
             break
         best = int(np.argmin(np.where(confirmed, p, np.inf)))
-        decision = min(1.0, p[best] * len(p))
+        decision = min(1.0, p[best] * m)
         if decision >= level:
             break
         # Ties are told apart on one learner's columns (the screen's): two learners' fits of

@@ -36,6 +36,7 @@ __all__ = [
     "Candidate",
     "EXCLUDED_CHANNELS",
     "channels_lacking",
+    "columns_of",
     "describe",
     "from_key",
     "interval_means",
@@ -342,18 +343,26 @@ def _hinge(u, softness):
     return softness * np.logaddexp(0.0, u / softness)
 
 
+def columns_of(c: Candidate) -> list[str]:
+    """The `window_table` columns a candidate is computed from: its channel's mean, magnitude,
+    rate, rate's magnitude or spread, or (a knee, product or band) its channels' means; none
+    for a lag, which the table does not hold."""
+    ch = c.channels
+    if c.operator == "input":
+        return [("abs:" if c.parameters.get("transform") == "abs" else "x:") + ch[0]]
+    if c.operator in ("rate", "abs_rate"):
+        return [f"{c.operator}:{ch[0]}"]
+    if c.operator == "window":
+        return [f"spread:{ch[0]}"]
+    return [f"x:{k}" for k in ch]
+
+
 def values(c: Candidate, table: pd.DataFrame) -> np.ndarray:
     """A candidate's value per window, from a `window_table`."""
     p = c.parameters
     x = lambda k: table[f"x:{k}"].to_numpy()  # noqa: E731
-    if c.operator == "input":
-        return table[("abs:" if p.get("transform") == "abs" else "x:") + c.channels[0]].to_numpy()
-    if c.operator == "rate":
-        return table[f"rate:{c.channels[0]}"].to_numpy()
-    if c.operator == "abs_rate":
-        return table[f"abs_rate:{c.channels[0]}"].to_numpy()
-    if c.operator == "window":
-        return table[f"spread:{c.channels[0]}"].to_numpy()
+    if c.operator in ("input", "rate", "abs_rate", "window"):
+        return table[columns_of(c)[0]].to_numpy()
     if c.operator == "threshold":
         u = x(c.channels[0]) - p["knee"]
         return _hinge(u if p.get("above", True) else -u, p["softness"])
